@@ -1,0 +1,503 @@
+//! The cell file: table, tray, items, sensor, placement, lighting, scenario ranges and the
+//! estimator's settings. The built-in default cell is `default_cell.toml` (the text that
+//! `camplace init` writes, a comment on every key); a user's file is laid over it key by
+//! key, so a file names only what differs, and an unknown key is an error.
+
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+use crate::formats::mesh;
+use crate::{Error, ErrorKind, Placement};
+
+/// The commented default cell file, as `camplace init` writes it.
+pub const DEFAULT_CELL_TOML: &str = include_str!("default_cell.toml");
+
+/// A whole robot cell.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Cell {
+    pub table: Table,
+    pub tray: Tray,
+    pub items: Items,
+    pub sensor: Sensor,
+    pub placement: Placement,
+    pub lighting: Lighting,
+    pub scenarios: Scenarios,
+    pub work_volume: WorkVolume,
+    pub stereo: StereoParams,
+    pub phase: PhaseParams,
+    pub reconstruction: ReconstructionParams,
+    pub estimator: EstimatorParams,
+    pub metrics: Metrics,
+}
+
+/// The table top.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Table {
+    /// Extent along world x and y, mm.
+    pub size: [f64; 2],
+    pub albedo: f64,
+}
+
+/// Built-in tray or a mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum TrayKind {
+    #[serde(rename = "tray-4")]
+    Tray4,
+    #[serde(rename = "tray-8")]
+    Tray8,
+    #[serde(rename = "mesh")]
+    Mesh,
+}
+
+/// The tray to be found.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Tray {
+    pub kind: TrayKind,
+    /// Mesh file when `kind` is `mesh` (resolved against the cell file's folder on load).
+    pub mesh: PathBuf,
+    /// Slot poses `[x, y, z, yaw]` in the tray frame, mm and deg (mesh trays only).
+    pub slots: Vec<[f64; 4]>,
+    /// Rotations about tray z (deg) that map the tray onto itself.
+    pub symmetries: Vec<f64>,
+    pub albedo: f64,
+}
+
+/// Built-in box item or a mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ItemsKind {
+    Box,
+    Mesh,
+}
+
+/// The items placed in the tray's slots.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Items {
+    pub kind: ItemsKind,
+    pub mesh: PathBuf,
+    /// Size of the built-in box `[x, y, z]`, mm.
+    pub size: [f64; 3],
+    pub albedo: f64,
+}
+
+/// The stereo camera pair and the projector.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Sensor {
+    pub camera_resolution: [u32; 2],
+    pub camera_hfov: f64,
+    /// Full camera matrix, empty for one made from `camera_hfov`.
+    pub camera_k: Vec<[f64; 3]>,
+    pub projector_resolution: [u32; 2],
+    pub projector_hfov: f64,
+    pub projector_offset: [f64; 3],
+    pub projector_gain: f64,
+    pub noise_amplitude: u32,
+    pub blur: u32,
+    pub dot_size: u32,
+    pub dot_density: f64,
+    pub fringe_periods: Vec<f64>,
+}
+
+/// Ranges of the light drawn per scenario.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Lighting {
+    pub ambient: [f64; 2],
+    pub lamp_strength: [f64; 2],
+    pub lamp_polar: [f64; 2],
+    pub lamp_distance: f64,
+}
+
+/// Ranges of the scenes drawn per scenario.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenarios {
+    pub seed: u64,
+    pub count: u32,
+    pub tray_x: [f64; 2],
+    pub tray_y: [f64; 2],
+    pub tray_yaw: [f64; 2],
+    pub fill_probability: f64,
+}
+
+/// The box of the world that can hold the tray.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WorkVolume {
+    pub x: [f64; 2],
+    pub y: [f64; 2],
+    pub z: [f64; 2],
+}
+
+/// The one-shot (ELAS-class) matcher's settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StereoParams {
+    pub support_step: u32,
+    pub support_uniqueness: f64,
+    pub min_texture: u32,
+    pub lr_tolerance: f64,
+    pub prior_radius: u32,
+    pub speckle_size: u32,
+    pub speckle_similarity: f64,
+    pub gap_width: u32,
+}
+
+/// The 12-shot phase decoder's settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhaseParams {
+    pub min_modulation: f64,
+    pub lr_tolerance: f64,
+}
+
+/// Cloud and background removal settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReconstructionParams {
+    pub background_margin: f64,
+    pub background_dilation: u32,
+}
+
+/// The pose estimator's settings (Table 1 of the paper and the rest).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EstimatorParams {
+    pub surface_resolution: f64,
+    pub keypoint_spacing: f64,
+    pub feature_radius: f64,
+    pub k: u32,
+    pub height_band: f64,
+    pub ransac_iterations: u32,
+    pub edge_similarity: f64,
+    pub table_height: f64,
+    pub table_tilt: f64,
+    pub inlier_distance: f64,
+    pub icp_iterations: u32,
+    pub icp_max_distance: f64,
+    pub seed: u64,
+}
+
+/// How a pose estimate is judged.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Metrics {
+    pub correct_match: f64,
+    pub success_position: f64,
+    pub success_rotation: f64,
+}
+
+impl Default for Cell {
+    /// The built-in default cell (`default_cell.toml`).
+    fn default() -> Self {
+        Cell::from_toml_str(DEFAULT_CELL_TOML, Path::new(".")).expect("the built-in cell file is valid")
+    }
+}
+
+impl Cell {
+    /// Reads a cell file, laid over the built-in default, and checks every value.
+    pub fn load(path: &Path) -> Result<Cell, Error> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, &e))?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        Cell::from_toml_str(&text, base).map_err(|e| e.in_file(path))
+    }
+
+    /// Parses cell text laid over the default; mesh paths are resolved against `base`.
+    pub fn from_toml_str(text: &str, base: &Path) -> Result<Cell, Error> {
+        let user: toml::Table = text.parse().map_err(|e: toml::de::Error| {
+            let msg = e.message().to_string();
+            Error::new(ErrorKind::Format, "", format!("not a valid TOML cell file: {msg}"))
+        })?;
+        let mut merged: toml::Table = DEFAULT_CELL_TOML.parse().expect("built-in cell parses");
+        merge(&mut merged, user);
+        let mut cell: Cell = serde_path_to_error::deserialize(toml::Value::Table(merged)).map_err(|e| {
+            let key = e.path().to_string();
+            let inner = e.into_inner().to_string();
+            Error::value(key, explain(&inner))
+        })?;
+        for p in [&mut cell.tray.mesh, &mut cell.items.mesh] {
+            if !p.as_os_str().is_empty() && p.is_relative() {
+                *p = base.join(&*p);
+            }
+        }
+        cell.validate()?;
+        Ok(cell)
+    }
+
+    /// The cell as TOML text (no comments; `camplace init` writes the commented file).
+    pub fn to_toml_string(&self) -> String {
+        toml::to_string(self).expect("a cell always serialises")
+    }
+
+    /// Checks every value's range and that meshes load.
+    pub fn validate(&self) -> Result<(), Error> {
+        let t = &self.table;
+        positive("table.size", &t.size)?;
+        unit("table.albedo", t.albedo)?;
+        let tr = &self.tray;
+        unit("tray.albedo", tr.albedo)?;
+        if tr.kind == TrayKind::Mesh {
+            load_mesh_checked("tray.mesh", &tr.mesh)?;
+            if tr.slots.is_empty() {
+                // A mesh tray with no slots is allowed: it is found empty.
+            }
+        }
+        for (i, s) in tr.slots.iter().enumerate() {
+            if s.iter().any(|v| !v.is_finite()) {
+                return Err(Error::value(format!("tray.slots[{i}]"), "expected four finite numbers [x, y, z, yaw]"));
+            }
+        }
+        for (i, s) in tr.symmetries.iter().enumerate() {
+            if !s.is_finite() {
+                return Err(Error::value(format!("tray.symmetries[{i}]"), "expected an angle in degrees"));
+            }
+        }
+        let it = &self.items;
+        unit("items.albedo", it.albedo)?;
+        positive("items.size", &it.size)?;
+        if it.kind == ItemsKind::Mesh {
+            load_mesh_checked("items.mesh", &it.mesh)?;
+        }
+        let s = &self.sensor;
+        if s.camera_resolution.iter().any(|&v| !(16..=8192).contains(&v)) {
+            return Err(Error::value(
+                "sensor.camera_resolution",
+                "expected [width, height] between 16 and 8192 pixels",
+            ));
+        }
+        angle_open("sensor.camera_hfov", s.camera_hfov, 1.0, 170.0)?;
+        if !s.camera_k.is_empty() {
+            let k = &s.camera_k;
+            let ok = k.len() == 3
+                && k[0][0] > 0.0
+                && k[1][1] > 0.0
+                && k[0][1] == 0.0
+                && k[1][0] == 0.0
+                && k[2] == [0.0, 0.0, 1.0];
+            if !ok {
+                return Err(Error::value(
+                    "sensor.camera_k",
+                    "expected [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0, or [] for one from camera_hfov",
+                ));
+            }
+        }
+        if s.projector_resolution.iter().any(|&v| !(16..=8192).contains(&v)) {
+            return Err(Error::value(
+                "sensor.projector_resolution",
+                "expected [width, height] between 16 and 8192 pixels",
+            ));
+        }
+        angle_open("sensor.projector_hfov", s.projector_hfov, 1.0, 170.0)?;
+        nonneg("sensor.projector_gain", s.projector_gain)?;
+        if s.noise_amplitude > 127 {
+            return Err(Error::value("sensor.noise_amplitude", "expected 0 to 127 grey levels"));
+        }
+        if s.blur == 0 || s.blur % 2 == 0 || s.blur > 15 {
+            return Err(Error::value(
+                "sensor.blur",
+                format!("expected an odd filter side from 1 to 15, got {}", s.blur),
+            ));
+        }
+        if s.dot_size == 0 {
+            return Err(Error::value("sensor.dot_size", "expected at least 1 projector pixel"));
+        }
+        unit("sensor.dot_density", s.dot_density)?;
+        if s.fringe_periods.is_empty() || s.fringe_periods.iter().any(|&p| !(p.is_finite() && p >= 1.0)) {
+            return Err(Error::value("sensor.fringe_periods", "expected one or more periods >= 1"));
+        }
+        if s.fringe_periods.windows(2).any(|w| w[1] <= w[0]) {
+            return Err(Error::value("sensor.fringe_periods", "expected periods in increasing order, coarse to fine"));
+        }
+        self.placement.validate("placement")?;
+        let l = &self.lighting;
+        range("lighting.ambient", l.ambient, 0.0, 10.0)?;
+        range("lighting.lamp_strength", l.lamp_strength, 0.0, 10.0)?;
+        range("lighting.lamp_polar", l.lamp_polar, 0.0, 89.9)?;
+        if !(l.lamp_distance.is_finite() && l.lamp_distance > 0.0) {
+            return Err(Error::value("lighting.lamp_distance", "expected a positive distance in mm"));
+        }
+        let sc = &self.scenarios;
+        if sc.count == 0 {
+            return Err(Error::value("scenarios.count", "expected at least 1 scenario"));
+        }
+        range("scenarios.tray_x", sc.tray_x, -1e5, 1e5)?;
+        range("scenarios.tray_y", sc.tray_y, -1e5, 1e5)?;
+        range("scenarios.tray_yaw", sc.tray_yaw, -720.0, 720.0)?;
+        unit("scenarios.fill_probability", sc.fill_probability)?;
+        let w = &self.work_volume;
+        range("work_volume.x", w.x, -1e5, 1e5)?;
+        range("work_volume.y", w.y, -1e5, 1e5)?;
+        range("work_volume.z", w.z, -1e5, 1e5)?;
+        let st = &self.stereo;
+        if st.support_step == 0 {
+            return Err(Error::value("stereo.support_step", "expected at least 1 pixel"));
+        }
+        unit("stereo.support_uniqueness", st.support_uniqueness)?;
+        nonneg("stereo.lr_tolerance", st.lr_tolerance)?;
+        nonneg("stereo.speckle_similarity", st.speckle_similarity)?;
+        nonneg("phase.min_modulation", self.phase.min_modulation)?;
+        nonneg("phase.lr_tolerance", self.phase.lr_tolerance)?;
+        nonneg("reconstruction.background_margin", self.reconstruction.background_margin)?;
+        let e = &self.estimator;
+        pos("estimator.surface_resolution", e.surface_resolution)?;
+        pos("estimator.keypoint_spacing", e.keypoint_spacing)?;
+        pos("estimator.feature_radius", e.feature_radius)?;
+        if e.k == 0 {
+            return Err(Error::value("estimator.k", "expected at least 1 nearest neighbour"));
+        }
+        pos("estimator.height_band", e.height_band)?;
+        if e.ransac_iterations == 0 {
+            return Err(Error::value("estimator.ransac_iterations", "expected at least 1 iteration"));
+        }
+        unit("estimator.edge_similarity", e.edge_similarity)?;
+        pos("estimator.table_height", e.table_height)?;
+        angle_open("estimator.table_tilt", e.table_tilt, 0.0, 90.0)?;
+        pos("estimator.inlier_distance", e.inlier_distance)?;
+        pos("estimator.icp_max_distance", e.icp_max_distance)?;
+        let m = &self.metrics;
+        pos("metrics.correct_match", m.correct_match)?;
+        pos("metrics.success_position", m.success_position)?;
+        pos("metrics.success_rotation", m.success_rotation)?;
+        Ok(())
+    }
+}
+
+/// Lays `user` over `base`, table by table.
+fn merge(base: &mut toml::Table, user: toml::Table) {
+    for (key, value) in user {
+        match (base.get_mut(&key), value) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(u)) => merge(b, u),
+            (_, v) => {
+                base.insert(key, v);
+            }
+        }
+    }
+}
+
+/// Rewords serde's messages into "expected ..." one-liners.
+fn explain(inner: &str) -> String {
+    if let Some(rest) = inner.strip_prefix("unknown field ") {
+        return format!("unknown key {rest}");
+    }
+    inner.to_string()
+}
+
+fn load_mesh_checked(key: &str, path: &Path) -> Result<(), Error> {
+    if path.as_os_str().is_empty() {
+        return Err(Error::value(key, "expected the path of an STL, OBJ or PLY mesh"));
+    }
+    let m = mesh::load(path).map_err(|e| {
+        let file = e.file().map(|f| f.display().to_string()).unwrap_or_else(|| path.display().to_string());
+        Error::value(key, format!("{file}: {}", e.message()))
+    })?;
+    if m.triangles.is_empty() {
+        return Err(Error::value(key, format!("{}: expected a mesh with triangles, found none", path.display())));
+    }
+    Ok(())
+}
+
+fn pos(key: &str, v: f64) -> Result<(), Error> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::value(key, format!("expected a positive number, got {v}")))
+    }
+}
+
+fn nonneg(key: &str, v: f64) -> Result<(), Error> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(Error::value(key, format!("expected a number >= 0, got {v}")))
+    }
+}
+
+fn unit(key: &str, v: f64) -> Result<(), Error> {
+    if v.is_finite() && (0.0..=1.0).contains(&v) {
+        Ok(())
+    } else {
+        Err(Error::value(key, format!("expected a number from 0 to 1, got {v}")))
+    }
+}
+
+fn positive(key: &str, v: &[f64]) -> Result<(), Error> {
+    if v.iter().all(|x| x.is_finite() && *x > 0.0) {
+        Ok(())
+    } else {
+        Err(Error::value(key, format!("expected positive sizes in mm, got {v:?}")))
+    }
+}
+
+fn angle_open(key: &str, v: f64, lo: f64, hi: f64) -> Result<(), Error> {
+    if v.is_finite() && v > lo && v < hi {
+        Ok(())
+    } else {
+        Err(Error::value(key, format!("expected an angle between {lo} and {hi} degrees, got {v}")))
+    }
+}
+
+fn range(key: &str, v: [f64; 2], lo: f64, hi: f64) -> Result<(), Error> {
+    if v.iter().all(|x| x.is_finite() && *x >= lo && *x <= hi) && v[0] <= v[1] {
+        Ok(())
+    } else {
+        Err(Error::value(key, format!("expected [min, max] with min <= max within [{lo}, {hi}], got {v:?}")))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_is_the_papers_table_1() {
+        let c = Cell::default();
+        assert_eq!(c.estimator.surface_resolution, 2.0);
+        assert_eq!(c.estimator.k, 25);
+        assert_eq!(c.estimator.ransac_iterations, 100_000);
+        assert_eq!(c.estimator.icp_iterations, 100);
+    }
+
+    #[test]
+    fn every_key_of_the_template_has_a_comment() {
+        let lines: Vec<&str> = DEFAULT_CELL_TOML.lines().collect();
+        for (i, line) in lines.iter().enumerate() {
+            let t = line.trim();
+            if t.is_empty() || t.starts_with('#') || t.starts_with('[') {
+                continue;
+            }
+            assert!(i > 0 && lines[i - 1].trim_start().starts_with('#'), "key without a comment: {t}");
+        }
+    }
+
+    #[test]
+    fn partial_file_lays_over_default() {
+        let c = Cell::from_toml_str("[placement]\nr = 700\n", Path::new(".")).unwrap();
+        assert_eq!(c.placement.r, 700.0);
+        assert_eq!(c.placement.alpha, Cell::default().placement.alpha);
+    }
+
+    #[test]
+    fn serialised_cell_reads_back() {
+        let c = Cell::default();
+        let back = Cell::from_toml_str(&c.to_toml_string(), Path::new(".")).unwrap();
+        assert_eq!(back, c);
+    }
+
+    #[test]
+    fn unknown_key_is_named() {
+        let e = Cell::from_toml_str("[tray]\ncolour = 3\n", Path::new(".")).unwrap_err();
+        assert_eq!(e.key(), "tray.colour", "{e}");
+        assert!(e.message().contains("unknown key"), "{e}");
+    }
+
+    #[test]
+    fn wrong_type_is_named() {
+        let e = Cell::from_toml_str("[estimator]\nk = \"many\"\n", Path::new(".")).unwrap_err();
+        assert_eq!(e.key(), "estimator.k", "{e}");
+    }
+}

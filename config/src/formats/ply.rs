@@ -1,0 +1,294 @@
+//! PLY point clouds and meshes: `binary_little_endian` written, ascii and binary read.
+//! Points are float x y z in mm, with optional nx ny nz; faces are vertex index lists.
+
+use std::path::Path;
+
+use crate::{Error, ErrorKind};
+
+/// A point cloud, optionally with normals, mm.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Cloud {
+    pub points: Vec<[f32; 3]>,
+    pub normals: Option<Vec<[f32; 3]>>,
+}
+
+/// Vertices and triangles read from a PLY.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PlyData {
+    pub vertices: Vec<[f32; 3]>,
+    pub normals: Option<Vec<[f32; 3]>>,
+    pub faces: Vec<[u32; 3]>,
+}
+
+/// Encodes a binary little-endian PLY of points (and normals when given).
+pub fn encode_cloud(points: &[[f32; 3]], normals: Option<&[[f32; 3]]>) -> Vec<u8> {
+    let mut head = format!(
+        "ply\nformat binary_little_endian 1.0\ncomment camplace, mm\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\n",
+        points.len()
+    );
+    if normals.is_some() {
+        head.push_str("property float nx\nproperty float ny\nproperty float nz\n");
+    }
+    head.push_str("end_header\n");
+    let mut out = head.into_bytes();
+    for (i, p) in points.iter().enumerate() {
+        for v in p {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        if let Some(n) = normals {
+            for v in &n[i] {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+    }
+    out
+}
+
+/// Writes a point cloud.
+pub fn write_cloud(path: &Path, points: &[[f32; 3]], normals: Option<&[[f32; 3]]>) -> Result<(), Error> {
+    if let Some(n) = normals {
+        assert_eq!(n.len(), points.len(), "one normal per point");
+    }
+    super::write_atomic(path, &encode_cloud(points, normals))
+}
+
+/// Reads a point cloud (faces, if any, are ignored).
+pub fn read_cloud(path: &Path) -> Result<Cloud, Error> {
+    let d = read(path)?;
+    Ok(Cloud { points: d.vertices, normals: d.normals })
+}
+
+/// Reads a PLY file.
+pub fn read(path: &Path) -> Result<PlyData, Error> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
+    decode(&bytes).map_err(|e| e.in_file(path))
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Scalar {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    F32,
+    F64,
+}
+
+impl Scalar {
+    fn parse(s: &str) -> Option<Scalar> {
+        Some(match s {
+            "char" | "int8" => Scalar::I8,
+            "uchar" | "uint8" => Scalar::U8,
+            "short" | "int16" => Scalar::I16,
+            "ushort" | "uint16" => Scalar::U16,
+            "int" | "int32" => Scalar::I32,
+            "uint" | "uint32" => Scalar::U32,
+            "float" | "float32" => Scalar::F32,
+            "double" | "float64" => Scalar::F64,
+            _ => return None,
+        })
+    }
+    fn size(self) -> usize {
+        match self {
+            Scalar::I8 | Scalar::U8 => 1,
+            Scalar::I16 | Scalar::U16 => 2,
+            Scalar::I32 | Scalar::U32 | Scalar::F32 => 4,
+            Scalar::F64 => 8,
+        }
+    }
+    fn read(self, b: &[u8], little: bool) -> f64 {
+        macro_rules! num {
+            ($t:ty, $n:expr) => {{
+                let mut a = [0u8; $n];
+                a.copy_from_slice(&b[..$n]);
+                (if little { <$t>::from_le_bytes(a) } else { <$t>::from_be_bytes(a) }) as f64
+            }};
+        }
+        match self {
+            Scalar::I8 => b[0] as i8 as f64,
+            Scalar::U8 => b[0] as f64,
+            Scalar::I16 => num!(i16, 2),
+            Scalar::U16 => num!(u16, 2),
+            Scalar::I32 => num!(i32, 4),
+            Scalar::U32 => num!(u32, 4),
+            Scalar::F32 => num!(f32, 4),
+            Scalar::F64 => num!(f64, 8),
+        }
+    }
+}
+
+enum Property {
+    Scalar(String, Scalar),
+    List(String, Scalar, Scalar),
+}
+
+struct Element {
+    name: String,
+    count: usize,
+    props: Vec<Property>,
+}
+
+#[derive(PartialEq)]
+enum Encoding {
+    Ascii,
+    Little,
+    Big,
+}
+
+/// Decodes PLY bytes.
+pub fn decode(bytes: &[u8]) -> Result<PlyData, Error> {
+    let bad = |field: &str, m: String| Error::new(ErrorKind::Format, field, m);
+    if !bytes.starts_with(b"ply") {
+        return Err(bad("header", "not a PLY file: expected it to start with \"ply\"".into()));
+    }
+    let end = find(bytes, b"end_header").ok_or_else(|| bad("header", "no end_header line".into()))?;
+    let mut body_start = end + b"end_header".len();
+    if bytes.get(body_start) == Some(&b'\r') {
+        body_start += 1;
+    }
+    body_start += 1;
+    let head = String::from_utf8_lossy(&bytes[..end]);
+    let mut enc = None;
+    let mut elements: Vec<Element> = Vec::new();
+    for line in head.lines().skip(1) {
+        let t: Vec<&str> = line.split_whitespace().collect();
+        match t.as_slice() {
+            ["format", f, _] => {
+                enc = Some(match *f {
+                    "ascii" => Encoding::Ascii,
+                    "binary_little_endian" => Encoding::Little,
+                    "binary_big_endian" => Encoding::Big,
+                    _ => return Err(bad("format", format!("unknown PLY format \"{f}\""))),
+                })
+            }
+            ["element", name, count] => elements.push(Element {
+                name: name.to_string(),
+                count: count.parse().map_err(|_| bad("element", format!("bad count \"{count}\"")))?,
+                props: Vec::new(),
+            }),
+            ["property", "list", c, i, name] => {
+                let el = elements.last_mut().ok_or_else(|| bad("property", "property before element".into()))?;
+                let c = Scalar::parse(c).ok_or_else(|| bad("property", format!("unknown type \"{c}\"")))?;
+                let i = Scalar::parse(i).ok_or_else(|| bad("property", format!("unknown type \"{i}\"")))?;
+                el.props.push(Property::List(name.to_string(), c, i));
+            }
+            ["property", ty, name] => {
+                let el = elements.last_mut().ok_or_else(|| bad("property", "property before element".into()))?;
+                let s = Scalar::parse(ty).ok_or_else(|| bad("property", format!("unknown type \"{ty}\"")))?;
+                el.props.push(Property::Scalar(name.to_string(), s));
+            }
+            _ => {}
+        }
+    }
+    let enc = enc.ok_or_else(|| bad("format", "no format line".into()))?;
+    let body = bytes.get(body_start..).unwrap_or(&[]);
+    let mut out = PlyData::default();
+    let mut reader = Reader { body, pos: 0, enc, ascii: None };
+    if reader.enc == Encoding::Ascii {
+        reader.ascii = Some(String::from_utf8_lossy(body).split_whitespace().map(str::to_string).collect::<Vec<_>>());
+    }
+    for el in &elements {
+        let idx = |n: &str| el.props.iter().position(|p| matches!(p, Property::Scalar(name, _) if name == n));
+        let (ix, iy, iz) = (idx("x"), idx("y"), idx("z"));
+        let (inx, iny, inz) = (idx("nx"), idx("ny"), idx("nz"));
+        let has_normals = inx.is_some() && iny.is_some() && inz.is_some();
+        if el.name == "vertex" {
+            if ix.is_none() || iy.is_none() || iz.is_none() {
+                return Err(bad("vertex", "expected float properties x, y and z".into()));
+            }
+            out.vertices.reserve(el.count);
+            if has_normals {
+                out.normals = Some(Vec::with_capacity(el.count));
+            }
+        }
+        let mut vals = vec![0f64; el.props.len()];
+        for _ in 0..el.count {
+            let mut face: Vec<u32> = Vec::new();
+            for (k, p) in el.props.iter().enumerate() {
+                match p {
+                    Property::Scalar(_, s) => {
+                        vals[k] = reader.next(*s).ok_or_else(|| bad(&el.name, "file ends early".into()))?
+                    }
+                    Property::List(name, c, i) => {
+                        let n = reader.next(*c).ok_or_else(|| bad(&el.name, "file ends early".into()))? as usize;
+                        let keep = el.name == "face" && (name == "vertex_indices" || name == "vertex_index");
+                        for _ in 0..n {
+                            let v = reader.next(*i).ok_or_else(|| bad(&el.name, "file ends early".into()))?;
+                            if keep {
+                                face.push(v as u32);
+                            }
+                        }
+                    }
+                }
+            }
+            if el.name == "vertex" {
+                out.vertices.push([vals[ix.unwrap()] as f32, vals[iy.unwrap()] as f32, vals[iz.unwrap()] as f32]);
+                if let Some(n) = out.normals.as_mut() {
+                    n.push([vals[inx.unwrap()] as f32, vals[iny.unwrap()] as f32, vals[inz.unwrap()] as f32]);
+                }
+            } else if el.name == "face" {
+                for j in 1..face.len().saturating_sub(1) {
+                    out.faces.push([face[0], face[j], face[j + 1]]);
+                }
+            }
+        }
+    }
+    let nv = out.vertices.len() as u32;
+    if out.faces.iter().flatten().any(|&i| i >= nv) {
+        return Err(bad("face", format!("a face names a vertex beyond the {nv} vertices")));
+    }
+    Ok(out)
+}
+
+struct Reader<'a> {
+    body: &'a [u8],
+    pos: usize,
+    enc: Encoding,
+    ascii: Option<Vec<String>>,
+}
+
+impl Reader<'_> {
+    fn next(&mut self, s: Scalar) -> Option<f64> {
+        if let Some(tokens) = &self.ascii {
+            let t = tokens.get(self.pos)?;
+            self.pos += 1;
+            return t.parse().ok();
+        }
+        let b = self.body.get(self.pos..self.pos + s.size())?;
+        self.pos += s.size();
+        Some(s.read(b, self.enc == Encoding::Little))
+    }
+}
+
+fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
+    hay.windows(needle.len()).position(|w| w == needle)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn binary_round_trip_with_normals() {
+        let p = vec![[1.0, 2.0, 3.0], [-4.0, 5.5, 0.0]];
+        let n = vec![[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]];
+        let d = decode(&encode_cloud(&p, Some(&n))).unwrap();
+        assert_eq!(d.vertices, p);
+        assert_eq!(d.normals.unwrap(), n);
+    }
+
+    #[test]
+    fn ascii_mesh_with_quads() {
+        let text = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n";
+        let d = decode(text.as_bytes()).unwrap();
+        assert_eq!(d.vertices.len(), 4);
+        assert_eq!(d.faces, vec![[0, 1, 2], [0, 2, 3]]);
+    }
+
+    #[test]
+    fn not_a_ply() {
+        assert_eq!(decode(b"solid x").unwrap_err().key(), "header");
+    }
+}

@@ -1,0 +1,221 @@
+//! The sensor placement x = (r, alpha, baseline, vergence) plus azimuth, as the user
+//! writes it: in the cell file's `[placement]` table or as `r=605,alpha=32,...` on the
+//! command line. The geometry it implies lives with the simulator.
+
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+use std::fmt;
+
+use crate::Error;
+
+/// Toe-in of each camera: a number of degrees, or `"auto"` (axes meet at W's origin).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Vergence {
+    /// Each camera turned inward by this many degrees.
+    Degrees(f64),
+    /// Each camera turned inward so the optical axes meet at the world origin.
+    Auto,
+}
+
+impl Vergence {
+    /// The toe-in in degrees for a rig at distance `r_mm` with `baseline_mm`.
+    pub fn degrees(self, r_mm: f64, baseline_mm: f64) -> f64 {
+        match self {
+            Vergence::Degrees(d) => d,
+            Vergence::Auto => (0.5 * baseline_mm / r_mm).atan().to_degrees(),
+        }
+    }
+}
+
+impl fmt::Display for Vergence {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Vergence::Degrees(d) => write!(f, "{d}"),
+            Vergence::Auto => f.write_str("auto"),
+        }
+    }
+}
+
+impl Serialize for Vergence {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Vergence::Degrees(d) => s.serialize_f64(*d),
+            Vergence::Auto => s.serialize_str("auto"),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Vergence {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Number(f64),
+            Text(String),
+        }
+        match Raw::deserialize(d).map_err(|_| serde::de::Error::custom("expected a number of degrees or \"auto\""))? {
+            Raw::Number(v) => Ok(Vergence::Degrees(v)),
+            Raw::Text(t) if t == "auto" => Ok(Vergence::Auto),
+            Raw::Text(t) => {
+                Err(serde::de::Error::custom(format!("expected a number of degrees or \"auto\", got \"{t}\"")))
+            }
+        }
+    }
+}
+
+/// Where the rig sits: see DESIGN.md §2.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Placement {
+    /// Distance from the world origin to the rig origin, mm.
+    pub r: f64,
+    /// Polar angle of the rig origin from the world z axis, deg.
+    pub alpha: f64,
+    /// Distance between the camera centres, mm.
+    pub baseline: f64,
+    /// Toe-in per camera.
+    pub vergence: Vergence,
+    /// Azimuth of the rig's vertical plane from world x, deg.
+    pub azimuth: f64,
+}
+
+/// The four parameters the study varies, by name.
+pub const PARAMETERS: [&str; 4] = ["r", "alpha", "baseline", "vergence"];
+
+impl Placement {
+    /// Checks ranges; `key` prefixes the key named in an error.
+    pub fn validate(&self, key: &str) -> Result<(), Error> {
+        let k = |name: &str| if key.is_empty() { name.to_string() } else { format!("{key}.{name}") };
+        if !(self.r.is_finite() && self.r > 0.0) {
+            return Err(Error::value(k("r"), format!("expected a positive distance in mm, got {}", self.r)));
+        }
+        if !(self.alpha.is_finite() && (0.0..90.0).contains(&self.alpha)) {
+            return Err(Error::value(
+                k("alpha"),
+                format!("expected a polar angle in [0, 90) degrees, got {}", self.alpha),
+            ));
+        }
+        if !(self.baseline.is_finite() && self.baseline > 0.0) {
+            return Err(Error::value(
+                k("baseline"),
+                format!("expected a positive baseline in mm, got {}", self.baseline),
+            ));
+        }
+        if let Vergence::Degrees(v) = self.vergence {
+            if !(v.is_finite() && (-45.0..45.0).contains(&v)) {
+                return Err(Error::value(
+                    k("vergence"),
+                    format!("expected a toe-in in (-45, 45) degrees or \"auto\", got {v}"),
+                ));
+            }
+        }
+        if !self.azimuth.is_finite() {
+            return Err(Error::value(k("azimuth"), "expected a finite azimuth in degrees"));
+        }
+        Ok(())
+    }
+
+    /// Reads `r=605,alpha=32,baseline=81,vergence=3.5` (any subset, any order) over `self`.
+    pub fn with_overrides(&self, text: &str) -> Result<Placement, Error> {
+        let mut p = *self;
+        for part in text.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            let (name, value) = part
+                .split_once('=')
+                .ok_or_else(|| Error::value("placement", format!("expected name=value, got \"{part}\"")))?;
+            let name = name.trim();
+            let value = value.trim();
+            let number = || {
+                value.parse::<f64>().map_err(|_| {
+                    Error::value(format!("placement.{name}"), format!("expected a number, got \"{value}\""))
+                })
+            };
+            match name {
+                "r" => p.r = number()?,
+                "alpha" => p.alpha = number()?,
+                "baseline" => p.baseline = number()?,
+                "azimuth" => p.azimuth = number()?,
+                "vergence" if value == "auto" => p.vergence = Vergence::Auto,
+                "vergence" => p.vergence = Vergence::Degrees(number()?),
+                _ => {
+                    return Err(Error::value(
+                        format!("placement.{name}"),
+                        "unknown parameter, expected one of r, alpha, baseline, vergence, azimuth",
+                    ))
+                }
+            }
+        }
+        p.validate("placement")?;
+        Ok(p)
+    }
+
+    /// The value of one study parameter by name (vergence resolved to degrees).
+    pub fn get(&self, name: &str) -> Option<f64> {
+        match name {
+            "r" => Some(self.r),
+            "alpha" => Some(self.alpha),
+            "baseline" => Some(self.baseline),
+            "vergence" => Some(self.vergence.degrees(self.r, self.baseline)),
+            "azimuth" => Some(self.azimuth),
+            _ => None,
+        }
+    }
+
+    /// The same placement with one study parameter set by name.
+    pub fn set(&self, name: &str, value: f64) -> Option<Placement> {
+        let mut p = *self;
+        match name {
+            "r" => p.r = value,
+            "alpha" => p.alpha = value,
+            "baseline" => p.baseline = value,
+            "vergence" => p.vergence = Vergence::Degrees(value),
+            "azimuth" => p.azimuth = value,
+            _ => return None,
+        }
+        Some(p)
+    }
+}
+
+impl fmt::Display for Placement {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "r={},alpha={},baseline={},vergence={}", self.r, self.alpha, self.baseline, self.vergence)?;
+        if self.azimuth != 0.0 {
+            write!(f, ",azimuth={}", self.azimuth)?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn base() -> Placement {
+        Placement { r: 605.0, alpha: 32.0, baseline: 120.0, vergence: Vergence::Auto, azimuth: 0.0 }
+    }
+
+    #[test]
+    fn overrides_parse_and_round_trip() {
+        let p = base().with_overrides("r=700, vergence=3.5,baseline=81").unwrap();
+        assert_eq!(p.r, 700.0);
+        assert_eq!(p.baseline, 81.0);
+        assert_eq!(p.vergence, Vergence::Degrees(3.5));
+        assert_eq!(base().with_overrides(&p.to_string()).unwrap(), p);
+    }
+
+    #[test]
+    fn bad_overrides_name_the_key() {
+        let e = base().with_overrides("r=-3").unwrap_err();
+        assert_eq!(e.key(), "placement.r");
+        let e = base().with_overrides("alpha=90").unwrap_err();
+        assert_eq!(e.key(), "placement.alpha");
+        let e = base().with_overrides("height=3").unwrap_err();
+        assert_eq!(e.key(), "placement.height");
+        let e = base().with_overrides("vergence=left").unwrap_err();
+        assert_eq!(e.key(), "placement.vergence");
+    }
+
+    #[test]
+    fn auto_vergence_meets_at_origin() {
+        let v = Vergence::Auto.degrees(600.0, 120.0);
+        assert!((v.to_radians().tan() - 60.0 / 600.0).abs() < 1e-12);
+    }
+}
