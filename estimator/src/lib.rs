@@ -3,9 +3,13 @@
 //! format loads it and hands the estimator plain values.
 
 pub mod camera;
+mod error;
 pub mod image;
+pub mod rectified;
 pub mod rig;
 
 pub use camera::Camera;
+pub use error::{Error, ErrorKind, Result};
 pub use image::{FloatImage, GrayImage, Image};
+pub use rectified::RectifiedCamera;
 pub use rig::Rig;

@@ -2,4 +2,7 @@
 //! camera and projector, scenarios with common random numbers, model building, evaluation,
 //! search and reports. It feeds rendered frames to the same estimator the cell PC runs.
 
+mod error;
 pub mod placement_rig;
+
+pub use error::{Error, Result};

@@ -1,0 +1,43 @@
+//! The simulator's error type: bad cell content found while building a scene, and the
+//! errors of the files it reads and writes.
+
+use std::fmt;
+
+/// A simulator error, one line.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum Error {
+    /// A cell file, mesh or other input file is wrong.
+    Config(camplace_config::Error),
+    /// The estimator refused its inputs.
+    Estimator(camplace_estimator::Error),
+    /// Anything else, said in words.
+    Other(String),
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::Config(e) => e.fmt(f),
+            Error::Estimator(e) => e.fmt(f),
+            Error::Other(s) => f.write_str(s),
+        }
+    }
+}
+
+impl std::error::Error for Error {}
+
+impl From<camplace_config::Error> for Error {
+    fn from(e: camplace_config::Error) -> Self {
+        Error::Config(e)
+    }
+}
+
+impl From<camplace_estimator::Error> for Error {
+    fn from(e: camplace_estimator::Error) -> Self {
+        Error::Estimator(e)
+    }
+}
+
+/// The simulator's result type.
+pub type Result<T> = std::result::Result<T, Error>;
