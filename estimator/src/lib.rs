@@ -3,12 +3,14 @@
 //! format loads it and hands the estimator plain values.
 
 pub mod camera;
+pub mod correspondence;
 mod error;
 pub mod image;
 pub mod rectified;
 pub mod rig;
 
 pub use camera::Camera;
+pub use correspondence::Correspondence;
 pub use error::{Error, ErrorKind, Result};
 pub use image::{FloatImage, GrayImage, Image};
 pub use rectified::RectifiedCamera;
