@@ -7,6 +7,7 @@ mod error;
 pub mod formats;
 pub mod placement;
 pub mod rig;
+pub mod truth;
 
 pub use cell::{
     Cell, EstimatorParams, Items, ItemsKind, Lighting, Metrics, PhaseParams, ReconstructionParams, Scenarios, Sensor,
@@ -15,3 +16,4 @@ pub use cell::{
 pub use error::{Error, ErrorKind};
 pub use placement::{Placement, Vergence};
 pub use rig::{CameraFile, RectifiedFile, RigFile};
+pub use truth::{LightingTruth, TruthFile};

@@ -1,0 +1,34 @@
+//! The subcommands and their flags; one module per subcommand.
+
+mod cell_args;
+mod init;
+mod render;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Where to mount a stereo camera and projector above a robot cell, and the tray-pose
+/// estimator that runs there. Lengths in mm, angles in degrees.
+#[derive(Parser, Debug)]
+#[command(name = "camplace", version, about, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Write the default cell file, with a comment on every key.
+    Init(init::Args),
+    /// Render a simulated scene (or a dataset of scenes) with its ground truth.
+    Render(render::Args),
+}
+
+/// Parses the command line and runs the subcommand.
+pub fn run() -> anyhow::Result<ExitCode> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Init(a) => init::run(a),
+        Command::Render(a) => render::run(a),
+    }
+}

@@ -1,0 +1,72 @@
+//! `camplace render`: one simulated scene with its ground truth, or (`--dataset`) a
+//! recorded-dataset folder of scenarios 0..N-1 that `evaluate` and `replay` read alike.
+
+use anyhow::Context;
+use camplace_sim::frame_files::{self, DatasetLayout};
+use camplace_sim::{draw_scenario, Frame, Method, Simulator};
+use rayon::prelude::*;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use super::cell_args::CellArgs;
+
+/// Flags of `camplace render`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    cell: CellArgs,
+    /// one-shot (random dots) or phase-12 (12 phase-shift fringes).
+    #[arg(long, default_value = "one-shot")]
+    method: Method,
+    /// Study seed (default: the cell's scenarios.seed).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Scenario index within the seed.
+    #[arg(long, default_value_t = 0)]
+    scenario: u64,
+    /// Write a recorded-dataset folder of scenarios 0..count-1 instead of one scene.
+    #[arg(long)]
+    dataset: bool,
+    /// Number of scenarios with --dataset.
+    #[arg(long, default_value_t = 10, requires = "dataset")]
+    count: u64,
+    /// Output folder.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// Runs `camplace render`.
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let (cell, placement) = a.cell.load()?;
+    let seed = a.seed.unwrap_or(cell.scenarios.seed);
+    std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create the folder", a.out.display()))?;
+    let symmetries = camplace_sim::tray_symmetries(&cell)?;
+    let mut sim = Simulator::new(&cell, &placement, seed)?;
+    if !a.dataset {
+        let scenario = draw_scenario(&cell, seed, a.scenario);
+        let mut frame = Frame::default();
+        sim.render(&scenario.scene(), a.method, camplace_sim::noise_key(seed, a.scenario, false), &mut frame);
+        frame_files::write_rig(&a.out.join("rig.json"), sim.rig())?;
+        frame_files::write_frame(&a.out, &frame, &scenario, &placement, a.method, &symmetries)?;
+        println!("rendered scenario {} of seed {seed} at {placement} ({}) into {}", a.scenario, a.method, a.out.display());
+        return Ok(ExitCode::SUCCESS);
+    }
+    let layout = DatasetLayout::new(&a.out);
+    frame_files::write_rig(&layout.rig(), sim.rig())?;
+    let mut frame = Frame::default();
+    let background = camplace_sim::background_scene(&cell, seed);
+    sim.render(&background, a.method, camplace_sim::noise_key(seed, 0, true), &mut frame);
+    frame_files::write_images(&layout.background(), &frame)?;
+    (0..a.count).into_par_iter().try_for_each_init(
+        || (Simulator::new(&cell, &placement, seed), Frame::default()),
+        |(sim, frame), i| -> anyhow::Result<()> {
+            let sim = sim.as_mut().map_err(|e| anyhow::anyhow!("{e}"))?;
+            let scenario = draw_scenario(&cell, seed, i);
+            sim.render(&scenario.scene(), a.method, camplace_sim::noise_key(seed, i, false), frame);
+            frame_files::write_frame(&layout.frame(i), frame, &scenario, &placement, a.method, &symmetries)?;
+            Ok(())
+        },
+    )?;
+    println!("rendered {} scenarios of seed {seed} at {placement} ({}) into {}", a.count, a.method, a.out.display());
+    Ok(ExitCode::SUCCESS)
+}
