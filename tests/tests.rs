@@ -1,1 +1,4 @@
-//! tests
+//! camplace's end-to-end tests: the CLI and the crates together, in one test binary.
+
+mod cli;
+mod cli_errors;
