@@ -3,6 +3,17 @@
 //! search and reports. It feeds rendered frames to the same estimator the cell PC runs.
 
 mod error;
+pub mod noise;
+pub mod pattern;
 pub mod placement_rig;
+pub mod raster;
+pub mod render;
+pub mod scenario;
+pub mod scene;
+pub mod shade;
+pub mod tray;
 
 pub use error::{Error, Result};
+pub use render::{Frame, Method, Simulator};
+pub use scenario::{draw_scenario, Scenario};
+pub use scene::SceneSpec;

@@ -1,0 +1,129 @@
+//! The paper's camera noise: uniform integer noise in [-A, A] per pixel, then a BxB mean
+//! filter, rounding and clamping to 8 bits. The noise of a pixel is a pure function of
+//! (noise key, camera, pixel index), a counter-based hash, so images are the same for any
+//! thread count and any order of work.
+
+use rayon::prelude::*;
+
+/// Rows per chunk of parallel work.
+const CHUNK_ROWS: usize = 16;
+
+/// SplitMix64's finaliser: a bijective mix with good avalanche.
+#[inline]
+fn mix(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// The key of one image: a frame's noise key, the camera (0 left, 1 right) and the shot.
+pub fn image_key(noise_key: u64, camera: u64, shot: u64) -> u64 {
+    mix(mix(mix(noise_key) ^ camera.wrapping_mul(0x9E37_79B9_7F4A_7C15)) ^ shot.wrapping_add(0x632B_E59B_D9B4_E019))
+}
+
+/// The noise of `pixel` in the image of `key`: uniform over the integers -A ..= A.
+#[inline]
+pub fn pixel_noise(key: u64, pixel: u64, amplitude: u32) -> i32 {
+    let h = mix(key ^ pixel.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    let n = 2 * amplitude as u64 + 1;
+    // Multiply-shift maps the top 32 bits onto 0..n with a bias below 2^-32 * n.
+    (((h >> 32) * n) >> 32) as i32 - amplitude as i32
+}
+
+/// Adds the noise of image `key` to `image` (grey levels, row-major, `width` wide).
+pub fn add_noise(image: &mut [f32], width: usize, key: u64, amplitude: u32) {
+    if amplitude == 0 {
+        return;
+    }
+    image.par_chunks_mut(width * CHUNK_ROWS).enumerate().for_each(|(c, chunk)| {
+        let first = c * width * CHUNK_ROWS;
+        for (i, p) in chunk.iter_mut().enumerate() {
+            *p += pixel_noise(key, (first + i) as u64, amplitude) as f32;
+        }
+    });
+}
+
+/// The `blur` x `blur` mean of `image` (edge pixels repeated beyond the border), rounded
+/// and clamped into `out`; `scratch` holds the row sums and is resized as needed.
+pub fn mean_filter_to_u8(image: &[f32], width: usize, blur: usize, scratch: &mut Vec<f32>, out: &mut [u8]) {
+    let height = image.len() / width.max(1);
+    if blur <= 1 {
+        out.par_chunks_mut(width * CHUNK_ROWS).zip(image.par_chunks(width * CHUNK_ROWS)).for_each(|(o, i)| {
+            for (o, &v) in o.iter_mut().zip(i) {
+                *o = v.round().clamp(0.0, 255.0) as u8;
+            }
+        });
+        return;
+    }
+    let r = blur / 2;
+    scratch.clear();
+    scratch.resize(image.len(), 0.0);
+    scratch.par_chunks_mut(width).zip(image.par_chunks(width)).for_each(|(s, row)| {
+        for (x, s) in s.iter_mut().enumerate() {
+            let mut sum = 0.0;
+            for dx in 0..blur {
+                let xx = (x + dx).saturating_sub(r).min(width - 1);
+                sum += row[xx];
+            }
+            *s = sum;
+        }
+    });
+    let sums = &scratch[..];
+    let scale = 1.0 / (blur * blur) as f32;
+    out.par_chunks_mut(width).enumerate().for_each(|(y, o)| {
+        for (x, o) in o.iter_mut().enumerate() {
+            let mut sum = 0.0;
+            for dy in 0..blur {
+                let yy = (y + dy).saturating_sub(r).min(height - 1);
+                sum += sums[yy * width + x];
+            }
+            *o = (sum * scale).round().clamp(0.0, 255.0) as u8;
+        }
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn noise_is_uniform_over_its_integers() {
+        let a = 10;
+        let mut counts = [0u32; 21];
+        let n = 210_000u64;
+        for p in 0..n {
+            let v = pixel_noise(image_key(7, 0, 0), p, a);
+            assert!((-10..=10).contains(&v));
+            counts[(v + 10) as usize] += 1;
+        }
+        // Each bin expects 10000 with a standard deviation of about 98.
+        assert!(counts.iter().all(|&c| c.abs_diff(10_000) < 500), "{counts:?}");
+        let same = (0..1000).filter(|&p| pixel_noise(image_key(7, 0, 0), p, a) == pixel_noise(image_key(7, 1, 0), p, a));
+        assert!(same.count() < 100);
+    }
+
+    #[test]
+    fn mean_filter_matches_the_plain_mean() {
+        let (w, h) = (37, 23);
+        let img: Vec<f32> = (0..w * h).map(|i| (pixel_noise(3, i as u64, 100) + 120) as f32).collect();
+        for blur in [1, 3, 5] {
+            let mut out = vec![0u8; w * h];
+            let mut scratch = Vec::new();
+            mean_filter_to_u8(&img, w, blur, &mut scratch, &mut out);
+            let r = blur as i64 / 2;
+            for y in 0..h as i64 {
+                for x in 0..w as i64 {
+                    let mut sum = 0.0f64;
+                    for dy in -r..=r {
+                        for dx in -r..=r {
+                            let (xx, yy) = ((x + dx).clamp(0, w as i64 - 1), (y + dy).clamp(0, h as i64 - 1));
+                            sum += img[(yy * w as i64 + xx) as usize] as f64;
+                        }
+                    }
+                    let want = (sum / (blur * blur) as f64).round().clamp(0.0, 255.0) as u8;
+                    assert_eq!(out[(y * w as i64 + x) as usize], want, "blur {blur} at ({x}, {y})");
+                }
+            }
+        }
+    }
+}

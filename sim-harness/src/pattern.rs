@@ -1,0 +1,165 @@
+//! The projector's images: the seeded random-dot pattern of the one-shot method and the
+//! 12-shot phase-shift fringes, as the 8-bit images a real projector would show, and
+//! their sampling at sub-pixel projector coordinates.
+
+use camplace_config::Sensor;
+use camplace_estimator::GrayImage;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::f64::consts::PI;
+
+/// Phase steps per fringe frequency.
+pub const PHASE_STEPS: usize = 4;
+
+/// A random-dot pattern: square dots of `dot_size` pixels on a grid, each lit with
+/// probability `density`, drawn from `seed`.
+pub fn random_dots(width: usize, height: usize, dot_size: usize, density: f64, seed: u64) -> GrayImage {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let s = dot_size.max(1);
+    let (cols, rows) = (width.div_ceil(s), height.div_ceil(s));
+    let lit: Vec<bool> = (0..cols * rows).map(|_| rng.random::<f64>() < density).collect();
+    let mut img = GrayImage::new(width, height, 0);
+    for y in 0..height {
+        for (x, p) in img.row_mut(y).iter_mut().enumerate() {
+            *p = if lit[(y / s) * cols + x / s] { 255 } else { 0 };
+        }
+    }
+    img
+}
+
+/// Fringe image of `periods` periods across the width at phase step `step`:
+/// I = 0.5 + 0.5 cos(phi - step pi/2) with phi = 2 pi periods x / width, x the column.
+pub fn fringe(width: usize, height: usize, periods: f64, step: usize) -> GrayImage {
+    let row: Vec<u8> = (0..width)
+        .map(|x| {
+            let phi = 2.0 * PI * periods * x as f64 / width as f64;
+            (255.0 * (0.5 + 0.5 * (phi - step as f64 * PI / 2.0).cos())).round() as u8
+        })
+        .collect();
+    let mut img = GrayImage::new(width, height, 0);
+    for y in 0..height {
+        img.row_mut(y).copy_from_slice(&row);
+    }
+    img
+}
+
+/// The one-shot pattern of a sensor at its projector resolution.
+pub fn one_shot(sensor: &Sensor, seed: u64) -> GrayImage {
+    let [w, h] = sensor.projector_resolution;
+    random_dots(w as usize, h as usize, sensor.dot_size as usize, sensor.dot_density, seed)
+}
+
+/// The 12-shot set (3 frequencies by default), frequency-major: image 4 fi + k shows
+/// period count `fringe_periods[fi]` at phase step k.
+pub fn fringe_set(sensor: &Sensor) -> Vec<GrayImage> {
+    let [w, h] = sensor.projector_resolution;
+    let mut set = Vec::with_capacity(sensor.fringe_periods.len() * PHASE_STEPS);
+    for &f in &sensor.fringe_periods {
+        for k in 0..PHASE_STEPS {
+            set.push(fringe(w as usize, h as usize, f, k));
+        }
+    }
+    set
+}
+
+/// A projector image prepared for sampling: brightness 0..1, bilinear between pixel
+/// centres, black outside. An image whose rows are all alike (the fringes) is kept as one
+/// row, which is much cheaper to sample.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProjectorImage {
+    width: usize,
+    height: usize,
+    /// The whole image, or its one row.
+    values: Vec<f32>,
+    one_row: bool,
+}
+
+impl ProjectorImage {
+    /// Prepares `image` for sampling.
+    pub fn new(image: &GrayImage) -> ProjectorImage {
+        let (w, h) = (image.width, image.height);
+        let one_row = h > 0 && (1..h).all(|y| image.row(y) == image.row(0));
+        let src = if one_row { &image.data[..w] } else { &image.data[..] };
+        ProjectorImage { width: w, height: h, values: src.iter().map(|&v| v as f32 / 255.0).collect(), one_row }
+    }
+
+    /// Brightness at projector pixel coordinates (u, v), pixel centres at integers.
+    #[inline]
+    pub fn sample(&self, u: f32, v: f32) -> f32 {
+        let (w, h) = (self.width as f32, self.height as f32);
+        if !(u >= -0.5 && v >= -0.5 && u < w - 0.5 && v < h - 0.5) {
+            return 0.0;
+        }
+        let uc = u.clamp(0.0, w - 1.0);
+        let x0 = (uc as usize).min(self.width.saturating_sub(2));
+        let fx = uc - x0 as f32;
+        let x1 = (x0 + 1).min(self.width - 1);
+        if self.one_row {
+            return self.values[x0] + fx * (self.values[x1] - self.values[x0]);
+        }
+        let vc = v.clamp(0.0, h - 1.0);
+        let y0 = (vc as usize).min(self.height.saturating_sub(2));
+        let fy = vc - y0 as f32;
+        let y1 = (y0 + 1).min(self.height - 1);
+        let (r0, r1) = (y0 * self.width, y1 * self.width);
+        let top = self.values[r0 + x0] + fx * (self.values[r0 + x1] - self.values[r0 + x0]);
+        let bottom = self.values[r1 + x0] + fx * (self.values[r1 + x1] - self.values[r1 + x0]);
+        top + fy * (bottom - top)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use camplace_config::Cell;
+
+    #[test]
+    fn dots_follow_their_seed_and_density() {
+        let a = random_dots(320, 200, 4, 0.5, 1);
+        assert_eq!(a, random_dots(320, 200, 4, 0.5, 1));
+        let b = random_dots(320, 200, 4, 0.5, 2);
+        let differ = a.data.iter().zip(&b.data).filter(|(x, y)| x != y).count();
+        assert!(differ > a.data.len() / 3, "{differ}");
+        let lit = a.data.iter().filter(|&&v| v == 255).count() as f64 / a.data.len() as f64;
+        assert!((lit - 0.5).abs() < 0.03, "{lit}");
+        // Dots are whole cells.
+        assert!((0..200).step_by(4).all(|y| a.row(y) == a.row(y + 3)));
+    }
+
+    #[test]
+    fn fringes_are_frequency_major_cosines() {
+        let cell = Cell::default();
+        let set = fringe_set(&cell.sensor);
+        assert_eq!(set.len(), 12);
+        let w = cell.sensor.projector_resolution[0] as f64;
+        for (fi, &f) in cell.sensor.fringe_periods.iter().enumerate() {
+            for k in 0..4 {
+                let img = &set[4 * fi + k];
+                for x in [0usize, 17, 333, 1000] {
+                    let want = 255.0 * (0.5 + 0.5 * (2.0 * PI * f * x as f64 / w - k as f64 * PI / 2.0).cos());
+                    assert!((img.get(x, 0) as f64 - want).abs() <= 0.5 && img.get(x, 0) == img.get(x, 799));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn sampling_is_bilinear_and_black_outside() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for img in [random_dots(50, 30, 1, 0.5, 9), fringe(50, 30, 3.0, 1)] {
+            let p = ProjectorImage::new(&img);
+            for _ in 0..500 {
+                let u: f32 = rng.random_range(0.0..49.0);
+                let v: f32 = rng.random_range(0.0..29.0);
+                let (x0, y0) = (u.floor() as usize, v.floor() as usize);
+                let (fx, fy) = (u - x0 as f32, v - y0 as f32);
+                let g = |x: usize, y: usize| img.get(x.min(49), y.min(29)) as f32 / 255.0;
+                let want = (1.0 - fy) * ((1.0 - fx) * g(x0, y0) + fx * g(x0 + 1, y0))
+                    + fy * ((1.0 - fx) * g(x0, y0 + 1) + fx * g(x0 + 1, y0 + 1));
+                assert!((p.sample(u, v) - want).abs() < 1e-5);
+            }
+            assert_eq!(p.sample(-0.6, 3.0), 0.0);
+            assert_eq!(p.sample(3.0, 29.6), 0.0);
+        }
+    }
+}

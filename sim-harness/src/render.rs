@@ -1,0 +1,488 @@
+//! The simulated sensor: a stereo camera and a projector at one placement, rendering a
+//! scene into the frames the estimator reads (one image per camera for the one-shot
+//! method, twelve for the phase-shift method) with ground-truth depth and object ids.
+//!
+//! Per frame the geometry (scene triangles, the projector's and the lamp's shadow maps,
+//! each camera's G-buffer and pattern-independent shading terms) is computed once; each
+//! shot then costs one pass of pattern sampling and the noise. Every buffer is allocated
+//! in `Simulator::new` or on the first frame, and reused after.
+
+use std::fmt;
+use std::str::FromStr;
+
+use camplace_config::{Cell, Placement};
+use camplace_estimator::{Camera, FloatImage, GrayImage, Rig};
+use nalgebra::Point3;
+
+use crate::noise::{add_noise, image_key, mean_filter_to_u8};
+use crate::pattern::{fringe_set, one_shot, ProjectorImage};
+use crate::placement_rig::{look_at, rig_for};
+use crate::raster::{View, ZBuffer};
+use crate::scene::{Objects, SceneSpec, SceneTriangle, ID_TABLE};
+use crate::shade::{Lights, ShadingTerms};
+use crate::{Error, Result};
+
+/// Side of the lamp's square shadow map, pixels (about 0.5 mm per pixel on a tray seen
+/// from the default 1.5 m).
+pub const LAMP_MAP_SIZE: usize = 512;
+
+/// How the sensor captures a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// One random-dot image per camera, matched by the ELAS-class stereo matcher.
+    OneShot,
+    /// Twelve phase-shift fringe images per camera (3 frequencies x 4 steps by default).
+    Phase12,
+}
+
+impl fmt::Display for Method {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Method::OneShot => "one-shot",
+            Method::Phase12 => "phase-12",
+        })
+    }
+}
+
+impl FromStr for Method {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Method> {
+        match s {
+            "one-shot" => Ok(Method::OneShot),
+            "phase-12" => Ok(Method::Phase12),
+            _ => Err(Error::Other(format!("unknown method \"{s}\", expected \"one-shot\" or \"phase-12\""))),
+        }
+    }
+}
+
+/// One captured frame: the shots of both cameras and their ground truth.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Frame {
+    /// Left camera images, one per shot.
+    pub left: Vec<GrayImage>,
+    /// Right camera images, one per shot.
+    pub right: Vec<GrayImage>,
+    /// Ground-truth depth along the left camera's z axis, mm; +inf where nothing is seen.
+    pub depth_left: FloatImage,
+    /// Ground-truth depth along the right camera's z axis, mm; +inf where nothing is seen.
+    pub depth_right: FloatImage,
+    /// Object ids seen by the left camera (0 table or nothing, 1 tray, 2 + n item n).
+    pub ids_left: GrayImage,
+    /// Object ids seen by the right camera.
+    pub ids_right: GrayImage,
+}
+
+/// The simulated stereo camera and projector of one placement, with all its buffers.
+#[derive(Debug, Clone)]
+pub struct Simulator {
+    rig: Rig,
+    objects: Objects,
+    cameras: [View; 2],
+    projector: View,
+    projector_gain: f64,
+    noise_amplitude: u32,
+    blur: usize,
+    one_shot_images: Vec<GrayImage>,
+    fringe_images: Vec<GrayImage>,
+    one_shot: Vec<ProjectorImage>,
+    fringes: Vec<ProjectorImage>,
+    triangles: Vec<SceneTriangle>,
+    zbuffers: [ZBuffer; 2],
+    terms: [ShadingTerms; 2],
+    projector_map: ZBuffer,
+    lamp_map: ZBuffer,
+    clean: Vec<f32>,
+    scratch: Vec<f32>,
+}
+
+impl Simulator {
+    /// The sensor of `cell` at `placement`, its one-shot dots drawn from `pattern_seed`.
+    pub fn new(cell: &Cell, placement: &Placement, pattern_seed: u64) -> Result<Simulator> {
+        let sensor = &cell.sensor;
+        let rig = rig_for(placement, sensor);
+        let cameras = [View::new(&rig.left)?, View::new(&rig.right)?];
+        let projector_camera =
+            rig.projector.as_ref().ok_or_else(|| Error::Other("the sensor has no projector".to_string()))?;
+        let projector = View::new(projector_camera)?;
+        let one_shot_images = vec![one_shot(sensor, pattern_seed)];
+        let fringe_images = fringe_set(sensor);
+        let (w, h) = (cameras[0].width, cameras[0].height);
+        Ok(Simulator {
+            objects: Objects::from_cell(cell)?,
+            one_shot: one_shot_images.iter().map(ProjectorImage::new).collect(),
+            fringes: fringe_images.iter().map(ProjectorImage::new).collect(),
+            one_shot_images,
+            fringe_images,
+            zbuffers: [ZBuffer::new(w, h), ZBuffer::new(w, h)],
+            terms: [ShadingTerms::new(w, h), ShadingTerms::new(w, h)],
+            projector_map: ZBuffer::new(projector.width, projector.height),
+            lamp_map: ZBuffer::new(LAMP_MAP_SIZE, LAMP_MAP_SIZE),
+            clean: vec![0.0; w * h],
+            scratch: vec![0.0; w * h],
+            triangles: Vec::new(),
+            projector_gain: sensor.projector_gain,
+            noise_amplitude: sensor.noise_amplitude,
+            blur: sensor.blur as usize,
+            cameras,
+            projector,
+            rig,
+        })
+    }
+
+    /// The calibrated rig (cameras and projector) this sensor renders with.
+    pub fn rig(&self) -> &Rig {
+        &self.rig
+    }
+
+    /// The table, tray and item it places in scenes.
+    pub fn objects(&self) -> &Objects {
+        &self.objects
+    }
+
+    /// The projector images of a method, in shot order.
+    pub fn patterns(&self, method: Method) -> &[GrayImage] {
+        match method {
+            Method::OneShot => &self.one_shot_images,
+            Method::Phase12 => &self.fringe_images,
+        }
+    }
+
+    /// Renders `scene` into `frame` (reusing its buffers) with the camera noise of
+    /// `noise_key`: the same key gives the same images, on any number of threads.
+    pub fn render(&mut self, scene: &SceneSpec, method: Method, noise_key: u64, frame: &mut Frame) {
+        self.render_with(scene, method, Some(noise_key), frame);
+    }
+
+    /// Renders `scene` without noise and without the mean filter: the clean images.
+    pub fn render_clean(&mut self, scene: &SceneSpec, method: Method, frame: &mut Frame) {
+        self.render_with(scene, method, None, frame);
+    }
+
+    fn render_with(&mut self, scene: &SceneSpec, method: Method, noise_key: Option<u64>, frame: &mut Frame) {
+        self.geometry(scene, frame);
+        let patterns = match method {
+            Method::OneShot => &self.one_shot,
+            Method::Phase12 => &self.fringes,
+        };
+        let (w, h) = (self.cameras[0].width, self.cameras[0].height);
+        for (cam, images) in [&mut frame.left, &mut frame.right].into_iter().enumerate() {
+            images.truncate(patterns.len());
+            images.resize_with(patterns.len(), GrayImage::default);
+            for (shot, (pattern, image)) in patterns.iter().zip(images.iter_mut()).enumerate() {
+                if !(image.width == w && image.height == h && image.data.len() == w * h) {
+                    image.reset(w, h, 0);
+                }
+                self.terms[cam].shade(pattern, &mut self.clean);
+                match noise_key {
+                    Some(key) => {
+                        let key = image_key(key, cam as u64, shot as u64);
+                        add_noise(&mut self.clean, w, key, self.noise_amplitude);
+                        mean_filter_to_u8(&self.clean, w, self.blur, &mut self.scratch, &mut image.data);
+                    }
+                    None => mean_filter_to_u8(&self.clean, w, 1, &mut self.scratch, &mut image.data),
+                }
+            }
+        }
+    }
+
+    /// Everything that depends only on the poses: triangles, shadow maps, G-buffers,
+    /// shading terms, ground-truth depth and ids.
+    fn geometry(&mut self, scene: &SceneSpec, frame: &mut Frame) {
+        let Simulator { objects, triangles, projector, projector_map, lamp_map, cameras, zbuffers, terms, .. } = self;
+        objects.triangles(scene, triangles);
+        projector_map.rasterize(projector, triangles, true);
+        let lamp_view = lamp_view(scene, triangles);
+        if let Some(view) = &lamp_view {
+            lamp_map.rasterize(view, triangles, true);
+        }
+        let lights = Lights {
+            ambient: scene.ambient,
+            lamp_strength: scene.lamp_strength,
+            lamp_position: scene.lamp_position,
+            lamp_shadow: lamp_view.as_ref().map(|v| (v, &*lamp_map)),
+            projector,
+            projector_shadow: projector_map,
+            projector_gain: self.projector_gain,
+        };
+        let outputs = [(&mut frame.depth_left, &mut frame.ids_left), (&mut frame.depth_right, &mut frame.ids_right)];
+        for (c, (depth, ids)) in outputs.into_iter().enumerate() {
+            zbuffers[c].rasterize(&cameras[c], triangles, false);
+            terms[c].compute(&cameras[c], &zbuffers[c], triangles, &lights, depth, ids);
+        }
+    }
+}
+
+/// The lamp's view for its shadow map: from the lamp towards the bounding sphere of what
+/// can cast a shadow (all but the table), just wide enough to hold it. `None` when the
+/// lamp is off, nothing can cast a shadow, or the lamp hangs inside that sphere.
+fn lamp_view(scene: &SceneSpec, triangles: &[SceneTriangle]) -> Option<View> {
+    if !(scene.lamp_strength > 0.0) {
+        return None;
+    }
+    let mut points = triangles.iter().filter(|t| t.id != ID_TABLE).flat_map(|t| t.vertices);
+    let first = points.next()?;
+    let (lo, hi) = points.fold((first, first), |(lo, hi), p| (lo.inf(&p), hi.sup(&p)));
+    let centre = Point3::from((lo.coords + hi.coords) / 2.0);
+    let radius = (hi - lo).norm() / 2.0;
+    let distance = (scene.lamp_position - centre).norm();
+    if !(distance > 1.05 * radius) {
+        return None;
+    }
+    let half_angle = (radius / distance).asin() * 1.02;
+    let focal = (LAMP_MAP_SIZE as f64 / 2.0) / half_angle.tan();
+    let pose = look_at(scene.lamp_position, centre, 0.0);
+    View::new(&Camera::ideal(LAMP_MAP_SIZE, LAMP_MAP_SIZE, focal, pose)).ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::draw_scenario;
+    use crate::scene::{ID_FIRST_ITEM, ID_TRAY};
+    use camplace_config::Vergence;
+    use nalgebra::Point2;
+
+    fn placements() -> [Placement; 3] {
+        let p = Cell::default().placement;
+        [
+            Placement { vergence: Vergence::Degrees(0.0), ..p },
+            Placement { vergence: Vergence::Degrees(3.5), baseline: 81.0, ..p },
+            Placement { vergence: Vergence::Auto, alpha: 15.0, r: 700.0, ..p },
+        ]
+    }
+
+    #[test]
+    fn depth_is_true_on_table_and_rim() {
+        let cell = Cell::default();
+        for (k, placement) in placements().into_iter().enumerate() {
+            let mut sim = Simulator::new(&cell, &placement, 1).unwrap();
+            let scenario = draw_scenario(&cell, 11, k as u64);
+            let mut frame = Frame::default();
+            sim.render(&scenario.scene(), Method::OneShot, 5, &mut frame);
+            let tray_world = scenario.t_world_tray.inverse();
+            for (cam, depth, ids) in [
+                (&sim.rig().left, &frame.depth_left, &frame.ids_left),
+                (&sim.rig().right, &frame.depth_right, &frame.ids_right),
+            ] {
+                let (mut table, mut rim) = (0, 0);
+                for y in 0..depth.height {
+                    for x in 0..depth.width {
+                        let d = depth.get(x, y) as f64;
+                        if !d.is_finite() {
+                            continue;
+                        }
+                        let p = cam.back_project(x as f64, y as f64, d);
+                        match ids.get(x, y) {
+                            ID_TABLE => {
+                                assert!(p.z.abs() < 0.1, "table pixel ({x}, {y}) at z = {}", p.z);
+                                table += 1;
+                            }
+                            ID_TRAY => {
+                                let q = tray_world * p;
+                                if sim.objects().tray.on_rim_top(q.x, q.y, 0.5) {
+                                    assert!((q.z - sim.objects().tray.rim_height).abs() < 0.1, "rim at {q}");
+                                    rim += 1;
+                                }
+                            }
+                            _ => {}
+                        }
+                    }
+                }
+                assert!(table > 100_000 && rim > 500, "{placement}: {table} table and {rim} rim pixels");
+            }
+        }
+    }
+
+    /// Convex hull of points, counter-clockwise in image coordinates' maths orientation.
+    fn hull(mut p: Vec<Point2<f64>>) -> Vec<Point2<f64>> {
+        p.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+        let cross = |o: &Point2<f64>, a: &Point2<f64>, b: &Point2<f64>| {
+            (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x)
+        };
+        let mut h: Vec<Point2<f64>> = Vec::new();
+        for pass in 0..2 {
+            let start = h.len();
+            let iter: Box<dyn Iterator<Item = &Point2<f64>>> =
+                if pass == 0 { Box::new(p.iter()) } else { Box::new(p.iter().rev()) };
+            for q in iter {
+                while h.len() >= start + 2 && cross(&h[h.len() - 2], &h[h.len() - 1], q) <= 0.0 {
+                    h.pop();
+                }
+                h.push(*q);
+            }
+            h.pop();
+        }
+        h
+    }
+
+    /// Smallest signed distance of `q` to the hull's edge lines, positive inside.
+    fn inside_by(h: &[Point2<f64>], q: &Point2<f64>) -> f64 {
+        (0..h.len())
+            .map(|i| {
+                let (a, b) = (h[i], h[(i + 1) % h.len()]);
+                let e = b - a;
+                (e.x * (q.y - a.y) - e.y * (q.x - a.x)) / e.norm()
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    #[test]
+    fn tray_outline_lands_where_the_rig_projects_it() {
+        let cell = Cell::default();
+        for placement in placements() {
+            let mut sim = Simulator::new(&cell, &placement, 1).unwrap();
+            let mut scene = draw_scenario(&cell, 4, 1).scene();
+            scene.filled.clear();
+            let mut frame = Frame::default();
+            sim.render_clean(&scene, Method::OneShot, &mut frame);
+            let tray = &sim.objects().tray;
+            let corners = |x: [f64; 2], y: [f64; 2], z: [f64; 2]| {
+                let mut out = Vec::new();
+                for (a, b, c) in itertools_product(x, y, z) {
+                    let p = scene.t_world_tray * Point3::new(a, b, c);
+                    out.push(sim.rig().left.project(&p).unwrap());
+                }
+                hull(out)
+            };
+            let [hx, hy] = tray.outer.map(|v| v / 2.0);
+            let body = corners([-hx, hx], [-hy, hy], [0.0, tray.rim_height]);
+            let [tx, ty, tz] = crate::tray::TAB_SIZE;
+            let tab = corners([hx, hx + tx], [-ty / 2.0, ty / 2.0], [0.0, tz]);
+            let (mut inside, mut outside) = (0, 0);
+            let ids = &frame.ids_left;
+            for y in 0..ids.height {
+                for x in 0..ids.width {
+                    let q = Point2::new(x as f64, y as f64);
+                    let d = inside_by(&body, &q);
+                    if d > 0.5 {
+                        assert_eq!(ids.get(x, y), ID_TRAY, "({x}, {y}) is {d} px inside the outline");
+                        inside += 1;
+                    } else if d < -0.5 && inside_by(&tab, &q) < -0.5 {
+                        assert_eq!(ids.get(x, y), ID_TABLE, "({x}, {y}) is {} px outside the outline", -d);
+                        outside += 1;
+                    }
+                }
+            }
+            assert!(inside > 5_000 && outside > 100_000, "{inside} {outside}");
+        }
+    }
+
+    fn itertools_product(x: [f64; 2], y: [f64; 2], z: [f64; 2]) -> impl Iterator<Item = (f64, f64, f64)> {
+        x.into_iter().flat_map(move |a| y.into_iter().flat_map(move |b| z.into_iter().map(move |c| (a, b, c))))
+    }
+
+    #[test]
+    fn images_do_not_depend_on_the_thread_count() {
+        let cell = Cell::default();
+        let scene = draw_scenario(&cell, 1, 3).scene();
+        let run = |threads: usize, pattern_seed: u64, noise_key: u64, method: Method| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let mut sim = Simulator::new(&cell, &cell.placement, pattern_seed).unwrap();
+            let mut frame = Frame::default();
+            pool.install(|| sim.render(&scene, method, noise_key, &mut frame));
+            frame
+        };
+        for method in [Method::OneShot, Method::Phase12] {
+            let a = run(1, 1, 9, method);
+            let b = run(2, 1, 9, method);
+            assert_eq!(a.left.len(), if method == Method::OneShot { 1 } else { 12 });
+            assert!(a == b, "{method}: one and two threads differ");
+        }
+        let differ = |a: &GrayImage, b: &GrayImage| a.data.iter().zip(&b.data).filter(|(p, q)| p != q).count();
+        let a = run(2, 1, 9, Method::OneShot);
+        let other_noise = run(2, 1, 10, Method::OneShot);
+        assert!(differ(&a.left[0], &other_noise.left[0]) > a.left[0].data.len() / 2);
+        assert!(differ(&a.right[0], &other_noise.right[0]) > a.right[0].data.len() / 2);
+        // Another pattern seed moves the dots even without noise.
+        let mut sim1 = Simulator::new(&cell, &cell.placement, 1).unwrap();
+        let mut sim2 = Simulator::new(&cell, &cell.placement, 2).unwrap();
+        let (mut f1, mut f2) = (Frame::default(), Frame::default());
+        sim1.render_clean(&scene, Method::OneShot, &mut f1);
+        sim2.render_clean(&scene, Method::OneShot, &mut f2);
+        assert!(differ(&f1.left[0], &f2.left[0]) > f1.left[0].data.len() / 4);
+        assert_eq!(f1.depth_left, f2.depth_left);
+    }
+
+    #[test]
+    fn noise_variance_matches_the_theory() {
+        let mut cell = Cell::default();
+        cell.sensor.projector_gain = 0.0;
+        let mut sim = Simulator::new(&cell, &cell.placement, 1).unwrap();
+        let mut scene = draw_scenario(&cell, 1, 0).scene().background();
+        scene.ambient = 0.8;
+        scene.lamp_strength = 0.0;
+        let (mut noisy, mut clean) = (Frame::default(), Frame::default());
+        sim.render(&scene, Method::OneShot, 77, &mut noisy);
+        sim.render_clean(&scene, Method::OneShot, &mut clean);
+        let (w, h) = (noisy.left[0].width, noisy.left[0].height);
+        let (mut n, mut sum, mut sum2) = (0.0, 0.0, 0.0);
+        for img in 0..2 {
+            let (a, b) = if img == 0 { (&noisy.left[0], &clean.left[0]) } else { (&noisy.right[0], &clean.right[0]) };
+            for y in 1..h - 1 {
+                for x in 1..w - 1 {
+                    assert_eq!(b.get(x, y), b.get(1, 1), "the clean image is flat");
+                    let d = a.get(x, y) as f64 - b.get(x, y) as f64;
+                    n += 1.0;
+                    sum += d;
+                    sum2 += d * d;
+                }
+            }
+        }
+        let mean = sum / n;
+        let var = sum2 / n - mean * mean;
+        let a = cell.sensor.noise_amplitude as f64;
+        let b = cell.sensor.blur as f64;
+        let want = ((2.0 * a + 1.0).powi(2) - 1.0) / 12.0 / (b * b) + 1.0 / 12.0;
+        assert!((var / want - 1.0).abs() < 0.04, "variance {var}, theory {want}");
+        assert!(mean.abs() < 0.5, "mean {mean}");
+    }
+
+    #[test]
+    fn tray_is_bright_items_dark_and_items_cast_projector_shadows() {
+        let cell = Cell::default();
+        let mut sim = Simulator::new(&cell, &cell.placement, 1).unwrap();
+        let mut full = draw_scenario(&cell, 1, 6).scene();
+        full.filled = (0..8).collect();
+        let mut frame = Frame::default();
+        sim.render(&full, Method::OneShot, 1, &mut frame);
+        let (mut tray, mut items) = ((0.0, 0.0), (0.0, 0.0));
+        for (&g, &id) in frame.left[0].data.iter().zip(&frame.ids_left.data) {
+            let acc = match id {
+                ID_TRAY => &mut tray,
+                id if id >= ID_FIRST_ITEM => &mut items,
+                _ => continue,
+            };
+            acc.0 += g as f64;
+            acc.1 += 1.0;
+        }
+        let (tray, items) = (tray.0 / tray.1, items.0 / items.1);
+        assert!(tray > 3.0 * items && tray > 60.0, "tray {tray}, items {items}");
+        let shadowed = |sim: &Simulator, ids: &GrayImage| -> Vec<bool> {
+            (0..ids.data.len()).map(|i| ids.data[i] == ID_TRAY && !sim.terms[0].projector_lit(i)).collect()
+        };
+        let with_items = shadowed(&sim, &frame.ids_left);
+        let item_pixels: Vec<usize> = (0..frame.ids_left.data.len()).filter(|&i| frame.ids_left.data[i] >= 2).collect();
+        let mut empty = full.clone();
+        empty.filled.clear();
+        let mut frame2 = Frame::default();
+        sim.render(&empty, Method::OneShot, 1, &mut frame2);
+        let without = shadowed(&sim, &frame2.ids_left);
+        let w = frame.ids_left.width as i64;
+        let new: Vec<usize> = (0..with_items.len())
+            .filter(|&i| with_items[i] && !without[i] && frame2.ids_left.data[i] == ID_TRAY)
+            .collect();
+        let near_item = new
+            .iter()
+            .filter(|&&i| {
+                let (x, y) = (i as i64 % w, i as i64 / w);
+                item_pixels.iter().any(|&j| {
+                    let (u, v) = (j as i64 % w, j as i64 / w);
+                    (u - x).abs() <= 10 && (v - y).abs() <= 10
+                })
+            })
+            .count();
+        assert!(new.len() > 100, "only {} new projector-shadow pixels on the tray", new.len());
+        assert!(near_item as f64 >= 0.95 * new.len() as f64, "{near_item} of {} next to items", new.len());
+    }
+}

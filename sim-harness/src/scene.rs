@@ -1,0 +1,167 @@
+//! What is in front of the sensor: a scene description (poses, filled slots, light) and
+//! the world-space triangles it expands to, each with its albedo and object id. How the
+//! triangles are seen is the rasterizer's business.
+
+use camplace_config::{Cell, Table};
+use nalgebra::{Isometry3, Point3, Vector3};
+
+use crate::tray::{item_for, Solid, TrayModel};
+use crate::Result;
+
+/// Object id of the table and of "nothing" in the id images.
+pub const ID_TABLE: u8 = 0;
+/// Object id of the tray.
+pub const ID_TRAY: u8 = 1;
+/// Object id of the item in slot 0; the item in slot n has `ID_FIRST_ITEM + n`.
+pub const ID_FIRST_ITEM: u8 = 2;
+
+/// One scene to render: which objects are present, where, and how it is lit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneSpec {
+    /// Tray frame -> world frame.
+    pub t_world_tray: Isometry3<f64>,
+    /// Indices of the slots holding an item.
+    pub filled: Vec<usize>,
+    /// Whether the table top is present (the model builder leaves it out).
+    pub table: bool,
+    /// Whether the tray is present (the background capture leaves it out).
+    pub tray: bool,
+    /// Ambient light, in units of full white.
+    pub ambient: f64,
+    /// Strength of the background lamp, in units of full white on a surface facing it.
+    pub lamp_strength: f64,
+    /// Where the (point) lamp hangs, world mm.
+    pub lamp_position: Point3<f64>,
+}
+
+impl SceneSpec {
+    /// The same scene without the tray and its items, as the background capture sees it.
+    pub fn background(&self) -> SceneSpec {
+        SceneSpec { tray: false, filled: Vec::new(), ..self.clone() }
+    }
+}
+
+/// One world-space triangle of a scene.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SceneTriangle {
+    /// Corners, world mm.
+    pub vertices: [Point3<f64>; 3],
+    /// Unit normal by the winding (the renderer turns it towards whoever looks).
+    pub normal: Vector3<f64>,
+    /// Lambertian albedo.
+    pub albedo: f64,
+    /// Object id: table, tray or item (see `ID_*`).
+    pub id: u8,
+}
+
+/// The objects a cell places on its table, in their own frames, ready to be posed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Objects {
+    /// The table top.
+    pub table: Table,
+    /// The tray and its slots.
+    pub tray: TrayModel,
+    /// Albedo of the tray.
+    pub tray_albedo: f64,
+    /// One item, in the item frame.
+    pub item: Solid,
+    /// Albedo of the items.
+    pub item_albedo: f64,
+}
+
+impl Objects {
+    /// The table, tray and item of a cell (mesh files are read here).
+    pub fn from_cell(cell: &Cell) -> Result<Objects> {
+        Ok(Objects {
+            table: cell.table.clone(),
+            tray: TrayModel::from_cell(cell)?,
+            tray_albedo: cell.tray.albedo,
+            item: item_for(cell)?,
+            item_albedo: cell.items.albedo,
+        })
+    }
+
+    /// Writes the world triangles of `spec` into `out` (cleared first), table first, then
+    /// the tray, then the items by slot. Slots past the tray's last, or whose id would not
+    /// fit a byte, hold no item; triangles of zero area are left out.
+    pub fn triangles(&self, spec: &SceneSpec, out: &mut Vec<SceneTriangle>) {
+        out.clear();
+        if spec.table {
+            let [sx, sy] = self.table.size;
+            let (hx, hy) = (sx / 2.0, sy / 2.0);
+            let c = [
+                Point3::new(-hx, -hy, 0.0),
+                Point3::new(hx, -hy, 0.0),
+                Point3::new(hx, hy, 0.0),
+                Point3::new(-hx, hy, 0.0),
+            ];
+            push(out, [c[0], c[1], c[2]], self.table.albedo, ID_TABLE);
+            push(out, [c[0], c[2], c[3]], self.table.albedo, ID_TABLE);
+        }
+        if !spec.tray {
+            return;
+        }
+        for t in &self.tray.solid.triangles {
+            push(out, t.map(|p| spec.t_world_tray * p), self.tray_albedo, ID_TRAY);
+        }
+        for &n in &spec.filled {
+            let Some(slot) = self.tray.slot_pose(n) else { continue };
+            let Some(id) = u8::try_from(n).ok().and_then(|n| n.checked_add(ID_FIRST_ITEM)) else { continue };
+            let pose = spec.t_world_tray * slot;
+            for t in &self.item.triangles {
+                push(out, t.map(|p| pose * p), self.item_albedo, id);
+            }
+        }
+    }
+}
+
+fn push(out: &mut Vec<SceneTriangle>, vertices: [Point3<f64>; 3], albedo: f64, id: u8) {
+    let n = (vertices[1] - vertices[0]).cross(&(vertices[2] - vertices[0]));
+    let len = n.norm();
+    if len > 1e-12 && len.is_finite() {
+        out.push(SceneTriangle { vertices, normal: n / len, albedo, id });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Translation3, UnitQuaternion};
+
+    #[test]
+    fn ids_and_poses() {
+        let cell = Cell::default();
+        let objects = Objects::from_cell(&cell).unwrap();
+        let t = Isometry3::from_parts(
+            Translation3::new(12.0, -7.0, 0.0),
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.4),
+        );
+        let spec = SceneSpec {
+            t_world_tray: t,
+            filled: vec![1, 5, 99],
+            table: true,
+            tray: true,
+            ambient: 0.2,
+            lamp_strength: 0.3,
+            lamp_position: Point3::new(0.0, 0.0, 1000.0),
+        };
+        let mut tris = Vec::new();
+        objects.triangles(&spec, &mut tris);
+        let count = |id: u8| tris.iter().filter(|t| t.id == id).count();
+        assert_eq!(count(ID_TABLE), 2);
+        assert_eq!(count(ID_TRAY), objects.tray.solid.triangles.len());
+        assert_eq!(count(ID_FIRST_ITEM + 1), 12);
+        assert_eq!(count(ID_FIRST_ITEM + 5), 12);
+        assert_eq!(tris.len(), 2 + objects.tray.solid.triangles.len() + 24);
+        // Item 5's top centre is above its slot centre, moved by the tray pose.
+        let slot = objects.tray.slots[5];
+        let want = t * Point3::new(slot[0], slot[1], slot[2] + cell.items.size[2]);
+        let top: Vec<_> = tris.iter().filter(|t| t.id == ID_FIRST_ITEM + 5 && t.normal.z > 0.99).collect();
+        assert_eq!(top.len(), 2);
+        let centre = top.iter().flat_map(|t| t.vertices).fold(Vector3::zeros(), |a, p| a + p.coords) / 6.0;
+        // The two top triangles share a diagonal, so their six corners average to the centre.
+        assert!((centre - want.coords).norm() < 1e-9);
+        objects.triangles(&spec.background(), &mut tris);
+        assert_eq!(tris.len(), 2);
+    }
+}

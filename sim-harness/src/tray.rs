@@ -1,0 +1,256 @@
+//! The objects on the table as triangle meshes in their own frames: the built-in trays
+//! ("tray-4", "tray-8") with their slots, the built-in box item, and trays and items read
+//! from mesh files. Where the objects stand in the world is the scene's business.
+
+use camplace_config::formats::mesh::{self, Mesh};
+use camplace_config::{Cell, ItemsKind, TrayKind};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+
+use crate::{Error, Result};
+
+/// Thickness of a built-in tray's base plate, mm; the slots sit on its top face.
+pub const BASE_THICKNESS: f64 = 5.0;
+/// Height of a built-in tray's rim above its bottom face, mm.
+pub const RIM_HEIGHT: f64 = 25.0;
+/// Thickness of a built-in tray's outer walls, mm.
+pub const WALL_THICKNESS: f64 = 4.0;
+/// Height of the low dividers between slots above the bottom face, mm.
+pub const DIVIDER_HEIGHT: f64 = 15.0;
+/// Thickness of the dividers, mm.
+pub const DIVIDER_THICKNESS: f64 = 2.0;
+/// The tab on the tray's +x side that breaks its symmetry: how far it sticks out, its
+/// width along y and its height, mm.
+pub const TAB_SIZE: [f64; 3] = [12.0, 40.0, 15.0];
+
+/// A triangle soup in its object's frame, mm.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Solid {
+    /// Triangles, each counter-clockwise seen from outside where the source says so.
+    pub triangles: Vec<[Point3<f64>; 3]>,
+}
+
+impl Solid {
+    /// Adds the axis-aligned box `[min, max]`, its faces wound outwards.
+    pub fn push_box(&mut self, min: [f64; 3], max: [f64; 3]) {
+        let p = |i: usize, j: usize, k: usize| {
+            Point3::new([min[0], max[0]][i], [min[1], max[1]][j], [min[2], max[2]][k])
+        };
+        let faces = [
+            [p(0, 0, 0), p(0, 0, 1), p(0, 1, 1), p(0, 1, 0)],
+            [p(1, 0, 0), p(1, 1, 0), p(1, 1, 1), p(1, 0, 1)],
+            [p(0, 0, 0), p(1, 0, 0), p(1, 0, 1), p(0, 0, 1)],
+            [p(0, 1, 0), p(0, 1, 1), p(1, 1, 1), p(1, 1, 0)],
+            [p(0, 0, 0), p(0, 1, 0), p(1, 1, 0), p(1, 0, 0)],
+            [p(0, 0, 1), p(1, 0, 1), p(1, 1, 1), p(0, 1, 1)],
+        ];
+        for [a, b, c, d] in faces {
+            self.triangles.push([a, b, c]);
+            self.triangles.push([a, c, d]);
+        }
+    }
+
+    /// The triangles of a loaded mesh; an index past the vertex list is an error.
+    pub fn from_mesh(m: &Mesh) -> Result<Solid> {
+        let vertex = |i: u32| {
+            m.vertices.get(i as usize).map(|v| Point3::new(v[0] as f64, v[1] as f64, v[2] as f64)).ok_or_else(|| {
+                Error::Other(format!("mesh triangle refers to vertex {i} of {}", m.vertices.len()))
+            })
+        };
+        let mut triangles = Vec::with_capacity(m.triangles.len());
+        for t in &m.triangles {
+            triangles.push([vertex(t[0])?, vertex(t[1])?, vertex(t[2])?]);
+        }
+        Ok(Solid { triangles })
+    }
+
+    /// Axis-aligned bounds `(min, max)`; both at the origin for an empty solid.
+    pub fn bounds(&self) -> (Point3<f64>, Point3<f64>) {
+        let mut it = self.triangles.iter().flatten();
+        let Some(first) = it.next() else { return (Point3::origin(), Point3::origin()) };
+        it.fold((*first, *first), |(lo, hi), p| (lo.inf(p), hi.sup(p)))
+    }
+}
+
+/// The tray: its mesh, its slots and the dimensions the tests and the study refer to.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrayModel {
+    /// The tray in the tray frame (origin at the bottom face centre, z up).
+    pub solid: Solid,
+    /// Slot poses `[x, y, z, yaw]` (mm, deg): where an item's bottom centre sits.
+    pub slots: Vec<[f64; 4]>,
+    /// Height of the rim top above the bottom face, mm.
+    pub rim_height: f64,
+    /// Outer extent of the walls along tray x and y, mm (the tab sticks out beyond it).
+    pub outer: [f64; 2],
+    /// Wall thickness, mm (0 for a mesh tray, whose walls are unknown).
+    pub wall: f64,
+}
+
+impl TrayModel {
+    /// The tray the cell asks for: built in, or loaded from its mesh file.
+    pub fn from_cell(cell: &Cell) -> Result<TrayModel> {
+        match cell.tray.kind {
+            TrayKind::Tray4 => Ok(TrayModel::builtin(2, 2, [130.0, 130.0])),
+            TrayKind::Tray8 => Ok(TrayModel::builtin(4, 2, [200.0, 120.0])),
+            TrayKind::Mesh => {
+                let solid = Solid::from_mesh(&mesh::load(&cell.tray.mesh)?)?;
+                let (lo, hi) = solid.bounds();
+                Ok(TrayModel {
+                    slots: cell.tray.slots.clone(),
+                    rim_height: hi.z,
+                    outer: [hi.x - lo.x, hi.y - lo.y],
+                    wall: 0.0,
+                    solid,
+                })
+            }
+        }
+    }
+
+    /// A built-in tray with `cols` x `rows` slots inside walls of `outer` size: base plate,
+    /// rim walls, low dividers and the tab on +x (off centre in neither axis, but alone on
+    /// its side, so no rotation about z maps the tray onto itself).
+    fn builtin(cols: usize, rows: usize, outer: [f64; 2]) -> TrayModel {
+        let (hx, hy) = (outer[0] / 2.0, outer[1] / 2.0);
+        let (ix, iy) = (hx - WALL_THICKNESS, hy - WALL_THICKNESS);
+        let mut s = Solid::default();
+        // The base spans only the inside so no visible face coincides with a wall's.
+        s.push_box([-ix, -iy, 0.0], [ix, iy, BASE_THICKNESS]);
+        s.push_box([-hx, -hy, 0.0], [-ix, hy, RIM_HEIGHT]);
+        s.push_box([ix, -hy, 0.0], [hx, hy, RIM_HEIGHT]);
+        s.push_box([-ix, -hy, 0.0], [ix, -iy, RIM_HEIGHT]);
+        s.push_box([-ix, iy, 0.0], [ix, hy, RIM_HEIGHT]);
+        let (pitch_x, pitch_y) = (2.0 * ix / cols as f64, 2.0 * iy / rows as f64);
+        let half = DIVIDER_THICKNESS / 2.0;
+        for i in 1..cols {
+            let x = -ix + i as f64 * pitch_x;
+            s.push_box([x - half, -iy, BASE_THICKNESS], [x + half, iy, DIVIDER_HEIGHT]);
+        }
+        for j in 1..rows {
+            let y = -iy + j as f64 * pitch_y;
+            s.push_box([-ix, y - half, BASE_THICKNESS], [ix, y + half, DIVIDER_HEIGHT]);
+        }
+        let [tab_x, tab_y, tab_z] = TAB_SIZE;
+        s.push_box([hx, -tab_y / 2.0, 0.0], [hx + tab_x, tab_y / 2.0, tab_z]);
+        let mut slots = Vec::with_capacity(cols * rows);
+        for j in 0..rows {
+            for i in 0..cols {
+                let x = -ix + (i as f64 + 0.5) * pitch_x;
+                let y = -iy + (j as f64 + 0.5) * pitch_y;
+                slots.push([x, y, BASE_THICKNESS, 0.0]);
+            }
+        }
+        TrayModel { solid: s, slots, rim_height: RIM_HEIGHT, outer, wall: WALL_THICKNESS }
+    }
+
+    /// Pose of slot `n` in the tray frame (item frame -> tray frame); `None` past the end.
+    pub fn slot_pose(&self, n: usize) -> Option<Isometry3<f64>> {
+        let [x, y, z, yaw] = *self.slots.get(n)?;
+        Some(Isometry3::from_parts(
+            Translation3::new(x, y, z),
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw.to_radians()),
+        ))
+    }
+
+    /// Whether tray-frame (x, y) lies on the rim's top face, at least `margin` mm inside
+    /// its edges (always false for a mesh tray).
+    pub fn on_rim_top(&self, x: f64, y: f64, margin: f64) -> bool {
+        if self.wall <= 2.0 * margin {
+            return false;
+        }
+        let (hx, hy) = (self.outer[0] / 2.0 - margin, self.outer[1] / 2.0 - margin);
+        let (ix, iy) = (hx - self.wall + 2.0 * margin, hy - self.wall + 2.0 * margin);
+        let inside_outer = x.abs() < hx && y.abs() < hy;
+        let inside_inner = x.abs() < ix && y.abs() < iy;
+        inside_outer && !inside_inner
+    }
+}
+
+/// The number of slots of the cell's tray, known without loading a mesh.
+pub fn slot_count(cell: &Cell) -> usize {
+    match cell.tray.kind {
+        TrayKind::Tray4 => 4,
+        TrayKind::Tray8 => 8,
+        TrayKind::Mesh => cell.tray.slots.len(),
+    }
+}
+
+/// The item the cell asks for, in the item frame (origin at its bottom centre, z up).
+pub fn item_for(cell: &Cell) -> Result<Solid> {
+    match cell.items.kind {
+        ItemsKind::Box => {
+            let [x, y, z] = cell.items.size;
+            let mut s = Solid::default();
+            s.push_box([-x / 2.0, -y / 2.0, 0.0], [x / 2.0, y / 2.0, z]);
+            Ok(s)
+        }
+        ItemsKind::Mesh => Solid::from_mesh(&mesh::load(&cell.items.mesh)?),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Signed volume by the divergence theorem: positive when every face is wound outwards.
+    fn volume(s: &Solid) -> f64 {
+        s.triangles.iter().map(|[a, b, c]| a.coords.dot(&b.coords.cross(&c.coords)) / 6.0).sum()
+    }
+
+    #[test]
+    fn boxes_are_wound_outwards() {
+        let mut s = Solid::default();
+        s.push_box([-1.0, 2.0, 0.0], [3.0, 5.0, 7.0]);
+        assert!((volume(&s) - 4.0 * 3.0 * 7.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn builtin_trays_hold_their_items_and_fit_the_view() {
+        let mut cell = Cell::default();
+        for (kind, n) in [(TrayKind::Tray4, 4), (TrayKind::Tray8, 8)] {
+            cell.tray.kind = kind;
+            let tray = TrayModel::from_cell(&cell).unwrap();
+            assert_eq!(tray.slots.len(), n);
+            assert_eq!(slot_count(&cell), n);
+            let (lo, hi) = tray.solid.bounds();
+            assert!(hi.x - lo.x <= 215.0 && hi.y - lo.y <= 135.0 && lo.z == 0.0 && hi.z == RIM_HEIGHT);
+            let item = item_for(&cell).unwrap();
+            let (ilo, ihi) = item.bounds();
+            // Every item, placed in its slot, stays inside the walls and clear of dividers
+            // and of the other items.
+            let mut boxes = Vec::new();
+            for k in 0..n {
+                let pose = tray.slot_pose(k).unwrap();
+                let a = pose.transform_point(&ilo);
+                let b = pose.transform_point(&ihi);
+                let (bl, bh) = (a.inf(&b), a.sup(&b));
+                assert!(bl.x.abs() < tray.outer[0] / 2.0 - tray.wall && bh.x.abs() < tray.outer[0] / 2.0 - tray.wall);
+                assert!(bl.y.abs() < tray.outer[1] / 2.0 - tray.wall && bh.y.abs() < tray.outer[1] / 2.0 - tray.wall);
+                assert_eq!(bl.z, BASE_THICKNESS);
+                boxes.push((bl, bh));
+            }
+            for (i, (al, ah)) in boxes.iter().enumerate() {
+                for (bl, bh) in &boxes[i + 1..] {
+                    let apart = ah.x + DIVIDER_THICKNESS < bl.x
+                        || bh.x + DIVIDER_THICKNESS < al.x
+                        || ah.y + DIVIDER_THICKNESS < bl.y
+                        || bh.y + DIVIDER_THICKNESS < al.y;
+                    assert!(apart, "{kind:?}: items {i} overlap");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn tab_breaks_every_rotation() {
+        for kind in [TrayKind::Tray4, TrayKind::Tray8] {
+            let mut cell = Cell::default();
+            cell.tray.kind = kind;
+            let tray = TrayModel::from_cell(&cell).unwrap();
+            let (lo, hi) = tray.solid.bounds();
+            // The bounds are lopsided in x only because of the tab, so no turn about z
+            // (which would move the tab to another side) leaves them unchanged.
+            assert!((hi.x + lo.x - TAB_SIZE[0]).abs() < 1e-9);
+            assert!((hi.y + lo.y).abs() < 1e-9);
+        }
+    }
+}
