@@ -2,7 +2,9 @@
 //! camera and projector, scenarios with common random numbers, model building, evaluation,
 //! search and reports. It feeds rendered frames to the same estimator the cell PC runs.
 
+pub mod capture;
 mod error;
+pub mod frame_files;
 pub mod noise;
 pub mod pattern;
 pub mod placement_rig;
@@ -13,6 +15,7 @@ pub mod scene;
 pub mod shade;
 pub mod tray;
 
+pub use capture::{background_scene, noise_key};
 pub use error::{Error, Result};
 pub use render::{Frame, Method, Simulator};
 pub use scenario::{draw_scenario, Scenario};

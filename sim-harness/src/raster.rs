@@ -47,11 +47,15 @@ impl View {
     /// edges would no longer project to straight lines.
     pub fn new(camera: &Camera) -> Result<View> {
         if !camera.is_ideal() {
-            return Err(EstimatorError::new(ErrorKind::Rig, "the renderer needs cameras without lens distortion").into());
+            return Err(
+                EstimatorError::new(ErrorKind::Rig, "the renderer needs cameras without lens distortion").into()
+            );
         }
-        let k_inv = camera.k.try_inverse().filter(|m| m.iter().all(|v| v.is_finite())).ok_or_else(|| {
-            EstimatorError::new(ErrorKind::Rig, "camera matrix K is not invertible")
-        })?;
+        let k_inv = camera
+            .k
+            .try_inverse()
+            .filter(|m| m.iter().all(|v| v.is_finite()))
+            .ok_or_else(|| EstimatorError::new(ErrorKind::Rig, "camera matrix K is not invertible"))?;
         if camera.width == 0 || camera.height == 0 {
             return Err(EstimatorError::new(ErrorKind::Rig, "camera image is empty").into());
         }
@@ -454,7 +458,11 @@ mod tests {
         );
         let view = View::new(&cam).unwrap();
         let tri = crate::scene::SceneTriangle {
-            vertices: [Point3::new(-1000.0, -1000.0, 0.0), Point3::new(1000.0, -1000.0, 0.0), Point3::new(0.0, 1000.0, 0.0)],
+            vertices: [
+                Point3::new(-1000.0, -1000.0, 0.0),
+                Point3::new(1000.0, -1000.0, 0.0),
+                Point3::new(0.0, 1000.0, 0.0),
+            ],
             normal: Vector3::z(),
             albedo: 0.5,
             id: 0,

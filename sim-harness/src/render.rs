@@ -297,9 +297,8 @@ mod tests {
     /// Convex hull of points, counter-clockwise in image coordinates' maths orientation.
     fn hull(mut p: Vec<Point2<f64>>) -> Vec<Point2<f64>> {
         p.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
-        let cross = |o: &Point2<f64>, a: &Point2<f64>, b: &Point2<f64>| {
-            (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x)
-        };
+        let cross =
+            |o: &Point2<f64>, a: &Point2<f64>, b: &Point2<f64>| (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
         let mut h: Vec<Point2<f64>> = Vec::new();
         for pass in 0..2 {
             let start = h.len();

@@ -40,7 +40,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (cell, placement) = a.cell.load()?;
     let seed = a.seed.unwrap_or(cell.scenarios.seed);
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create the folder", a.out.display()))?;
-    let symmetries = camplace_sim::tray_symmetries(&cell)?;
+    let symmetries = cell.tray.symmetries.clone();
     let mut sim = Simulator::new(&cell, &placement, seed)?;
     if !a.dataset {
         let scenario = draw_scenario(&cell, seed, a.scenario);
@@ -48,7 +48,12 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         sim.render(&scenario.scene(), a.method, camplace_sim::noise_key(seed, a.scenario, false), &mut frame);
         frame_files::write_rig(&a.out.join("rig.json"), sim.rig())?;
         frame_files::write_frame(&a.out, &frame, &scenario, &placement, a.method, &symmetries)?;
-        println!("rendered scenario {} of seed {seed} at {placement} ({}) into {}", a.scenario, a.method, a.out.display());
+        println!(
+            "rendered scenario {} of seed {seed} at {placement} ({}) into {}",
+            a.scenario,
+            a.method,
+            a.out.display()
+        );
         return Ok(ExitCode::SUCCESS);
     }
     let layout = DatasetLayout::new(&a.out);
