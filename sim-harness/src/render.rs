@@ -405,6 +405,31 @@ mod tests {
     }
 
     #[test]
+    fn dots_span_one_and_a_half_to_three_camera_pixels() {
+        let cell = Cell::default();
+        let mut sim = Simulator::new(&cell, &cell.placement, 1).unwrap();
+        let mut scene = draw_scenario(&cell, 1, 0).scene();
+        scene.filled.clear();
+        let mut frame = Frame::default();
+        sim.render_clean(&scene, Method::OneShot, &mut frame);
+        // Projector pixels per camera pixel, from sub-samples half a camera pixel apart.
+        let t = &sim.terms[0];
+        let mut spans: Vec<f64> = (0..t.base.len())
+            .filter(|&i| t.projector_lit(i))
+            .map(|i| {
+                let s = t.projector_uv[i];
+                let dx = ((s[2] - s[0]).hypot(s[3] - s[1]) * 2.0) as f64;
+                let dy = ((s[4] - s[0]).hypot(s[5] - s[1]) * 2.0) as f64;
+                (dx * dy).sqrt()
+            })
+            .collect();
+        spans.sort_by(f64::total_cmp);
+        let median = spans[spans.len() / 2];
+        let dot = cell.sensor.dot_size as f64 / median;
+        assert!((1.5..=3.0).contains(&dot), "a dot spans {dot} camera pixels");
+    }
+
+    #[test]
     fn noise_variance_matches_the_theory() {
         let mut cell = Cell::default();
         cell.sensor.projector_gain = 0.0;
@@ -484,5 +509,39 @@ mod tests {
             .count();
         assert!(new.len() > 100, "only {} new projector-shadow pixels on the tray", new.len());
         assert!(near_item as f64 >= 0.95 * new.len() as f64, "{near_item} of {} next to items", new.len());
+    }
+}
+
+#[cfg(test)]
+mod dump {
+    use super::*;
+    use crate::scenario::draw_scenario;
+
+    #[test]
+    fn dump_images() {
+        let cell = Cell::default();
+        let mut sim = Simulator::new(&cell, &cell.placement, 1).unwrap();
+        let mut scene = draw_scenario(&cell, 1, 6).scene();
+        scene.filled = vec![0, 2, 3, 5, 6];
+        scene.lamp_strength = 0.5;
+        eprintln!("{scene:?}");
+        let mut frame = Frame::default();
+        sim.render(&scene, Method::OneShot, 1, &mut frame);
+        let w = |name: &str, img: &GrayImage| {
+            camplace_config::formats::png::write_gray(std::path::Path::new(&format!("/tmp/render_{name}.png")), img.width, img.height, &img.data).unwrap()
+        };
+        w("left", &frame.left[0]);
+        w("right", &frame.right[0]);
+        let ids = GrayImage { width: 640, height: 480, data: frame.ids_left.data.iter().map(|&i| i * 25).collect() };
+        w("ids", &ids);
+        let lit = GrayImage { width: 640, height: 480, data: (0..640*480).map(|i| if sim.terms[0].projector_lit(i) {255} else {0}).collect() };
+        w("lit", &lit);
+        let crop = |img: &GrayImage| GrayImage { width: 640, height: 480, data: (0..640*480).map(|i| img.get(380 + (i % 640) / 4, 300 + (i / 640) / 4)).collect() };
+        w("crop_noisy", &crop(&frame.left[0]));
+        sim.render_clean(&scene, Method::OneShot, &mut frame);
+        w("crop_clean", &crop(&frame.left[0]));
+        sim.render(&scene, Method::Phase12, 1, &mut frame);
+        w("f9", &frame.left[9]);
+        w("f5", &frame.left[5]);
     }
 }
