@@ -98,7 +98,8 @@ mod tests {
         }
         // Each bin expects 10000 with a standard deviation of about 98.
         assert!(counts.iter().all(|&c| c.abs_diff(10_000) < 500), "{counts:?}");
-        let same = (0..1000).filter(|&p| pixel_noise(image_key(7, 0, 0), p, a) == pixel_noise(image_key(7, 1, 0), p, a));
+        let same =
+            (0..1000).filter(|&p| pixel_noise(image_key(7, 0, 0), p, a) == pixel_noise(image_key(7, 1, 0), p, a));
         assert!(same.count() < 100);
     }
 

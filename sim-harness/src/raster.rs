@@ -47,11 +47,15 @@ impl View {
     /// edges would no longer project to straight lines.
     pub fn new(camera: &Camera) -> Result<View> {
         if !camera.is_ideal() {
-            return Err(EstimatorError::new(ErrorKind::Rig, "the renderer needs cameras without lens distortion").into());
+            return Err(
+                EstimatorError::new(ErrorKind::Rig, "the renderer needs cameras without lens distortion").into()
+            );
         }
-        let k_inv = camera.k.try_inverse().filter(|m| m.iter().all(|v| v.is_finite())).ok_or_else(|| {
-            EstimatorError::new(ErrorKind::Rig, "camera matrix K is not invertible")
-        })?;
+        let k_inv = camera
+            .k
+            .try_inverse()
+            .filter(|m| m.iter().all(|v| v.is_finite()))
+            .ok_or_else(|| EstimatorError::new(ErrorKind::Rig, "camera matrix K is not invertible"))?;
         if camera.width == 0 || camera.height == 0 {
             return Err(EstimatorError::new(ErrorKind::Rig, "camera image is empty").into());
         }
@@ -98,7 +102,8 @@ fn inverse_depth_plane(k_inv: &Matrix3<f64>, p: &[Point3<f64>; 3]) -> Option<[f6
     let n = (p[1] - p[0]).cross(&(p[2] - p[0]));
     let d = n.dot(&p[0].coords);
     let scale = n.norm() * p.iter().map(|q| q.coords.norm()).fold(0.0, f64::max);
-    if !(d.abs() > 1e-9 * scale) {
+    let through_centre = d.abs().partial_cmp(&(1e-9 * scale)) != Some(std::cmp::Ordering::Greater);
+    if through_centre {
         return None;
     }
     // A point X = z K^-1 (x, y, 1) on the plane n.X = d has 1/z = n.K^-1 (x, y, 1) / d.
@@ -242,7 +247,8 @@ fn clip_near(p: &[Point3<f64>; 3]) -> ([Point3<f64>; 4], usize) {
 fn setup(v: [[f64; 2]; 3], plane: [f64; 3], source: u32, w: usize, h: usize) -> Option<ScreenTriangle> {
     let [a, mut b, mut c] = v;
     let area = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
-    if !(area.abs() > 1e-12) {
+    let degenerate = area.abs().partial_cmp(&1e-12) != Some(std::cmp::Ordering::Greater);
+    if degenerate {
         return None;
     }
     if area < 0.0 {
@@ -454,7 +460,11 @@ mod tests {
         );
         let view = View::new(&cam).unwrap();
         let tri = crate::scene::SceneTriangle {
-            vertices: [Point3::new(-1000.0, -1000.0, 0.0), Point3::new(1000.0, -1000.0, 0.0), Point3::new(0.0, 1000.0, 0.0)],
+            vertices: [
+                Point3::new(-1000.0, -1000.0, 0.0),
+                Point3::new(1000.0, -1000.0, 0.0),
+                Point3::new(0.0, 1000.0, 0.0),
+            ],
             normal: Vector3::z(),
             albedo: 0.5,
             id: 0,

@@ -217,7 +217,7 @@ impl Simulator {
 /// can cast a shadow (all but the table), just wide enough to hold it. `None` when the
 /// lamp is off, nothing can cast a shadow, or the lamp hangs inside that sphere.
 fn lamp_view(scene: &SceneSpec, triangles: &[SceneTriangle]) -> Option<View> {
-    if !(scene.lamp_strength > 0.0) {
+    if scene.lamp_strength.is_nan() || scene.lamp_strength <= 0.0 {
         return None;
     }
     let mut points = triangles.iter().filter(|t| t.id != ID_TABLE).flat_map(|t| t.vertices);
@@ -226,7 +226,7 @@ fn lamp_view(scene: &SceneSpec, triangles: &[SceneTriangle]) -> Option<View> {
     let centre = Point3::from((lo.coords + hi.coords) / 2.0);
     let radius = (hi - lo).norm() / 2.0;
     let distance = (scene.lamp_position - centre).norm();
-    if !(distance > 1.05 * radius) {
+    if distance.is_nan() || distance <= 1.05 * radius {
         return None;
     }
     let half_angle = (radius / distance).asin() * 1.02;
@@ -297,9 +297,8 @@ mod tests {
     /// Convex hull of points, counter-clockwise in image coordinates' maths orientation.
     fn hull(mut p: Vec<Point2<f64>>) -> Vec<Point2<f64>> {
         p.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
-        let cross = |o: &Point2<f64>, a: &Point2<f64>, b: &Point2<f64>| {
-            (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x)
-        };
+        let cross =
+            |o: &Point2<f64>, a: &Point2<f64>, b: &Point2<f64>| (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
         let mut h: Vec<Point2<f64>> = Vec::new();
         for pass in 0..2 {
             let start = h.len();
@@ -509,39 +508,5 @@ mod tests {
             .count();
         assert!(new.len() > 100, "only {} new projector-shadow pixels on the tray", new.len());
         assert!(near_item as f64 >= 0.95 * new.len() as f64, "{near_item} of {} next to items", new.len());
-    }
-}
-
-#[cfg(test)]
-mod dump {
-    use super::*;
-    use crate::scenario::draw_scenario;
-
-    #[test]
-    fn dump_images() {
-        let cell = Cell::default();
-        let mut sim = Simulator::new(&cell, &cell.placement, 1).unwrap();
-        let mut scene = draw_scenario(&cell, 1, 6).scene();
-        scene.filled = vec![0, 2, 3, 5, 6];
-        scene.lamp_strength = 0.5;
-        eprintln!("{scene:?}");
-        let mut frame = Frame::default();
-        sim.render(&scene, Method::OneShot, 1, &mut frame);
-        let w = |name: &str, img: &GrayImage| {
-            camplace_config::formats::png::write_gray(std::path::Path::new(&format!("/tmp/render_{name}.png")), img.width, img.height, &img.data).unwrap()
-        };
-        w("left", &frame.left[0]);
-        w("right", &frame.right[0]);
-        let ids = GrayImage { width: 640, height: 480, data: frame.ids_left.data.iter().map(|&i| i * 25).collect() };
-        w("ids", &ids);
-        let lit = GrayImage { width: 640, height: 480, data: (0..640*480).map(|i| if sim.terms[0].projector_lit(i) {255} else {0}).collect() };
-        w("lit", &lit);
-        let crop = |img: &GrayImage| GrayImage { width: 640, height: 480, data: (0..640*480).map(|i| img.get(380 + (i % 640) / 4, 300 + (i / 640) / 4)).collect() };
-        w("crop_noisy", &crop(&frame.left[0]));
-        sim.render_clean(&scene, Method::OneShot, &mut frame);
-        w("crop_clean", &crop(&frame.left[0]));
-        sim.render(&scene, Method::Phase12, 1, &mut frame);
-        w("f9", &frame.left[9]);
-        w("f5", &frame.left[5]);
     }
 }

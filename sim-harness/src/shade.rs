@@ -211,9 +211,7 @@ impl Context<'_> {
                         let q = self.h_lamp[t] * nalgebra::Vector3::new(fx, fy, 1.0);
                         // Outside the lamp's map there is nothing that could shadow.
                         q.z <= 0.0
-                            || map
-                                .nearest(q.x / q.z, q.y / q.z)
-                                .is_none_or(|i| self.unshadowed(map, i, t, q.z * z))
+                            || map.nearest(q.x / q.z, q.y / q.z).is_none_or(|i| self.unshadowed(map, i, t, q.z * z))
                     }
                 };
                 if visible {

@@ -32,9 +32,8 @@ pub struct Solid {
 impl Solid {
     /// Adds the axis-aligned box `[min, max]`, its faces wound outwards.
     pub fn push_box(&mut self, min: [f64; 3], max: [f64; 3]) {
-        let p = |i: usize, j: usize, k: usize| {
-            Point3::new([min[0], max[0]][i], [min[1], max[1]][j], [min[2], max[2]][k])
-        };
+        let p =
+            |i: usize, j: usize, k: usize| Point3::new([min[0], max[0]][i], [min[1], max[1]][j], [min[2], max[2]][k]);
         let faces = [
             [p(0, 0, 0), p(0, 0, 1), p(0, 1, 1), p(0, 1, 0)],
             [p(1, 0, 0), p(1, 1, 0), p(1, 1, 1), p(1, 0, 1)],
@@ -52,9 +51,10 @@ impl Solid {
     /// The triangles of a loaded mesh; an index past the vertex list is an error.
     pub fn from_mesh(m: &Mesh) -> Result<Solid> {
         let vertex = |i: u32| {
-            m.vertices.get(i as usize).map(|v| Point3::new(v[0] as f64, v[1] as f64, v[2] as f64)).ok_or_else(|| {
-                Error::Other(format!("mesh triangle refers to vertex {i} of {}", m.vertices.len()))
-            })
+            m.vertices
+                .get(i as usize)
+                .map(|v| Point3::new(v[0] as f64, v[1] as f64, v[2] as f64))
+                .ok_or_else(|| Error::Other(format!("mesh triangle refers to vertex {i} of {}", m.vertices.len())))
         };
         let mut triangles = Vec::with_capacity(m.triangles.len());
         for t in &m.triangles {
