@@ -102,7 +102,8 @@ fn inverse_depth_plane(k_inv: &Matrix3<f64>, p: &[Point3<f64>; 3]) -> Option<[f6
     let n = (p[1] - p[0]).cross(&(p[2] - p[0]));
     let d = n.dot(&p[0].coords);
     let scale = n.norm() * p.iter().map(|q| q.coords.norm()).fold(0.0, f64::max);
-    if !(d.abs() > 1e-9 * scale) {
+    let through_centre = d.abs().partial_cmp(&(1e-9 * scale)) != Some(std::cmp::Ordering::Greater);
+    if through_centre {
         return None;
     }
     // A point X = z K^-1 (x, y, 1) on the plane n.X = d has 1/z = n.K^-1 (x, y, 1) / d.
@@ -246,7 +247,8 @@ fn clip_near(p: &[Point3<f64>; 3]) -> ([Point3<f64>; 4], usize) {
 fn setup(v: [[f64; 2]; 3], plane: [f64; 3], source: u32, w: usize, h: usize) -> Option<ScreenTriangle> {
     let [a, mut b, mut c] = v;
     let area = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
-    if !(area.abs() > 1e-12) {
+    let degenerate = area.abs().partial_cmp(&1e-12) != Some(std::cmp::Ordering::Greater);
+    if degenerate {
         return None;
     }
     if area < 0.0 {

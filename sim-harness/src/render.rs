@@ -217,7 +217,7 @@ impl Simulator {
 /// can cast a shadow (all but the table), just wide enough to hold it. `None` when the
 /// lamp is off, nothing can cast a shadow, or the lamp hangs inside that sphere.
 fn lamp_view(scene: &SceneSpec, triangles: &[SceneTriangle]) -> Option<View> {
-    if !(scene.lamp_strength > 0.0) {
+    if scene.lamp_strength.is_nan() || scene.lamp_strength <= 0.0 {
         return None;
     }
     let mut points = triangles.iter().filter(|t| t.id != ID_TABLE).flat_map(|t| t.vertices);
@@ -226,7 +226,7 @@ fn lamp_view(scene: &SceneSpec, triangles: &[SceneTriangle]) -> Option<View> {
     let centre = Point3::from((lo.coords + hi.coords) / 2.0);
     let radius = (hi - lo).norm() / 2.0;
     let distance = (scene.lamp_position - centre).norm();
-    if !(distance > 1.05 * radius) {
+    if distance.is_nan() || distance <= 1.05 * radius {
         return None;
     }
     let half_angle = (radius / distance).asin() * 1.02;
@@ -401,6 +401,31 @@ mod tests {
         sim2.render_clean(&scene, Method::OneShot, &mut f2);
         assert!(differ(&f1.left[0], &f2.left[0]) > f1.left[0].data.len() / 4);
         assert_eq!(f1.depth_left, f2.depth_left);
+    }
+
+    #[test]
+    fn dots_span_one_and_a_half_to_three_camera_pixels() {
+        let cell = Cell::default();
+        let mut sim = Simulator::new(&cell, &cell.placement, 1).unwrap();
+        let mut scene = draw_scenario(&cell, 1, 0).scene();
+        scene.filled.clear();
+        let mut frame = Frame::default();
+        sim.render_clean(&scene, Method::OneShot, &mut frame);
+        // Projector pixels per camera pixel, from sub-samples half a camera pixel apart.
+        let t = &sim.terms[0];
+        let mut spans: Vec<f64> = (0..t.base.len())
+            .filter(|&i| t.projector_lit(i))
+            .map(|i| {
+                let s = t.projector_uv[i];
+                let dx = ((s[2] - s[0]).hypot(s[3] - s[1]) * 2.0) as f64;
+                let dy = ((s[4] - s[0]).hypot(s[5] - s[1]) * 2.0) as f64;
+                (dx * dy).sqrt()
+            })
+            .collect();
+        spans.sort_by(f64::total_cmp);
+        let median = spans[spans.len() / 2];
+        let dot = cell.sensor.dot_size as f64 / median;
+        assert!((1.5..=3.0).contains(&dot), "a dot spans {dot} camera pixels");
     }
 
     #[test]
