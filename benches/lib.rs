@@ -1,5 +1,8 @@
 //! camplace's benches, one module per topic, in a single criterion binary.
 
+mod phase;
 mod render;
+mod stereo;
 
-criterion::criterion_main!(render::benches);
+criterion::criterion_group!(phase_benches, phase::benches);
+criterion::criterion_main!(render::benches, stereo::benches, phase_benches);

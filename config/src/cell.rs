@@ -146,6 +146,16 @@ pub struct StereoParams {
     pub speckle_size: u32,
     pub speckle_similarity: f64,
     pub gap_width: u32,
+    /// Side of the candidate grid cells, px.
+    pub grid_size: u32,
+    /// Spread of the plane prior, px.
+    pub prior_sigma: f64,
+    /// Uniform outlier weight of the prior.
+    pub prior_gamma: f64,
+    /// Descriptor cost per unit of prior log-likelihood.
+    pub prior_beta: f64,
+    /// Half side of the sub-pixel refinement window, px.
+    pub subpixel_radius: u32,
 }
 
 /// The 12-shot phase decoder's settings.
@@ -340,6 +350,18 @@ impl Cell {
         unit("stereo.support_uniqueness", st.support_uniqueness)?;
         nonneg("stereo.lr_tolerance", st.lr_tolerance)?;
         nonneg("stereo.speckle_similarity", st.speckle_similarity)?;
+        if !(1..=1000).contains(&st.grid_size) {
+            return Err(Error::value("stereo.grid_size", "expected a cell side from 1 to 1000 pixels"));
+        }
+        pos("stereo.prior_sigma", st.prior_sigma)?;
+        pos("stereo.prior_gamma", st.prior_gamma)?;
+        pos("stereo.prior_beta", st.prior_beta)?;
+        if st.prior_radius > 64 {
+            return Err(Error::value("stereo.prior_radius", "expected 0 to 64 pixels"));
+        }
+        if st.subpixel_radius > 8 {
+            return Err(Error::value("stereo.subpixel_radius", "expected 0 to 8 pixels"));
+        }
         nonneg("phase.min_modulation", self.phase.min_modulation)?;
         nonneg("phase.lr_tolerance", self.phase.lr_tolerance)?;
         nonneg("reconstruction.background_margin", self.reconstruction.background_margin)?;

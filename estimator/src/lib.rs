@@ -7,11 +7,15 @@ pub mod correspondence;
 mod error;
 pub mod image;
 pub mod rectified;
+pub mod rectify;
 pub mod rig;
+pub mod stereo;
 
 pub use camera::Camera;
 pub use correspondence::Correspondence;
 pub use error::{Error, ErrorKind, Result};
 pub use image::{FloatImage, GrayImage, Image};
 pub use rectified::RectifiedCamera;
+pub use rectify::Rectification;
 pub use rig::Rig;
+pub use stereo::{DisparityMatcher, Elas};

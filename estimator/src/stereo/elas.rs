@@ -1,0 +1,246 @@
+//! The one-shot matcher after Geiger, Roser and Urtasun (2010), "Efficient Large-Scale
+//! Stereo Matching": Sobel descriptors, robust support points, a Delaunay plane prior and
+//! candidate grid, dense matching of both images near the prior, a left-right check, then
+//! speckle removal, sub-pixel refinement and small-gap interpolation.
+//!
+//! Allocation: every buffer is sized in [`Elas::new`]; `compute` reuses them. The
+//! triangulation (spade) is cleared, not rebuilt, and keeps its storage, so it allocates
+//! only if a frame has more support points than any before it.
+
+use camplace_config::StereoParams;
+use rayon::prelude::*;
+
+use super::descriptor::{sad, texture, Descriptor, DescriptorImage, BORDER};
+use super::postprocess::{interpolate_gaps, refine_subpixel, remove_speckles, SpeckleScratch};
+use super::support::{SupportGrid, SupportParams, SupportPoint};
+use super::triangulation::{CandidateGrid, Prior};
+use super::DisparityMatcher;
+use crate::error::{Error, ErrorKind, Result};
+use crate::image::{FloatImage, GrayImage};
+
+/// Marks an invalid integer disparity in the internal maps.
+const INVALID: f32 = f32::INFINITY;
+
+/// The ELAS matcher with all its buffers.
+#[derive(Debug)]
+pub struct Elas {
+    width: usize,
+    height: usize,
+    max_span: usize,
+    support_uniqueness: f32,
+    min_texture: i32,
+    lr_tolerance: f32,
+    prior_radius: i32,
+    speckle_size: usize,
+    speckle_similarity: f32,
+    gap_width: usize,
+    subpixel_radius: usize,
+    /// Prior energy by |d - prior| in px: -ln(gamma + exp(-delta^2 / 2 sigma^2)) + ln gamma,
+    /// over beta, rounded (ELAS's Gaussian-plus-uniform prior).
+    prior_energy: Vec<i32>,
+    desc_left: DescriptorImage,
+    desc_right: DescriptorImage,
+    support: SupportGrid,
+    points: Vec<SupportPoint>,
+    prior: Prior,
+    grid_left: CandidateGrid,
+    grid_right: CandidateGrid,
+    disp_right: Vec<f32>,
+    speckles: SpeckleScratch,
+}
+
+impl Elas {
+    /// A matcher for `width` x `height` rectified pairs whose search ranges span at most
+    /// `max_disparity_span` px; allocates every buffer it will use.
+    pub fn new(params: &StereoParams, width: usize, height: usize, max_disparity_span: usize) -> Elas {
+        let step = params.support_step.max(1) as usize;
+        let support = SupportGrid::new(width, height, step);
+        let max_points = support.cols * support.rows + 4;
+        let (gamma, sigma, beta) = (params.prior_gamma, params.prior_sigma, params.prior_beta);
+        let prior_energy = (0..=max_disparity_span + 1)
+            .map(|delta| {
+                let delta = delta as f64;
+                let p = -(gamma + (-delta * delta / (2.0 * sigma * sigma)).exp()).ln() + gamma.ln();
+                (p / beta).round() as i32
+            })
+            .collect();
+        let cell = params.grid_size.max(1) as usize;
+        Elas {
+            width,
+            height,
+            max_span: max_disparity_span,
+            support_uniqueness: params.support_uniqueness as f32,
+            min_texture: params.min_texture as i32,
+            lr_tolerance: params.lr_tolerance as f32,
+            prior_radius: params.prior_radius as i32,
+            speckle_size: params.speckle_size as usize,
+            speckle_similarity: params.speckle_similarity as f32,
+            gap_width: params.gap_width as usize,
+            subpixel_radius: params.subpixel_radius as usize,
+            prior_energy,
+            desc_left: DescriptorImage::new(width, height),
+            desc_right: DescriptorImage::new(width, height),
+            support,
+            points: Vec::with_capacity(max_points),
+            prior: Prior::new(width, height, max_points),
+            grid_left: CandidateGrid::new(width, height, cell, max_disparity_span),
+            grid_right: CandidateGrid::new(width, height, cell, max_disparity_span),
+            disp_right: vec![INVALID; width * height],
+            speckles: SpeckleScratch::new(width * height),
+        }
+    }
+
+    /// The support points of the last `compute` (left pixels, integer disparities).
+    pub fn support_points(&self) -> &[SupportPoint] {
+        &self.points
+    }
+}
+
+/// Where one image's pixels look in the other: what differs between matching the left
+/// image and matching the right one.
+#[derive(Clone, Copy)]
+struct Side<'a> {
+    own: &'a DescriptorImage,
+    other: &'a DescriptorImage,
+    prior: &'a [f32],
+    grid: &'a CandidateGrid,
+    /// -1: the other image's pixel is x - d (left image); +1: x + d (right image).
+    sign: isize,
+}
+
+/// The energy minimiser of one pixel, or `INVALID`.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn match_pixel(
+    s: &Side<'_>,
+    x: usize,
+    y: usize,
+    d_min: i32,
+    d_max: i32,
+    radius: i32,
+    min_texture: i32,
+    prior_energy: &[i32],
+) -> f32 {
+    let w = s.own.width;
+    let row = y * w;
+    let own: &Descriptor = &s.own.data[row + x];
+    if texture(own) < min_texture {
+        return INVALID;
+    }
+    // Keep the other pixel's descriptor window inside the image.
+    let d_hi = if s.sign < 0 { x as i32 - BORDER as i32 } else { (w - 1 - BORDER) as i32 - x as i32 };
+    let d_hi = d_hi.min(d_max);
+    if d_hi < d_min {
+        return INVALID;
+    }
+    let other = &s.other.data[row..row + w];
+    let at = |d: i32| (x as isize + s.sign * d as isize) as usize;
+    let mu = s.prior[row + x];
+    let (mut best_e, mut best_d) = (i32::MAX, -1);
+    if mu.is_finite() {
+        let mu_i = mu.round() as i32;
+        let p = |d: i32| prior_energy[((d - mu_i).unsigned_abs() as usize).min(prior_energy.len() - 1)];
+        for &d in s.grid.at(x, y) {
+            let d = d as i32;
+            if d > d_hi {
+                break;
+            }
+            let e = sad(own, &other[at(d)]) + p(d);
+            if e < best_e {
+                best_e = e;
+                best_d = d;
+            }
+        }
+        for d in (mu_i - radius).max(d_min)..=(mu_i + radius).min(d_hi) {
+            let e = sad(own, &other[at(d)]) + p(d);
+            if e < best_e {
+                best_e = e;
+                best_d = d;
+            }
+        }
+    } else {
+        for &d in s.grid.at(x, y) {
+            let d = d as i32;
+            if d > d_hi {
+                break;
+            }
+            let e = sad(own, &other[at(d)]);
+            if e < best_e {
+                best_e = e;
+                best_d = d;
+            }
+        }
+    }
+    if best_d < 0 {
+        INVALID
+    } else {
+        best_d as f32
+    }
+}
+
+impl DisparityMatcher for Elas {
+    fn compute(&mut self, left: &GrayImage, right: &GrayImage, range: (f32, f32), out: &mut FloatImage) -> Result<()> {
+        let (w, h) = (self.width, self.height);
+        if left.width != w || left.height != h || !left.same_size(right) || left.data.len() != w * h || right.data.len() != w * h {
+            return Err(Error::new(
+                ErrorKind::Input,
+                format!(
+                    "stereo pair: expected two {w}x{h} images, got {}x{} and {}x{}",
+                    left.width, left.height, right.width, right.height
+                ),
+            ));
+        }
+        if !(range.0.is_finite() && range.1.is_finite() && range.0 <= range.1) {
+            return Err(Error::new(ErrorKind::Input, format!("disparity range: expected min <= max, got {range:?}")));
+        }
+        let d_min = range.0.floor().max(0.0) as i32;
+        let d_max = range.1.ceil().max(0.0) as i32;
+        if (d_max - d_min) as usize > self.max_span {
+            return Err(Error::new(
+                ErrorKind::Input,
+                format!("disparity range: spans {} px, the matcher was built for {} px", d_max - d_min, self.max_span),
+            ));
+        }
+        out.reset(w, h, INVALID);
+
+        self.desc_left.compute(left);
+        self.desc_right.compute(right);
+        let sp = SupportParams {
+            d_min,
+            d_max,
+            uniqueness: self.support_uniqueness,
+            min_texture: self.min_texture,
+            lr_tolerance: self.lr_tolerance.round().max(1.0) as i32,
+        };
+        self.support.compute(&self.desc_left, &self.desc_right, &sp);
+        self.support.points(&mut self.points);
+        self.prior.compute(&self.points);
+        self.grid_left.compute(&self.points, d_min, d_max, false);
+        self.grid_right.compute(&self.points, d_min, d_max, true);
+
+        let left_side =
+            Side { own: &self.desc_left, other: &self.desc_right, prior: &self.prior.left, grid: &self.grid_left, sign: -1 };
+        let right_side =
+            Side { own: &self.desc_right, other: &self.desc_left, prior: &self.prior.right, grid: &self.grid_right, sign: 1 };
+        let (radius, min_texture, pe, lr_tol) = (self.prior_radius, self.min_texture, &self.prior_energy[..], self.lr_tolerance);
+        out.data.par_chunks_mut(w).zip(self.disp_right.par_chunks_mut(w)).enumerate().for_each(|(y, (dl, dr))| {
+            if y < BORDER || y + BORDER >= h {
+                dr.fill(INVALID);
+                return;
+            }
+            for (x, o) in dr.iter_mut().enumerate() {
+                *o = match_pixel(&right_side, x, y, d_min, d_max, radius, min_texture, pe);
+            }
+            for (x, o) in dl.iter_mut().enumerate() {
+                let d = match_pixel(&left_side, x, y, d_min, d_max, radius, min_texture, pe);
+                // Left-right check: the right pixel it lands on must point back.
+                *o = if d.is_finite() && (dr[x - d as usize] - d).abs() <= lr_tol { d } else { INVALID };
+            }
+        });
+
+        remove_speckles(&mut out.data, w, self.speckle_size, self.speckle_similarity, &mut self.speckles);
+        refine_subpixel(left, right, &mut out.data, self.subpixel_radius);
+        interpolate_gaps(&mut out.data, w, self.gap_width);
+        Ok(())
+    }
+}
