@@ -6,7 +6,9 @@
 //! The projector shows `I_k = A + B cos(phi - k pi/2)`, `phi = 2 pi f x_p / W_proj`, for each
 //! period count `f` (coarse to fine) and step `k = 0..3`, shots ordered frequency-major
 //! (index `4 * fi + k`). The decoded absolute phase is stored as the projector coordinate
-//! `x_p / W_proj` (a fraction of the projector width), NaN where a pixel is masked.
+//! `x_p / W_proj` (a fraction of the projector width), NaN where a pixel is masked: where
+//! the modulation `B = sqrt((I0 - I2)^2 + (I1 - I3)^2) / 2` of any frequency is below
+//! `min_modulation`, or where any shot is clipped at 255.
 
 use camplace_config::PhaseParams;
 use rayon::prelude::*;
@@ -37,7 +39,8 @@ const SATURATED: u8 = u8::MAX;
 struct BandScratch {
     /// Start of each bin's segment list in `entries` (bins + 1 entries).
     bin_start: Vec<u32>,
-    /// Left pixel index of every segment, grouped by the bins its phase interval covers.
+    /// First column of every segment of the indexed row, grouped by the bins its phase
+    /// interval covers.
     entries: Vec<u16>,
     /// Disparity found from the right image's side, per right column.
     right_disparity: Vec<f32>,
@@ -70,9 +73,8 @@ impl PhaseDecoder {
         if periods.windows(2).any(|w| w[1] <= w[0]) {
             return Err(Error::new(ErrorKind::Input, "fringe periods: expected increasing period counts"));
         }
-        if !(params.min_modulation.is_finite() && params.min_modulation >= 0.0)
-            || !(params.lr_tolerance.is_finite() && params.lr_tolerance >= 0.0)
-        {
+        let usable = |v: f64| v.is_finite() && v >= 0.0;
+        if !usable(params.min_modulation) || !usable(params.lr_tolerance) {
             return Err(Error::new(ErrorKind::Input, "phase: expected min_modulation and lr_tolerance >= 0"));
         }
         if width == 0 || height == 0 || width > u16::MAX as usize {
@@ -192,9 +194,7 @@ fn decode_band(shots: &[GrayImage], periods: &[f32], min_sq4: i32, y0: usize, ro
     let mut slope = 0i64;
     for (r, out) in rows.chunks_mut(w).enumerate() {
         let y = y0 + r;
-        for (x, o) in out.iter_mut().enumerate() {
-            *o = decode_pixel(shots, periods, min_sq4, y * w + x);
-        }
+        decode_row(shots, periods, min_sq4, y * w, out);
         for pair in out.windows(2) {
             let step = pair[1] - pair[0];
             // NaN steps compare false on both sides and count nothing.
@@ -204,38 +204,37 @@ fn decode_band(shots: &[GrayImage], periods: &[f32], min_sq4: i32, y0: usize, ro
     slope
 }
 
-/// Absolute phase (fraction of the projector width) of pixel `i`, or NaN when masked.
-#[inline]
-fn decode_pixel(shots: &[GrayImage], periods: &[f32], min_sq4: i32, i: usize) -> f32 {
-    let mut absolute = 0.0f32;
-    let mut ok = true;
+/// Absolute phase (fraction of the projector width) of the row starting at pixel `start`,
+/// NaN where masked. One pass per frequency over the whole row, with selects instead of
+/// branches, so that the compiler vectorises it; a masked pixel is NaN from the first
+/// frequency that masks it, and NaN survives the later passes.
+fn decode_row(shots: &[GrayImage], periods: &[f32], min_sq4: i32, start: usize, out: &mut [f32]) {
+    let w = out.len();
     for (fi, &f) in periods.iter().enumerate() {
-        let i0 = shots[4 * fi].data[i];
-        let i1 = shots[4 * fi + 1].data[i];
-        let i2 = shots[4 * fi + 2].data[i];
-        let i3 = shots[4 * fi + 3].data[i];
-        ok &= i0.max(i1).max(i2).max(i3) < SATURATED;
-        let c = i0 as i32 - i2 as i32;
-        let s = i1 as i32 - i3 as i32;
-        ok &= c * c + s * s >= min_sq4;
-        let mut wrapped = atan2_fast(s as f32, c as f32);
-        if wrapped < 0.0 {
-            wrapped += TAU;
-        }
-        if fi == 0 {
-            absolute = wrapped;
-        } else {
+        let row = |k: usize| &shots[4 * fi + k].data[start..start + w];
+        let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
+        let ratio = if fi == 0 { 0.0 } else { f / periods[fi - 1] };
+        for x in 0..w {
+            let (i0, i1, i2, i3) = (r0[x], r1[x], r2[x], r3[x]);
+            let clipped = i0.max(i1).max(i2).max(i3) == SATURATED;
+            let c = i0 as i32 - i2 as i32;
+            let s = i1 as i32 - i3 as i32;
+            let weak = c * c + s * s < min_sq4;
+            let mut wrapped = atan2_fast(s as f32, c as f32);
+            wrapped += if wrapped < 0.0 { TAU } else { 0.0 };
             // The coarser absolute phase predicts this one; the wrapped phase supplies the
-            // precision and the prediction the period number.
-            let predicted = absolute * (f / periods[fi - 1]);
-            let order = ((predicted - wrapped) / TAU).round();
-            absolute = wrapped + order * TAU;
+            // precision and the prediction the period number. Rounding goes through a
+            // truncating integer conversion (offset to stay positive) because `round` is a
+            // library call without SSE4.1 and would stop vectorisation.
+            let predicted = out[x] * ratio;
+            let order = (((predicted - wrapped) * (1.0 / TAU) + 1024.5) as i32 - 1024) as f32;
+            let absolute = if fi == 0 { wrapped } else { wrapped + order * TAU };
+            out[x] = if clipped || weak || (fi > 0 && out[x].is_nan()) { f32::NAN } else { absolute };
         }
     }
-    if ok {
-        absolute / (TAU * periods[periods.len() - 1])
-    } else {
-        f32::NAN
+    let scale = 1.0 / (TAU * periods[periods.len() - 1]);
+    for o in out.iter_mut() {
+        *o *= scale;
     }
 }
 
@@ -252,7 +251,7 @@ pub(crate) fn atan2_fast(y: f32, x: f32) -> f32 {
     // Abramowitz and Stegun 4.4.49: atan on [0, 1] within 2e-8.
     let p = ((((((0.002_866_225_7 * s - 0.016_165_737) * s + 0.042_909_614) * s - 0.075_289_64) * s + 0.106_562_64)
         * s
-        - 0.142_088_99)
+        - 0.142_089)
         * s
         + 0.199_935_51)
         * s
