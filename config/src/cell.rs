@@ -365,6 +365,9 @@ impl Cell {
         nonneg("phase.min_modulation", self.phase.min_modulation)?;
         nonneg("phase.lr_tolerance", self.phase.lr_tolerance)?;
         nonneg("reconstruction.background_margin", self.reconstruction.background_margin)?;
+        if self.reconstruction.background_dilation > 64 {
+            return Err(Error::value("reconstruction.background_dilation", "expected 0 to 64 pixels"));
+        }
         let e = &self.estimator;
         pos("estimator.surface_resolution", e.surface_resolution)?;
         pos("estimator.keypoint_spacing", e.keypoint_spacing)?;

@@ -2,19 +2,25 @@
 //! tray's pose. Pure compute: it never opens a file or a device; the crate that owns a
 //! format loads it and hands the estimator plain values.
 
+pub mod background;
 pub mod camera;
+pub mod cloud;
 pub mod correspondence;
 mod error;
 pub mod image;
+pub mod phase;
 pub mod rectified;
 pub mod rectify;
 pub mod rig;
 pub mod stereo;
 
+pub use background::Background;
 pub use camera::Camera;
+pub use cloud::{Cloud, CloudBuilder};
 pub use correspondence::Correspondence;
 pub use error::{Error, ErrorKind, Result};
 pub use image::{FloatImage, GrayImage, Image};
+pub use phase::PhaseDecoder;
 pub use rectified::RectifiedCamera;
 pub use rectify::Rectification;
 pub use rig::Rig;

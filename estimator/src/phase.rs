@@ -1,0 +1,787 @@
+//! The 12-shot structured-light decoder: 4-step phase per fringe frequency, modulation and
+//! saturation mask, hierarchical temporal unwrapping, and matching of equal absolute phase
+//! along rectified rows with a left-right check. It works on rectified images only;
+//! rectifying the raw shots is the caller's step.
+//!
+//! The projector shows `I_k = A + B cos(phi - k pi/2)`, `phi = 2 pi f x_p / W_proj`, for each
+//! period count `f` (coarse to fine) and step `k = 0..3`, shots ordered frequency-major
+//! (index `4 * fi + k`). The decoded absolute phase is stored as the projector coordinate
+//! `x_p / W_proj` (a fraction of the projector width), NaN where a pixel is masked: where
+//! the modulation `B = sqrt((I0 - I2)^2 + (I1 - I3)^2) / 2` of any frequency is below
+//! `min_modulation`, or where any shot is clipped at 255.
+
+use camplace_config::PhaseParams;
+use rayon::prelude::*;
+use std::f32::consts::{FRAC_PI_2, PI, TAU};
+
+use crate::{Error, ErrorKind, FloatImage, GrayImage, Result};
+
+/// Rows handled by one parallel work item; each band owns its scratch, so the output does
+/// not depend on how rayon schedules the bands.
+const BAND_ROWS: usize = 16;
+
+/// Phase bins of the per-row lookup index, per image column. Two bins per column keep the
+/// few segments that cover one bin short lists at the usual projector/camera ratio (about
+/// two projector pixels per camera pixel).
+const BINS_PER_COLUMN: usize = 2;
+
+/// A neighbouring pair of pixels whose phase differs by more than this many bins is taken to
+/// straddle a depth edge and is never interpolated across (eight times the phase slope of a
+/// surface facing both projector and camera at the default sensor).
+const MAX_STEP_BINS: usize = 16;
+
+/// A grey level at which a shot is clipped: the sinusoid is cut off there and its phase is
+/// wrong, so a pixel reaching it in any shot is masked.
+const SATURATED: u8 = u8::MAX;
+
+/// Scratch of one band of rows: the phase index of one row and the other side's disparities.
+#[derive(Debug, Clone)]
+struct BandScratch {
+    /// Start of each bin's segment list in `entries` (bins + 1 entries).
+    bin_start: Vec<u32>,
+    /// First column of every segment of the indexed row, grouped by the bins its phase
+    /// interval covers.
+    entries: Vec<u16>,
+    /// Disparity found from the right image's side, per right column.
+    right_disparity: Vec<f32>,
+}
+
+/// The 12-shot decoder: every buffer is allocated by [`PhaseDecoder::new`].
+#[derive(Debug, Clone)]
+pub struct PhaseDecoder {
+    width: usize,
+    height: usize,
+    /// Fringe period counts across the projector width, coarse to fine.
+    periods: Vec<f32>,
+    /// Squared `2 * min_modulation`, compared against `(I0-I2)^2 + (I1-I3)^2`.
+    min_modulation_sq4: i32,
+    lr_tolerance: f32,
+    bins: usize,
+    left_phase: FloatImage,
+    right_phase: FloatImage,
+    bands: Vec<BandScratch>,
+}
+
+impl PhaseDecoder {
+    /// A decoder for `width` x `height` rectified images and `periods` (the cell's
+    /// `sensor.fringe_periods`: counts across the projector width, coarse to fine; the
+    /// first should be 1 for a unique absolute phase).
+    pub fn new(params: &PhaseParams, periods: &[f64], width: usize, height: usize) -> Result<Self> {
+        if periods.is_empty() || periods.iter().any(|p| !(p.is_finite() && *p >= 1.0)) {
+            return Err(Error::new(ErrorKind::Input, "fringe periods: expected one or more period counts >= 1"));
+        }
+        if periods.windows(2).any(|w| w[1] <= w[0]) {
+            return Err(Error::new(ErrorKind::Input, "fringe periods: expected increasing period counts"));
+        }
+        let usable = |v: f64| v.is_finite() && v >= 0.0;
+        if !usable(params.min_modulation) || !usable(params.lr_tolerance) {
+            return Err(Error::new(ErrorKind::Input, "phase: expected min_modulation and lr_tolerance >= 0"));
+        }
+        if width == 0 || height == 0 || width > u16::MAX as usize {
+            return Err(Error::new(ErrorKind::Input, format!("phase: unusable image size {width} x {height}")));
+        }
+        let bins = BINS_PER_COLUMN * width;
+        let band_count = height.div_ceil(BAND_ROWS);
+        let scratch = BandScratch {
+            bin_start: vec![0; bins + 2],
+            entries: vec![0; width * (MAX_STEP_BINS + 2)],
+            right_disparity: vec![f32::INFINITY; width],
+        };
+        let m2 = 2.0 * params.min_modulation;
+        Ok(PhaseDecoder {
+            width,
+            height,
+            periods: periods.iter().map(|&p| p as f32).collect(),
+            min_modulation_sq4: (m2 * m2).ceil().min(i32::MAX as f64) as i32,
+            lr_tolerance: params.lr_tolerance as f32,
+            bins,
+            left_phase: FloatImage::new(width, height, f32::NAN),
+            right_phase: FloatImage::new(width, height, f32::NAN),
+            bands: vec![scratch; band_count],
+        })
+    }
+
+    /// Number of shots per camera that [`PhaseDecoder::decode`] expects.
+    pub fn shot_count(&self) -> usize {
+        4 * self.periods.len()
+    }
+
+    /// The rectified-left absolute phase of the last decode, as a fraction of the projector
+    /// width; NaN where masked (low modulation or saturated).
+    pub fn left_phase(&self) -> &FloatImage {
+        &self.left_phase
+    }
+
+    /// The rectified-right absolute phase of the last decode, as for [`Self::left_phase`].
+    pub fn right_phase(&self) -> &FloatImage {
+        &self.right_phase
+    }
+
+    /// Decodes the rectified `left` and `right` shots (frequency-major, `4 * fi + k`) and
+    /// writes the rectified-left disparity `x_left - x_right` into `out` (+inf where no
+    /// consistent match lies within `range` = (min, max) disparity, px).
+    pub fn decode(
+        &mut self,
+        left: &[GrayImage],
+        right: &[GrayImage],
+        range: (f32, f32),
+        out: &mut FloatImage,
+    ) -> Result<()> {
+        let n = self.shot_count();
+        if left.len() != n || right.len() != n {
+            return Err(Error::new(
+                ErrorKind::Input,
+                format!("phase: expected {n} left and {n} right shots, got {} and {}", left.len(), right.len()),
+            ));
+        }
+        if let Some(bad) = left.iter().chain(right).find(|im| im.width != self.width || im.height != self.height) {
+            return Err(Error::new(
+                ErrorKind::Input,
+                format!(
+                    "phase: expected {} x {} shots, got one of {} x {}",
+                    self.width, self.height, bad.width, bad.height
+                ),
+            ));
+        }
+        let (d_min, d_max) = range;
+        if !(d_min.is_finite() && d_max.is_finite() && d_min <= d_max) {
+            return Err(Error::new(ErrorKind::Input, format!("phase: bad disparity range {d_min} .. {d_max}")));
+        }
+        out.reset(self.width, self.height, f32::INFINITY);
+
+        let w = self.width;
+        let periods = &self.periods[..];
+        let min_sq4 = self.min_modulation_sq4;
+        let slope_left: i64 = self
+            .left_phase
+            .data
+            .par_chunks_mut(w * BAND_ROWS)
+            .enumerate()
+            .map(|(band, rows)| decode_band(left, periods, min_sq4, band * BAND_ROWS, rows))
+            .sum();
+        let slope_right: i64 = self
+            .right_phase
+            .data
+            .par_chunks_mut(w * BAND_ROWS)
+            .enumerate()
+            .map(|(band, rows)| decode_band(right, periods, min_sq4, band * BAND_ROWS, rows))
+            .sum();
+        // The projector's x may run either way along rectified x; the majority of
+        // neighbour steps over both images says which, and only segments rising that way are
+        // matched, which drops the folds that noise makes in flat-phase regions.
+        let increasing = slope_left + slope_right >= 0;
+
+        let matcher =
+            RowMatcher { width: w, bins: self.bins, increasing, d_min, d_max, lr_tolerance: self.lr_tolerance };
+        let left_phase = &self.left_phase;
+        let right_phase = &self.right_phase;
+        out.data.par_chunks_mut(w * BAND_ROWS).zip(self.bands.par_iter_mut()).enumerate().for_each(
+            |(band, (rows, scratch))| {
+                for (r, out_row) in rows.chunks_mut(w).enumerate() {
+                    let y = band * BAND_ROWS + r;
+                    matcher.match_row(left_phase.row(y), right_phase.row(y), scratch, out_row);
+                }
+            },
+        );
+        Ok(())
+    }
+}
+
+/// Decodes the absolute phase of the rows starting at `y0` into `rows`; returns the sum of
+/// the signs of horizontal phase steps between valid neighbours (which way phase runs).
+fn decode_band(shots: &[GrayImage], periods: &[f32], min_sq4: i32, y0: usize, rows: &mut [f32]) -> i64 {
+    let w = shots[0].width;
+    let mut slope = 0i64;
+    for (r, out) in rows.chunks_mut(w).enumerate() {
+        let y = y0 + r;
+        decode_row(shots, periods, min_sq4, y * w, out);
+        for pair in out.windows(2) {
+            let step = pair[1] - pair[0];
+            // NaN steps compare false on both sides and count nothing.
+            slope += (step > 0.0) as i64 - (step < 0.0) as i64;
+        }
+    }
+    slope
+}
+
+/// Absolute phase (fraction of the projector width) of the row starting at pixel `start`,
+/// NaN where masked. One pass per frequency over the whole row, with selects instead of
+/// branches, so that the compiler vectorises it; a masked pixel is NaN from the first
+/// frequency that masks it, and NaN survives the later passes.
+fn decode_row(shots: &[GrayImage], periods: &[f32], min_sq4: i32, start: usize, out: &mut [f32]) {
+    let w = out.len();
+    for (fi, &f) in periods.iter().enumerate() {
+        let row = |k: usize| &shots[4 * fi + k].data[start..start + w];
+        let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
+        let ratio = if fi == 0 { 0.0 } else { f / periods[fi - 1] };
+        for x in 0..w {
+            let (i0, i1, i2, i3) = (r0[x], r1[x], r2[x], r3[x]);
+            let clipped = i0.max(i1).max(i2).max(i3) == SATURATED;
+            let c = i0 as i32 - i2 as i32;
+            let s = i1 as i32 - i3 as i32;
+            let weak = c * c + s * s < min_sq4;
+            let mut wrapped = atan2_fast(s as f32, c as f32);
+            wrapped += if wrapped < 0.0 { TAU } else { 0.0 };
+            // The coarser absolute phase predicts this one; the wrapped phase supplies the
+            // precision and the prediction the period number. Rounding goes through a
+            // truncating integer conversion (offset to stay positive) because `round` is a
+            // library call without SSE4.1 and would stop vectorisation.
+            let predicted = out[x] * ratio;
+            let order = (((predicted - wrapped) * (1.0 / TAU) + 1024.5) as i32 - 1024) as f32;
+            let absolute = if fi == 0 { wrapped } else { wrapped + order * TAU };
+            out[x] = if clipped || weak || (fi > 0 && out[x].is_nan()) { f32::NAN } else { absolute };
+        }
+    }
+    let scale = 1.0 / (TAU * periods[periods.len() - 1]);
+    for o in out.iter_mut() {
+        *o *= scale;
+    }
+}
+
+/// atan2 within about 1e-6 rad and no branches the compiler cannot turn into selects;
+/// the phase noise of an 8-bit camera is orders of magnitude larger.
+#[inline]
+pub(crate) fn atan2_fast(y: f32, x: f32) -> f32 {
+    let ax = x.abs();
+    let ay = y.abs();
+    let hi = ax.max(ay);
+    let lo = ax.min(ay);
+    let a = if hi > 0.0 { lo / hi } else { 0.0 };
+    let s = a * a;
+    // Abramowitz and Stegun 4.4.49: atan on [0, 1] within 2e-8.
+    let p = ((((((0.002_866_225_7 * s - 0.016_165_737) * s + 0.042_909_614) * s - 0.075_289_64) * s + 0.106_562_64)
+        * s
+        - 0.142_089)
+        * s
+        + 0.199_935_51)
+        * s
+        - 0.333_331_45;
+    let mut r = p * s * a + a;
+    if ay > ax {
+        r = FRAC_PI_2 - r;
+    }
+    if x < 0.0 {
+        r = PI - r;
+    }
+    if y < 0.0 {
+        -r
+    } else {
+        r
+    }
+}
+
+/// Matching of equal phase along one rectified row pair.
+#[derive(Debug, Clone, Copy)]
+struct RowMatcher {
+    width: usize,
+    bins: usize,
+    increasing: bool,
+    d_min: f32,
+    d_max: f32,
+    lr_tolerance: f32,
+}
+
+impl RowMatcher {
+    /// Left-to-right and right-to-left matching of one row, then the left-right check.
+    fn match_row(&self, left: &[f32], right: &[f32], scratch: &mut BandScratch, out: &mut [f32]) {
+        let BandScratch { bin_start, entries, right_disparity } = scratch;
+        // Right-to-left first: its disparities are what the check compares against.
+        self.build_index(left, bin_start, entries);
+        for (xr, d) in right_disparity.iter_mut().enumerate() {
+            *d = match self.find(right[xr], left, bin_start, entries, xr as f32, -1.0) {
+                Some(xl) => xl - xr as f32,
+                None => f32::INFINITY,
+            };
+        }
+        self.build_index(right, bin_start, entries);
+        for (xl, o) in out.iter_mut().enumerate() {
+            *o = f32::INFINITY;
+            let Some(xr) = self.find(left[xl], right, bin_start, entries, xl as f32, 1.0) else {
+                continue;
+            };
+            let d = xl as f32 - xr;
+            let back = right_disparity[(xr.round() as usize).min(self.width - 1)];
+            if (back - d).abs() <= self.lr_tolerance {
+                *o = d;
+            }
+        }
+    }
+
+    /// Bin of phase `u` (clamped: out-of-range phases share the end bins and are told apart
+    /// by the exact interval test).
+    #[inline]
+    fn bin(&self, u: f32) -> usize {
+        ((u * self.bins as f32).max(0.0) as usize).min(self.bins)
+    }
+
+    /// Indexes the segments (neighbouring valid pixels rising the matched way, no larger
+    /// than a depth-edge step) of `row` by the phase bins their interval covers: bin `b`
+    /// lists its segments in `entries[bin_start[b]..bin_start[b + 1]]`.
+    fn build_index(&self, row: &[f32], bin_start: &mut [u32], entries: &mut [u16]) {
+        let n_bins = self.bins + 1;
+        bin_start.fill(0);
+        for pair in row.windows(2) {
+            if let Some((b0, b1)) = self.segment_bins(pair) {
+                for c in &mut bin_start[b0 + 1..=b1 + 1] {
+                    *c += 1;
+                }
+            }
+        }
+        for b in 0..n_bins {
+            bin_start[b + 1] += bin_start[b];
+        }
+        // Fill with bin_start[b] as bin b's cursor, then shift the cursors (now each bin's
+        // end) back into starts.
+        for (i, pair) in row.windows(2).enumerate() {
+            if let Some((b0, b1)) = self.segment_bins(pair) {
+                for b in b0..=b1 {
+                    entries[bin_start[b] as usize] = i as u16;
+                    bin_start[b] += 1;
+                }
+            }
+        }
+        for b in (1..=n_bins).rev() {
+            bin_start[b] = bin_start[b - 1];
+        }
+        bin_start[0] = 0;
+    }
+
+    /// The bins covered by a segment, or `None` when it is not matchable.
+    #[inline]
+    fn segment_bins(&self, pair: &[f32]) -> Option<(usize, usize)> {
+        let (a, b) = (pair[0], pair[1]);
+        let rising = if self.increasing { b > a } else { b < a };
+        if !rising {
+            return None;
+        }
+        let (b0, b1) = (self.bin(a.min(b)), self.bin(a.max(b)));
+        (b1 - b0 <= MAX_STEP_BINS).then_some((b0, b1))
+    }
+
+    /// Sub-pixel column in `other` where its phase equals `u`, searching disparities
+    /// `sign * (x - x_other)` within the range; `None` when there is none or when the phase
+    /// appears at places more than a pixel apart (an unwrapping error somewhere).
+    #[inline]
+    fn find(&self, u: f32, other: &[f32], bin_start: &[u32], entries: &[u16], x: f32, sign: f32) -> Option<f32> {
+        if u.is_nan() {
+            return None;
+        }
+        let b = self.bin(u);
+        let (mut lo, mut hi, mut sum, mut n) = (f32::INFINITY, f32::NEG_INFINITY, 0.0f32, 0u32);
+        for &seg in &entries[bin_start[b] as usize..bin_start[b + 1] as usize] {
+            let i = seg as usize;
+            let (a, c) = (other[i], other[i + 1]);
+            if !(a.min(c) <= u && u <= a.max(c)) {
+                continue;
+            }
+            let xo = i as f32 + (u - a) / (c - a);
+            let d = sign * (x - xo);
+            if d < self.d_min || d > self.d_max {
+                continue;
+            }
+            lo = lo.min(xo);
+            hi = hi.max(xo);
+            sum += xo;
+            n += 1;
+        }
+        (n > 0 && hi - lo <= 1.0).then(|| sum / n as f32)
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use nalgebra::{Matrix3, Point3, Vector3};
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    pub(crate) const WIDTH: usize = 640;
+    pub(crate) const HEIGHT: usize = 480;
+    const FOCAL: f64 = 812.4;
+    const BASELINE: f64 = 120.0;
+    const PROJECTOR_WIDTH: f64 = 1280.0;
+    const AMBIENT: f64 = 0.2;
+    const GAIN: f64 = 0.6;
+    pub(crate) const BRIGHT: f64 = 0.85;
+    pub(crate) const DARK: f64 = 0.08;
+    const TABLE: f64 = 0.45;
+
+    /// What a camera ray hits.
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    pub(crate) enum Surface {
+        Table,
+        Box,
+    }
+
+    /// A slanted table plane with an optional box in front of it, in the rectified-left
+    /// camera frame; the projector is a pinhole at the middle of the baseline.
+    #[derive(Debug, Clone, Copy)]
+    pub(crate) struct Scene {
+        pub with_box: bool,
+        /// The projector's x runs against the rectified x axis.
+        pub mirrored: bool,
+    }
+
+    /// A rendered 12-shot stereo frame and its truth per rectified-left pixel.
+    pub(crate) struct Frame {
+        pub left: Vec<GrayImage>,
+        pub right: Vec<GrayImage>,
+        pub disparity: Vec<f64>,
+        pub surface: Vec<Option<Surface>>,
+        pub albedo: Vec<f64>,
+        pub lit: Vec<bool>,
+        pub seen_by_right: Vec<bool>,
+        /// Inside the right image but hidden from the right camera by the box.
+        pub occluded: Vec<bool>,
+        pub saturated: Vec<bool>,
+    }
+
+    pub(crate) fn camera() -> crate::RectifiedCamera {
+        crate::RectifiedCamera {
+            width: WIDTH,
+            height: HEIGHT,
+            k: Matrix3::new(FOCAL, 0.0, 320.0, 0.0, FOCAL, 240.0, 0.0, 0.0, 1.0),
+            baseline: BASELINE,
+            t_world_rectified: table_frame(),
+        }
+    }
+
+    /// Table plane: n . p = TABLE_OFFSET, facing the camera.
+    fn table_normal() -> Vector3<f64> {
+        Vector3::new(0.12, -0.35, -1.0).normalize()
+    }
+    const TABLE_DEPTH: f64 = 700.0;
+
+    /// Rectified-left -> a world frame whose z = 0 is the table, z up (towards the camera).
+    pub(crate) fn table_frame() -> nalgebra::Isometry3<f64> {
+        let z = table_normal();
+        let x = (Vector3::x() - z * z.x).normalize();
+        let y = z.cross(&x);
+        let r = nalgebra::Rotation3::from_matrix_unchecked(Matrix3::from_rows(&[
+            x.transpose(),
+            y.transpose(),
+            z.transpose(),
+        ]));
+        let origin = Point3::new(0.0, 0.0, TABLE_DEPTH);
+        let rot = nalgebra::UnitQuaternion::from_rotation_matrix(&r);
+        nalgebra::Isometry3::from_parts((-(rot * origin.coords)).into(), rot)
+    }
+
+    /// Box in the camera frame: x, y, z ranges.
+    const BOX: [[f64; 2]; 3] = [[-90.0, 30.0], [-70.0, 60.0], [590.0, 640.0]];
+
+    impl Scene {
+        /// Nearest hit along `origin + t dir`, t > 0.
+        fn cast(&self, origin: Point3<f64>, dir: Vector3<f64>) -> Option<(f64, Surface)> {
+            let n = table_normal();
+            let mut best: Option<(f64, Surface)> = None;
+            let denom = n.dot(&dir);
+            if denom.abs() > 1e-12 {
+                let t = (n.dot(&Vector3::new(0.0, 0.0, TABLE_DEPTH)) - n.dot(&origin.coords)) / denom;
+                if t > 1e-9 {
+                    best = Some((t, Surface::Table));
+                }
+            }
+            if self.with_box {
+                let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
+                for a in 0..3 {
+                    let (o, d) = (origin[a], dir[a]);
+                    if d.abs() < 1e-15 {
+                        if o < BOX[a][0] || o > BOX[a][1] {
+                            t0 = f64::INFINITY;
+                        }
+                        continue;
+                    }
+                    let (ta, tb) = ((BOX[a][0] - o) / d, (BOX[a][1] - o) / d);
+                    t0 = t0.max(ta.min(tb));
+                    t1 = t1.min(ta.max(tb));
+                }
+                if t0 <= t1 && t0 > 1e-9 && best.is_none_or(|(t, _)| t0 < t) {
+                    best = Some((t0, Surface::Box));
+                }
+            }
+            best
+        }
+
+        /// Albedo and whether a lamp saturates the spot.
+        fn material(&self, p: &Point3<f64>, s: Surface) -> (f64, bool) {
+            match s {
+                Surface::Box => (BRIGHT, false),
+                // A dark stripe (items) and a lamp hot spot on the table.
+                Surface::Table if (-260.0..-170.0).contains(&p.x) => (DARK, false),
+                Surface::Table if p.x > 170.0 && p.y < -80.0 => (1.0, true),
+                Surface::Table => (TABLE, false),
+            }
+        }
+
+        /// Projector coordinate (fraction of its width) of a point, or `None` when the
+        /// projector does not light it.
+        fn projector(&self, p: &Point3<f64>) -> Option<f64> {
+            let c = Point3::new(BASELINE / 2.0, 0.0, 0.0);
+            let (t, _) = self.cast(c, p - c)?;
+            if (t - 1.0).abs() > 1e-6 {
+                return None;
+            }
+            let fp = PROJECTOR_WIDTH / 2.0 / (20f64.to_radians()).tan();
+            let xp = fp * (p.x - c.x) / p.z + PROJECTOR_WIDTH / 2.0;
+            let u = xp / PROJECTOR_WIDTH;
+            (0.0..1.0).contains(&u).then_some(if self.mirrored { 1.0 - u } else { u })
+        }
+
+        /// Renders the 12 shots of both cameras with the paper's noise.
+        pub(crate) fn render(&self, periods: &[f64], seed: u64) -> Frame {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let n = WIDTH * HEIGHT;
+            let mut truth = Frame {
+                left: Vec::new(),
+                right: Vec::new(),
+                disparity: vec![f64::INFINITY; n],
+                surface: vec![None; n],
+                albedo: vec![0.0; n],
+                lit: vec![false; n],
+                seen_by_right: vec![false; n],
+                occluded: vec![false; n],
+                saturated: vec![false; n],
+            };
+            // Per camera and pixel: (albedo, lamp, projector coordinate).
+            let mut gbuffers = Vec::new();
+            for (cam, cx) in [(0, 0.0), (1, BASELINE)] {
+                let origin = Point3::new(cx, 0.0, 0.0);
+                let mut g = vec![(0.0, 0.0, None); n];
+                for y in 0..HEIGHT {
+                    for x in 0..WIDTH {
+                        let dir = Vector3::new((x as f64 - 320.0) / FOCAL, (y as f64 - 240.0) / FOCAL, 1.0);
+                        let Some((t, s)) = self.cast(origin, dir) else { continue };
+                        let p = origin + t * dir;
+                        let (albedo, hot) = self.material(&p, s);
+                        let u = self.projector(&p);
+                        g[y * WIDTH + x] = (albedo, if hot { 1.0 } else { 0.0 }, u);
+                        if cam == 0 {
+                            let i = y * WIDTH + x;
+                            truth.disparity[i] = FOCAL * BASELINE / p.z;
+                            truth.surface[i] = Some(s);
+                            truth.albedo[i] = albedo;
+                            truth.lit[i] = u.is_some();
+                            truth.saturated[i] = hot;
+                            let r = Point3::new(BASELINE, 0.0, 0.0);
+                            let xr = FOCAL * (p.x - BASELINE) / p.z + 320.0;
+                            let inside = (0.0..(WIDTH - 1) as f64).contains(&xr);
+                            let unblocked = self.cast(r, p - r).is_some_and(|(tr, _)| (tr - 1.0).abs() < 1e-6);
+                            truth.seen_by_right[i] = inside && unblocked;
+                            truth.occluded[i] = inside && !unblocked;
+                        }
+                    }
+                }
+                gbuffers.push(g);
+            }
+            for (cam, g) in gbuffers.iter().enumerate() {
+                for &f in periods {
+                    for k in 0..4 {
+                        let clean: Vec<f64> = g
+                            .iter()
+                            .map(|&(albedo, lamp, u)| {
+                                let pattern = u.map_or(0.0, |u: f64| {
+                                    0.5 + 0.5 * (std::f64::consts::TAU * f * u - k as f64 * FRAC_PI_2 as f64).cos()
+                                });
+                                255.0 * albedo * (AMBIENT + lamp + GAIN * pattern)
+                            })
+                            .collect();
+                        let shot = noisy(&clean, &mut rng);
+                        if cam == 0 {
+                            truth.left.push(shot);
+                        } else {
+                            truth.right.push(shot);
+                        }
+                    }
+                }
+            }
+            truth
+        }
+    }
+
+    /// The paper's sensor noise: uniform integer noise in [-10, 10], a 3x3 mean, round and
+    /// clamp to 8 bits.
+    fn noisy(clean: &[f64], rng: &mut ChaCha8Rng) -> GrayImage {
+        let noisy: Vec<f64> = clean.iter().map(|v| v + rng.random_range(-10..=10) as f64).collect();
+        let mut out = GrayImage::new(WIDTH, HEIGHT, 0);
+        for y in 0..HEIGHT {
+            for x in 0..WIDTH {
+                let mut sum = 0.0;
+                for dy in -1i64..=1 {
+                    for dx in -1i64..=1 {
+                        let xx = (x as i64 + dx).clamp(0, WIDTH as i64 - 1) as usize;
+                        let yy = (y as i64 + dy).clamp(0, HEIGHT as i64 - 1) as usize;
+                        sum += noisy[yy * WIDTH + xx];
+                    }
+                }
+                out.set(x, y, (sum / 9.0).round().clamp(0.0, 255.0) as u8);
+            }
+        }
+        out
+    }
+
+    pub(crate) fn params() -> PhaseParams {
+        PhaseParams { min_modulation: 4.0, lr_tolerance: 1.0 }
+    }
+
+    pub(crate) const PERIODS: [f64; 3] = [1.0, 8.0, 64.0];
+    pub(crate) const RANGE: (f32, f32) = (100.0, 200.0);
+
+    /// Whether the truth is smooth around pixel `i` (no depth, shadow or material edge
+    /// within 2 px).
+    pub(crate) fn away_from_edges(f: &Frame, i: usize) -> bool {
+        let (x, y) = ((i % WIDTH) as i64, (i / WIDTH) as i64);
+        for dy in -2..=2 {
+            for dx in -2..=2 {
+                let (xx, yy) = (x + dx, y + dy);
+                if xx < 0 || yy < 0 || xx >= WIDTH as i64 || yy >= HEIGHT as i64 {
+                    return false;
+                }
+                let j = yy as usize * WIDTH + xx as usize;
+                if (f.disparity[j] - f.disparity[i]).abs() > 1.0
+                    || !f.lit[j]
+                    || f.surface[j] != f.surface[i]
+                    || f.albedo[j] != f.albedo[i]
+                    || f.saturated[j] != f.saturated[i]
+                {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
+    fn median(mut v: Vec<f64>) -> f64 {
+        v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        v[v.len() / 2]
+    }
+
+    /// Decodes a frame; returns (median error over bright, clean pixels, share of those
+    /// decoded, share of all decoded pixels off by more than 1 px).
+    fn check(scene: Scene, seed: u64) -> (f64, f64, f64) {
+        let f = scene.render(&PERIODS, seed);
+        let mut dec = PhaseDecoder::new(&params(), &PERIODS, WIDTH, HEIGHT).unwrap();
+        let mut out = FloatImage::default();
+        dec.decode(&f.left, &f.right, RANGE, &mut out).unwrap();
+        let mut errors = Vec::new();
+        let mut clean = 0;
+        let (mut decoded, mut gross) = (0, 0);
+        for i in 0..WIDTH * HEIGHT {
+            let d = out.data[i] as f64;
+            if d.is_finite() {
+                decoded += 1;
+                if (d - f.disparity[i]).abs() > 1.0 {
+                    gross += 1;
+                }
+            }
+            if f.albedo[i] >= TABLE && !f.saturated[i] && f.seen_by_right[i] && away_from_edges(&f, i) {
+                clean += 1;
+                if d.is_finite() {
+                    errors.push((d - f.disparity[i]).abs());
+                }
+            }
+        }
+        assert!(clean > 50_000, "the scene should show the projector on most of the image");
+        let share = errors.len() as f64 / clean as f64;
+        eprintln!("median {} share {share} gross {gross} of {decoded}", median(errors.clone()));
+        (median(errors), share, gross as f64 / decoded as f64)
+    }
+
+    #[test]
+    fn fast_atan2_agrees_with_std() {
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        for _ in 0..100_000 {
+            let (y, x) = (rng.random_range(-255..=255) as f32, rng.random_range(-255..=255) as f32);
+            let want = if x == 0.0 && y == 0.0 { 0.0 } else { y.atan2(x) };
+            assert!((atan2_fast(y, x) - want).abs() < 1e-6, "atan2({y}, {x})");
+        }
+    }
+
+    #[test]
+    fn disparity_of_a_box_on_a_slanted_table() {
+        let (median, share, gross) = check(Scene { with_box: true, mirrored: false }, 7);
+        assert!(median < 0.1, "median error {median} px");
+        assert!(share > 0.95, "only {share} of the bright pixels decoded");
+        assert!(gross < 0.005, "{gross} of decoded pixels off by more than 1 px");
+    }
+
+    #[test]
+    fn projector_running_against_rectified_x() {
+        let (median, share, gross) = check(Scene { with_box: true, mirrored: true }, 8);
+        assert!(median < 0.1, "median error {median} px");
+        assert!(share > 0.95, "only {share} of the bright pixels decoded");
+        assert!(gross < 0.005, "{gross} of decoded pixels off by more than 1 px");
+    }
+
+    #[test]
+    fn masks_saturated_and_weakly_modulated_pixels() {
+        let f = Scene { with_box: true, mirrored: false }.render(&PERIODS, 9);
+        // The dark stripe's modulation is 255 * 0.08 * 0.6 / 2 = 6.1 grey levels; the
+        // table's 34 and the box's 65.
+        let strict = PhaseParams { min_modulation: 12.0, lr_tolerance: 1.0 };
+        let mut dec = PhaseDecoder::new(&strict, &PERIODS, WIDTH, HEIGHT).unwrap();
+        let mut out = FloatImage::default();
+        dec.decode(&f.left, &f.right, RANGE, &mut out).unwrap();
+        let phase = dec.left_phase();
+        let (mut dark, mut dark_kept, mut hot, mut hot_kept, mut bright, mut bright_kept) = (0, 0, 0, 0, 0, 0);
+        for i in 0..WIDTH * HEIGHT {
+            if !f.lit[i] || !away_from_edges(&f, i) {
+                continue;
+            }
+            let kept = phase.data[i].is_finite() as usize;
+            if f.saturated[i] {
+                hot += 1;
+                hot_kept += kept;
+            } else if f.albedo[i] == DARK {
+                dark += 1;
+                dark_kept += kept;
+            } else {
+                bright += 1;
+                bright_kept += kept;
+            }
+        }
+        eprintln!("dark {dark_kept}/{dark} hot {hot_kept}/{hot} bright {bright_kept}/{bright}");
+        assert!(dark > 1000 && hot > 1000 && bright > 10_000, "{dark} {hot} {bright}");
+        assert_eq!(hot_kept, 0, "saturated pixels decoded");
+        assert!((dark_kept as f64) < 0.001 * dark as f64, "{dark_kept} of {dark} dark pixels decoded");
+        assert!(bright_kept as f64 > 0.999 * bright as f64, "{bright_kept} of {bright} bright pixels masked");
+    }
+
+    #[test]
+    fn occluded_pixels_stay_unmatched() {
+        let f = Scene { with_box: true, mirrored: false }.render(&PERIODS, 10);
+        let mut dec = PhaseDecoder::new(&params(), &PERIODS, WIDTH, HEIGHT).unwrap();
+        let mut out = FloatImage::default();
+        dec.decode(&f.left, &f.right, RANGE, &mut out).unwrap();
+        let (mut occluded, mut matched) = (0, 0);
+        for i in 0..WIDTH * HEIGHT {
+            if f.lit[i] && f.occluded[i] {
+                occluded += 1;
+                matched += out.data[i].is_finite() as usize;
+            }
+        }
+        eprintln!("occluded {occluded} matched {matched}");
+        assert!(occluded > 1000, "the box should hide part of the table from the right camera");
+        // The few that match face the box's edge in the right image, where the 3x3 blur
+        // mixes the box's fringes with the table's into the phases of the hidden strip.
+        assert!((matched as f64) < 0.05 * occluded as f64, "{matched} of {occluded} occluded pixels matched");
+    }
+
+    #[test]
+    fn refuses_wrong_inputs() {
+        let mut dec = PhaseDecoder::new(&params(), &PERIODS, 8, 4).unwrap();
+        let shot = GrayImage::new(8, 4, 100);
+        let shots = vec![shot.clone(); 12];
+        let mut out = FloatImage::default();
+        assert!(dec.decode(&shots[..11], &shots, RANGE, &mut out).is_err());
+        let mut odd = shots.clone();
+        odd[5] = GrayImage::new(8, 5, 100);
+        assert!(dec.decode(&shots, &odd, RANGE, &mut out).is_err());
+        assert!(dec.decode(&shots, &shots, (5.0, 1.0), &mut out).is_err());
+        assert!(PhaseDecoder::new(&params(), &[8.0, 1.0], 8, 4).is_err());
+        assert!(PhaseDecoder::new(&params(), &[], 8, 4).is_err());
+        // Flat shots have no modulation: everything is masked.
+        dec.decode(&shots, &shots, RANGE, &mut out).unwrap();
+        assert!(out.data.iter().all(|d| *d == f32::INFINITY));
+    }
+}
