@@ -1,0 +1,190 @@
+//! The reconstruction workspace (DESIGN.md §5 steps 1-3): raw shots of both cameras in;
+//! rectified images, disparity, depth and the world cloud after background removal out.
+//! Everything is allocated in `Reconstructor::new`; `process` reuses it frame after frame.
+
+use std::time::Instant;
+
+use camplace_config::Cell;
+
+use crate::stereo::DisparityMatcher;
+use crate::{
+    Background, Cloud, CloudBuilder, Elas, Error, ErrorKind, FloatImage, GrayImage, Method, PhaseDecoder,
+    Rectification, Result, Rig,
+};
+
+/// Time spent in each reconstruction stage of the last frame, ms.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ReconstructTimings {
+    pub rectify_ms: f64,
+    pub disparity_ms: f64,
+    pub cloud_ms: f64,
+}
+
+/// The caller-owned output of one frame's reconstruction.
+#[derive(Debug, Clone, Default)]
+pub struct Reconstruction {
+    /// Rectified-left disparity, px; +inf invalid.
+    pub disparity: FloatImage,
+    /// World points after background removal and cropping, with their depth image.
+    pub cloud: Cloud,
+    pub timings: ReconstructTimings,
+}
+
+enum Decoder {
+    Stereo(Box<Elas>),
+    Phase(Box<PhaseDecoder>),
+}
+
+/// Rectification, disparity (one-shot stereo or 12-shot phase) and the cloud, for one rig.
+pub struct Reconstructor {
+    method: Method,
+    rectification: Rectification,
+    decoder: Decoder,
+    builder: CloudBuilder,
+    background: Option<Background>,
+    reconstruction: ReconstructionSettings,
+    raw_left: (usize, usize),
+    raw_right: (usize, usize),
+    rect_left: Vec<GrayImage>,
+    rect_right: Vec<GrayImage>,
+    scratch: FloatImage,
+}
+
+#[derive(Clone)]
+struct ReconstructionSettings {
+    params: camplace_config::ReconstructionParams,
+}
+
+impl Reconstructor {
+    /// The workspace for `rig` with the cell's work volume and settings.
+    pub fn new(cell: &Cell, rig: &Rig, method: Method) -> Result<Reconstructor> {
+        let rectification = Rectification::new(rig, &cell.work_volume)?;
+        let cam = &rectification.camera;
+        let (w, h) = (cam.width, cam.height);
+        let (lo, hi) = rectification.disparity_range();
+        let decoder = match method {
+            Method::OneShot => {
+                let span = (hi - lo).ceil().max(1.0) as usize + 1;
+                Decoder::Stereo(Box::new(Elas::new(&cell.stereo, w, h, span)))
+            }
+            Method::Phase12 => {
+                Decoder::Phase(Box::new(PhaseDecoder::new(&cell.phase, &cell.sensor.fringe_periods, w, h)?))
+            }
+        };
+        let shots = method.shots(cell.sensor.fringe_periods.len());
+        Ok(Reconstructor {
+            method,
+            builder: CloudBuilder::new(cam, &cell.work_volume, &cell.reconstruction),
+            decoder,
+            background: None,
+            reconstruction: ReconstructionSettings { params: cell.reconstruction.clone() },
+            raw_left: (rig.left.width, rig.left.height),
+            raw_right: (rig.right.width, rig.right.height),
+            rect_left: vec![GrayImage::new(w, h, 0); shots],
+            rect_right: vec![GrayImage::new(w, h, 0); shots],
+            scratch: FloatImage::new(w, h, f32::INFINITY),
+            rectification,
+        })
+    }
+
+    /// The rectification (the shared rectified camera and the disparity search range).
+    pub fn rectification(&self) -> &Rectification {
+        &self.rectification
+    }
+
+    /// The capture method.
+    pub fn method(&self) -> Method {
+        self.method
+    }
+
+    /// The rectified images of the last frame (one or twelve per side).
+    pub fn rectified(&self) -> (&[GrayImage], &[GrayImage]) {
+        (&self.rect_left, &self.rect_right)
+    }
+
+    /// The background, once captured.
+    pub fn background(&self) -> Option<&Background> {
+        self.background.as_ref()
+    }
+
+    /// Reconstructs the background capture (the cell without tray and items) and keeps it,
+    /// dilated, for background removal in every later frame.
+    pub fn set_background(&mut self, left: &[GrayImage], right: &[GrayImage]) -> Result<()> {
+        let mut disparity = std::mem::take(&mut self.scratch);
+        let result = self.disparity(left, right, &mut disparity, &mut ReconstructTimings::default());
+        let background = result.and_then(|_| {
+            Background::from_disparity(&self.rectification.camera, &disparity, &self.reconstruction.params)
+        });
+        self.scratch = disparity;
+        self.background = Some(background?);
+        Ok(())
+    }
+
+    /// Reconstructs one frame into `out`.
+    pub fn process(&mut self, left: &[GrayImage], right: &[GrayImage], out: &mut Reconstruction) -> Result<()> {
+        let mut timings = ReconstructTimings::default();
+        self.disparity(left, right, &mut out.disparity, &mut timings)?;
+        let t = Instant::now();
+        self.builder.build(&out.disparity, self.background.as_ref(), &mut out.cloud)?;
+        timings.cloud_ms = ms(t);
+        out.timings = timings;
+        Ok(())
+    }
+
+    fn disparity(
+        &mut self,
+        left: &[GrayImage],
+        right: &[GrayImage],
+        out: &mut FloatImage,
+        timings: &mut ReconstructTimings,
+    ) -> Result<()> {
+        let shots = self.rect_left.len();
+        if left.len() != shots || right.len() != shots {
+            return Err(Error::new(
+                ErrorKind::Input,
+                format!(
+                    "{}: expected {shots} left and {shots} right images, got {} and {}",
+                    self.method,
+                    left.len(),
+                    right.len()
+                ),
+            ));
+        }
+        for (i, img) in left.iter().enumerate() {
+            check_size("left", i, img, self.raw_left)?;
+        }
+        for (i, img) in right.iter().enumerate() {
+            check_size("right", i, img, self.raw_right)?;
+        }
+        let t = Instant::now();
+        for (raw, rect) in left.iter().zip(self.rect_left.iter_mut()) {
+            self.rectification.rectify_left(raw, rect);
+        }
+        for (raw, rect) in right.iter().zip(self.rect_right.iter_mut()) {
+            self.rectification.rectify_right(raw, rect);
+        }
+        timings.rectify_ms = ms(t);
+        let t = Instant::now();
+        let range = self.rectification.disparity_range();
+        match &mut self.decoder {
+            Decoder::Stereo(elas) => elas.compute(&self.rect_left[0], &self.rect_right[0], range, out)?,
+            Decoder::Phase(phase) => phase.decode(&self.rect_left, &self.rect_right, range, out)?,
+        }
+        timings.disparity_ms = ms(t);
+        Ok(())
+    }
+}
+
+fn check_size(side: &str, shot: usize, img: &GrayImage, (width, height): (usize, usize)) -> Result<()> {
+    if img.width != width || img.height != height {
+        return Err(Error::new(
+            ErrorKind::Input,
+            format!("{side} image {shot}: expected {width} x {height} pixels (the rig), got {} x {}", img.width, img.height),
+        ));
+    }
+    Ok(())
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
