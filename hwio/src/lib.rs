@@ -2,6 +2,7 @@
 //! FireWire IIDC cameras behind the `v4l` and `dc1394` features), camera pixel formats,
 //! device listing, and the projector window (behind `display`).
 
+pub mod capture;
 #[cfg(feature = "dc1394")]
 pub mod dc1394;
 pub mod devices;
@@ -15,6 +16,7 @@ pub mod spec;
 #[cfg(feature = "v4l")]
 pub mod v4l2;
 
+pub use capture::Capture;
 pub use devices::{list_devices, DeviceList};
 #[cfg(feature = "display")]
 pub use display::show_patterns;

@@ -144,7 +144,7 @@ impl FrameSource for V4l2Source {
             }
             Layout::Interleaved(order) => {
                 let n = &mut self.nodes[0];
-                let (bytes, meta) = dequeue(n)?;
+                let (bytes, meta) = dequeue(&mut n.stream, &n.path)?;
                 pixels::deinterleave16(
                     bytes,
                     n.width,
@@ -258,10 +258,9 @@ fn open_error(path: &Path, e: &std::io::Error) -> Error {
     Error::device(path.display(), format!("{why}; expected a V4L2 capture device (list them with `camplace devices`)"))
 }
 
-/// The next buffer of `node` and its metadata.
-fn dequeue(node: &mut Node) -> Result<(&[u8], &v4l::buffer::Metadata)> {
-    let path = &node.path;
-    let (bytes, meta) = CaptureStream::next(&mut node.stream).map_err(|e| {
+/// The next buffer of the stream of node `path`, and its metadata.
+fn dequeue<'a>(stream: &'a mut Stream<'static>, path: &Path) -> Result<(&'a [u8], &'a v4l::buffer::Metadata)> {
+    let (bytes, meta) = CaptureStream::next(stream).map_err(|e| {
         let why = if e.kind() == std::io::ErrorKind::TimedOut {
             format!("no frame within {} s", FRAME_TIMEOUT.as_secs())
         } else {
@@ -278,12 +277,11 @@ fn dequeue(node: &mut Node) -> Result<(&[u8], &v4l::buffer::Metadata)> {
 /// The next frame of `node` as grey in `out`; returns its timestamp in microseconds.
 fn read_gray(node: &mut Node, out: &mut GrayImage, jpeg_scratch: &mut Vec<u8>) -> Result<u64> {
     let (width, height, stride, carrier) = (node.width, node.height, node.stride, node.carrier);
-    let (bytes, meta) = dequeue(node)?;
-    let t = micros(meta);
-    let format = match carrier {
-        Carrier::Pixels(f) => f,
-        Carrier::Interleaved16 => unreachable!("interleaved nodes are read by deinterleave16"),
+    let Carrier::Pixels(format) = carrier else {
+        return Err(Error::device(node.path.display(), "16-bit interleaved pixels are not one camera's image"));
     };
+    let (bytes, meta) = dequeue(&mut node.stream, &node.path)?;
+    let t = micros(meta);
     pixels::to_gray(format, bytes, width, height, stride, out, jpeg_scratch)
         .map_err(|e| Error::device(node.path.display(), e))?;
     Ok(t)
