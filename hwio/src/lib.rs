@@ -1,1 +1,27 @@
-//! placeholder
+//! camplace's hardware side: frame sources (recorded dataset folders always; V4L2 and
+//! FireWire IIDC cameras behind the `v4l` and `dc1394` features), camera pixel formats,
+//! device listing, and the projector window (behind `display`).
+
+pub mod capture;
+#[cfg(feature = "dc1394")]
+pub mod dc1394;
+pub mod devices;
+#[cfg(feature = "display")]
+pub mod display;
+mod error;
+pub mod frames;
+pub mod pixels;
+pub mod recorded;
+pub mod spec;
+#[cfg(feature = "v4l")]
+pub mod v4l2;
+
+pub use capture::Capture;
+pub use devices::{list_devices, DeviceList};
+#[cfg(feature = "display")]
+pub use display::show_patterns;
+pub use error::{Error, ErrorKind, Result};
+pub use frames::{FrameInfo, FrameSource, Frames};
+pub use pixels::{InterleavedOrder, PixelFormat};
+pub use recorded::RecordedSource;
+pub use spec::{open_source, parse_source, SourceSpec};

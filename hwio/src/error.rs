@@ -1,0 +1,96 @@
+//! The hardware crate's error type: every message is one line naming the file or device
+//! and what was expected of it.
+
+use std::fmt;
+use std::path::Path;
+
+/// What went wrong, broadly.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum ErrorKind {
+    /// A file or folder could not be read.
+    Io,
+    /// A file or a camera buffer is not what was expected (format, size, missing image).
+    Format,
+    /// A device could not be opened, configured or read.
+    Device,
+    /// A source specification that does not parse.
+    Spec,
+    /// The source or output needs a feature this build does not have.
+    NotBuilt,
+    /// The projector window could not be shown.
+    Display,
+}
+
+/// A hardware I/O error with a one-line message.
+#[derive(Debug, Clone)]
+pub struct Error {
+    kind: ErrorKind,
+    message: String,
+}
+
+impl Error {
+    /// An error of `kind` with a message naming the file or device.
+    pub fn new(kind: ErrorKind, message: impl Into<String>) -> Self {
+        Error { kind, message: message.into() }
+    }
+
+    /// A format error about `path`: `path: message`.
+    pub fn format(path: &Path, message: impl fmt::Display) -> Self {
+        Self::new(ErrorKind::Format, format!("{}: {message}", path.display()))
+    }
+
+    /// An I/O error about `path`.
+    pub fn io(path: &Path, err: &std::io::Error) -> Self {
+        let what = match err.kind() {
+            std::io::ErrorKind::NotFound => "no such file or folder".to_string(),
+            _ => err.to_string(),
+        };
+        Self::new(ErrorKind::Io, format!("{}: {what}", path.display()))
+    }
+
+    /// A device error: `device: message`.
+    pub fn device(device: impl fmt::Display, message: impl fmt::Display) -> Self {
+        Self::new(ErrorKind::Device, format!("{device}: {message}"))
+    }
+
+    /// What went wrong, broadly.
+    pub fn kind(&self) -> ErrorKind {
+        self.kind
+    }
+
+    /// The message, one line.
+    pub fn message(&self) -> &str {
+        &self.message
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // Device drivers and libraries like multi-line text; keep ours to one line.
+        let mut first = true;
+        for word in self.message.split_whitespace() {
+            if !first {
+                f.write_str(" ")?;
+            }
+            f.write_str(word)?;
+            first = false;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for Error {}
+
+impl From<camplace_config::Error> for Error {
+    fn from(e: camplace_config::Error) -> Self {
+        let kind = match e.kind() {
+            camplace_config::ErrorKind::Io => ErrorKind::Io,
+            _ => ErrorKind::Format,
+        };
+        Error::new(kind, e.to_string())
+    }
+}
+
+/// The hardware crate's result type.
+pub type Result<T> = std::result::Result<T, Error>;

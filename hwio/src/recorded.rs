@@ -1,0 +1,354 @@
+//! A recorded dataset folder (DESIGN.md §3) as a frame source: `rig.json`, an optional
+//! `background/`, and `frames/NNNN/` with `left.png` + `right.png` (one shot) or
+//! `left_00.png` ... `right_11.png` (N shots), each frame with an optional `truth.json`.
+//! Simulated and real recordings take this one path.
+
+use std::path::{Path, PathBuf};
+use std::time::UNIX_EPOCH;
+
+use camplace_config::formats::png::read_gray;
+use camplace_config::RigFile;
+use camplace_estimator::GrayImage;
+
+use crate::frames::{FrameInfo, FrameSource, Frames};
+use crate::{Error, ErrorKind, Result};
+
+/// Most shots per side a recording may have; phase-12 uses 12.
+const MAX_SHOTS: usize = 64;
+
+/// A recorded dataset folder, read frame by frame in folder-name order.
+#[derive(Debug, Clone)]
+pub struct RecordedSource {
+    dir: PathBuf,
+    rig: RigFile,
+    shots: usize,
+    frame_dirs: Vec<PathBuf>,
+    next: usize,
+}
+
+impl RecordedSource {
+    /// Opens `dir`: reads `rig.json`, lists `frames/`, detects the shots from the first
+    /// frame and checks its images agree in size with each other and with the rig.
+    pub fn open(dir: &Path) -> Result<RecordedSource> {
+        if !dir.is_dir() {
+            return Err(Error::new(
+                ErrorKind::Io,
+                format!("{}: expected a recorded dataset folder (rig.json, frames/NNNN/)", dir.display()),
+            ));
+        }
+        let rig = RigFile::load(&dir.join("rig.json"))?;
+        let frames_dir = dir.join("frames");
+        let entries = std::fs::read_dir(&frames_dir).map_err(|e| Error::io(&frames_dir, &e))?;
+        let mut named = Vec::new();
+        for entry in entries {
+            let entry = entry.map_err(|e| Error::io(&frames_dir, &e))?;
+            if entry.path().is_dir() {
+                named.push((entry.file_name().to_string_lossy().into_owned(), entry.path()));
+            }
+        }
+        // Numeric names sort as numbers, so 10000 comes after 9999 even without padding.
+        named.sort_by(|(a, _), (b, _)| (a.parse::<u64>().ok(), a).cmp(&(b.parse::<u64>().ok(), b)));
+        let frame_dirs: Vec<PathBuf> = named.into_iter().map(|(_, p)| p).collect();
+        let Some(first) = frame_dirs.first() else {
+            return Err(Error::format(&frames_dir, "expected at least one frame folder (frames/0000/)"));
+        };
+        let shots = detect_shots(first)?;
+        let source = RecordedSource { dir: dir.to_path_buf(), rig, shots, frame_dirs, next: 0 };
+        let mut frames = Frames::new(shots);
+        source.read_into(0, &mut frames)?;
+        Ok(source)
+    }
+
+    /// The dataset folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The calibration in the folder's `rig.json`.
+    pub fn rig(&self) -> &RigFile {
+        &self.rig
+    }
+
+    /// The frame folders, in the order `next` reads them.
+    pub fn frame_dirs(&self) -> &[PathBuf] {
+        &self.frame_dirs
+    }
+
+    /// The `truth.json` of frame `i`, when the recording has one.
+    pub fn truth_path(&self, i: usize) -> Option<PathBuf> {
+        let p = self.frame_dirs.get(i)?.join("truth.json");
+        p.is_file().then_some(p)
+    }
+
+    /// Starts the stream again from the first frame.
+    pub fn rewind(&mut self) {
+        self.next = 0;
+    }
+
+    /// Fills `frames` with the images of `background/`; `Ok(false)` when the recording
+    /// has no background.
+    pub fn background(&self, frames: &mut Frames) -> Result<bool> {
+        let dir = self.dir.join("background");
+        if !dir.is_dir() {
+            return Ok(false);
+        }
+        self.read_folder(&dir, frames)?;
+        Ok(true)
+    }
+
+    /// Reads frame `i` into `frames`.
+    pub fn read_into(&self, i: usize, frames: &mut Frames) -> Result<FrameInfo> {
+        let dir = self.frame_dirs.get(i).ok_or_else(|| {
+            Error::new(
+                ErrorKind::Format,
+                format!("{}: no frame {i} (it has {})", self.dir.display(), self.frame_dirs.len()),
+            )
+        })?;
+        let timestamp_us = self.read_folder(dir, frames)?;
+        let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        Ok(FrameInfo { index: i as u64, name, timestamp_us })
+    }
+
+    /// Reads the shots of one folder into `frames` and checks every size; returns the
+    /// left image's modification time in microseconds (0 when the file system has none).
+    fn read_folder(&self, dir: &Path, frames: &mut Frames) -> Result<u64> {
+        frames.set_shots(self.shots);
+        let want = [
+            ("left", (self.rig.left.width as usize, self.rig.left.height as usize)),
+            ("right", (self.rig.right.width as usize, self.rig.right.height as usize)),
+        ];
+        let mut timestamp_us = 0;
+        for shot in 0..self.shots {
+            for (side, (w, h)) in want {
+                let path = dir.join(image_name(side, shot, self.shots));
+                if !path.is_file() {
+                    return Err(Error::format(&path, format!("missing {side} image (expected {w}x{h} 8-bit PNG)")));
+                }
+                let img = read_gray(&path)?;
+                if (img.width, img.height) != (w, h) {
+                    return Err(Error::format(
+                        &path,
+                        format!(
+                            "image is {}x{}, expected {w}x{h} as rig.json says for the {side} camera",
+                            img.width, img.height
+                        ),
+                    ));
+                }
+                let out = if side == "left" { &mut frames.left[shot] } else { &mut frames.right[shot] };
+                copy_into(&img.data, w, h, out);
+                if shot == 0 && side == "left" {
+                    timestamp_us = modified_us(&path);
+                }
+            }
+        }
+        Ok(timestamp_us)
+    }
+}
+
+impl FrameSource for RecordedSource {
+    fn next(&mut self, frames: &mut Frames) -> Result<Option<FrameInfo>> {
+        if self.next >= self.frame_dirs.len() {
+            return Ok(None);
+        }
+        let info = self.read_into(self.next, frames)?;
+        self.next += 1;
+        Ok(Some(info))
+    }
+
+    fn shots(&self) -> usize {
+        self.shots
+    }
+}
+
+/// The file name of `side`'s shot `shot` in a recording of `shots` shots.
+pub fn image_name(side: &str, shot: usize, shots: usize) -> String {
+    if shots == 1 {
+        format!("{side}.png")
+    } else {
+        format!("{side}_{shot:02}.png")
+    }
+}
+
+/// One shot when `left.png` is there, else as many as consecutive `left_NN.png` from 00.
+fn detect_shots(dir: &Path) -> Result<usize> {
+    if dir.join("left.png").is_file() {
+        return Ok(1);
+    }
+    let shots = (0..MAX_SHOTS).take_while(|&i| dir.join(image_name("left", i, 2)).is_file()).count();
+    if shots == 0 {
+        return Err(Error::format(dir, "expected left.png + right.png or left_00.png ... right_11.png"));
+    }
+    Ok(shots)
+}
+
+fn copy_into(data: &[u8], width: usize, height: usize, out: &mut GrayImage) {
+    out.width = width;
+    out.height = height;
+    out.data.clear();
+    out.data.extend_from_slice(data);
+}
+
+fn modified_us(path: &Path) -> u64 {
+    std::fs::metadata(path)
+        .and_then(|m| m.modified())
+        .ok()
+        .and_then(|t| t.duration_since(UNIX_EPOCH).ok())
+        .map_or(0, |d| d.as_micros() as u64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use camplace_config::formats::png::write_gray;
+    use camplace_config::CameraFile;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    const W: usize = 24;
+    const H: usize = 16;
+
+    fn rig() -> RigFile {
+        let cam = CameraFile {
+            width: W as u32,
+            height: H as u32,
+            k: [[30.0, 0.0, 11.5], [0.0, 30.0, 7.5], [0.0, 0.0, 1.0]],
+            dist: [0.0; 5],
+            t_world_camera: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+        };
+        RigFile { left: cam.clone(), right: cam, projector: None, rectified: None }
+    }
+
+    /// Writes a dataset of `names` frames with `shots` seeded random images per side and
+    /// returns the images as written: [frame][side][shot].
+    fn dataset(dir: &Path, names: &[&str], shots: usize, seed: u64) -> Vec<[Vec<Vec<u8>>; 2]> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        rig().save(&dir.join("rig.json")).unwrap();
+        let mut written = Vec::new();
+        for name in names {
+            let fdir = dir.join("frames").join(name);
+            std::fs::create_dir_all(&fdir).unwrap();
+            let mut sides = [Vec::new(), Vec::new()];
+            for (s, side) in ["left", "right"].iter().enumerate() {
+                for shot in 0..shots {
+                    let img: Vec<u8> = (0..W * H).map(|_| rng.random::<u8>()).collect();
+                    write_gray(&fdir.join(image_name(side, shot, shots)), W, H, &img).unwrap();
+                    sides[s].push(img);
+                }
+            }
+            written.push(sides);
+        }
+        written
+    }
+
+    #[test]
+    fn one_shot_frames_come_back_in_numeric_order() {
+        let t = tempfile::tempdir().unwrap();
+        // Written out of order and not all padded: 9 must come before 10.
+        let names = ["10", "0002", "9"];
+        let written = dataset(t.path(), &names, 1, 1);
+        let mut src = RecordedSource::open(t.path()).unwrap();
+        assert_eq!(src.shots(), 1);
+        let mut frames = Frames::default();
+        for (i, want) in [1usize, 2, 0].into_iter().enumerate() {
+            let info = src.next(&mut frames).unwrap().expect("a frame");
+            assert_eq!((info.index, info.name.as_str()), (i as u64, names[want]));
+            assert!(info.timestamp_us > 0);
+            assert_eq!((frames.left[0].width, frames.left[0].height), (W, H));
+            assert_eq!(frames.left[0].data, written[want][0][0]);
+            assert_eq!(frames.right[0].data, written[want][1][0]);
+        }
+        assert!(src.next(&mut frames).unwrap().is_none());
+        src.rewind();
+        assert_eq!(src.next(&mut frames).unwrap().unwrap().name, "0002");
+    }
+
+    #[test]
+    fn twelve_shot_frames_background_and_truth() {
+        let t = tempfile::tempdir().unwrap();
+        let written = dataset(t.path(), &["0000", "0001"], 12, 2);
+        // The background holds the same image names as a frame.
+        let bg = tempfile::tempdir().unwrap();
+        let bg_written = dataset(bg.path(), &["b"], 12, 3);
+        std::fs::rename(bg.path().join("frames").join("b"), t.path().join("background")).unwrap();
+        std::fs::write(t.path().join("frames/0001/truth.json"), "{}").unwrap();
+
+        let mut src = RecordedSource::open(t.path()).unwrap();
+        assert_eq!(src.shots(), 12);
+        assert_eq!(src.frame_dirs().len(), 2);
+        assert!(src.truth_path(0).is_none() && src.truth_path(1).is_some());
+        let mut frames = Frames::new(12);
+        assert!(src.background(&mut frames).unwrap());
+        let data = |imgs: &[GrayImage]| imgs.iter().map(|i| i.data.clone()).collect::<Vec<_>>();
+        assert_eq!(data(&frames.left), bg_written[0][0]);
+        assert_eq!(data(&frames.right), bg_written[0][1]);
+        let ptrs: Vec<_> = frames.left.iter().map(|i| i.data.as_ptr()).collect();
+        for want in &written {
+            src.next(&mut frames).unwrap().unwrap();
+            assert_eq!(data(&frames.left), want[0]);
+            assert_eq!(data(&frames.right), want[1]);
+        }
+        // The caller's buffers were reused, not replaced.
+        assert_eq!(ptrs, frames.left.iter().map(|i| i.data.as_ptr()).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn no_background_is_false() {
+        let t = tempfile::tempdir().unwrap();
+        dataset(t.path(), &["0000"], 1, 4);
+        let src = RecordedSource::open(t.path()).unwrap();
+        assert!(!src.background(&mut Frames::new(1)).unwrap());
+    }
+
+    #[test]
+    fn a_missing_right_image_is_named() {
+        let t = tempfile::tempdir().unwrap();
+        dataset(t.path(), &["0000"], 12, 5);
+        std::fs::remove_file(t.path().join("frames/0000/right_03.png")).unwrap();
+        let e = RecordedSource::open(t.path()).unwrap_err();
+        assert!(e.to_string().contains("right_03.png") && e.to_string().contains("missing right image"), "{e}");
+    }
+
+    #[test]
+    fn a_size_that_disagrees_with_the_rig_is_named() {
+        let t = tempfile::tempdir().unwrap();
+        dataset(t.path(), &["0000", "0001"], 1, 6);
+        write_gray(&t.path().join("frames/0001/left.png"), W + 2, H, &vec![0; (W + 2) * H]).unwrap();
+        // The first frame is fine, so opening works; the bad frame fails when read.
+        let mut src = RecordedSource::open(t.path()).unwrap();
+        let mut frames = Frames::default();
+        src.next(&mut frames).unwrap().unwrap();
+        let e = src.next(&mut frames).unwrap_err();
+        let msg = e.to_string();
+        assert!(
+            msg.contains("0001/left.png")
+                && msg.contains(&format!("{}x{H}", W + 2))
+                && msg.contains(&format!("expected {W}x{H}")),
+            "{msg}"
+        );
+
+        write_gray(&t.path().join("frames/0000/right.png"), W, H + 1, &vec![0; W * (H + 1)]).unwrap();
+        let e = RecordedSource::open(t.path()).unwrap_err();
+        assert!(e.to_string().contains("0000/right.png"), "{e}");
+    }
+
+    #[test]
+    fn unreadable_png_and_missing_parts_are_named() {
+        let t = tempfile::tempdir().unwrap();
+        dataset(t.path(), &["0000"], 1, 7);
+        std::fs::write(t.path().join("frames/0000/left.png"), b"not a png").unwrap();
+        let e = RecordedSource::open(t.path()).unwrap_err();
+        assert!(e.to_string().contains("0000/left.png"), "{e}");
+
+        std::fs::remove_file(t.path().join("frames/0000/left.png")).unwrap();
+        let e = RecordedSource::open(t.path()).unwrap_err();
+        assert!(e.to_string().contains("left_00.png"), "{e}");
+
+        std::fs::remove_dir_all(t.path().join("frames/0000")).unwrap();
+        let e = RecordedSource::open(t.path()).unwrap_err();
+        assert!(e.to_string().contains("frames") && e.to_string().contains("at least one frame"), "{e}");
+
+        std::fs::remove_file(t.path().join("rig.json")).unwrap();
+        let e = RecordedSource::open(t.path()).unwrap_err();
+        assert!(e.to_string().contains("rig.json"), "{e}");
+    }
+}
