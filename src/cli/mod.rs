@@ -2,6 +2,7 @@
 
 mod cell_args;
 mod init;
+mod reconstruct;
 mod render;
 
 use clap::{Parser, Subcommand};
@@ -22,6 +23,8 @@ enum Command {
     Init(init::Args),
     /// Render a simulated scene (or a dataset of scenes) with its ground truth.
     Render(render::Args),
+    /// Depth and point clouds from stereo frames (a dataset, one pair, or a rectified pair).
+    Reconstruct(reconstruct::Args),
 }
 
 /// Parses the command line and runs the subcommand.
@@ -30,5 +33,6 @@ pub fn run() -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Init(a) => init::run(a),
         Command::Render(a) => render::run(a),
+        Command::Reconstruct(a) => reconstruct::run(a),
     }
 }
