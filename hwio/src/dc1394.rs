@@ -1,7 +1,7 @@
 //! FireWire IIDC stereo cameras (the Bumblebee2) through libdc1394 (feature `dc1394`): a
 //! small hand-written FFI covering what capture needs. The camera is put in Format7 mode 3
-//! with 16-bit pixels, whose two bytes are the two sensors; `pixels::deinterleave16`
-//! splits them. Colour models send Bayer mosaics: their raw values are taken as grey.
+//! with 16-bit pixels, whose two bytes are the two sensors, in Point Grey's little-endian
+//! order (right sensor first); `pixels::deinterleave16` splits them. Colour models send Bayer mosaics: their raw values are taken as grey.
 
 use std::ffi::{c_char, c_int, c_void, CStr};
 use std::ptr;
@@ -25,6 +25,10 @@ mod ffi {
     pub const CAPTURE_POLICY_WAIT: c_int = 672;
     pub const USE_MAX_AVAIL: i32 = -2;
     pub const ON: c_int = 1;
+    /// Point Grey's image data format register and its value for little-endian 16-bit
+    /// pixels, in which the right sensor's byte comes first.
+    pub const PGR_IMAGE_DATA_FORMAT: u64 = 0x1048;
+    pub const PGR_LITTLE_ENDIAN: u32 = 0x8000_0000;
     pub const OFF: c_int = 0;
 
     #[repr(C)]
@@ -88,6 +92,7 @@ mod ffi {
         pub fn dc1394_camera_free_list(list: *mut CameraList);
         pub fn dc1394_camera_new(d: *mut c_void, guid: u64) -> *mut Camera;
         pub fn dc1394_camera_free(camera: *mut Camera);
+        pub fn dc1394_set_control_registers(camera: *mut Camera, offset: u64, value: *const u32, n: u32) -> c_int;
         pub fn dc1394_video_set_iso_speed(camera: *mut Camera, speed: c_int) -> c_int;
         pub fn dc1394_video_set_mode(camera: *mut Camera, mode: c_int) -> c_int;
         pub fn dc1394_format7_get_max_image_size(camera: *mut Camera, mode: c_int, w: *mut u32, h: *mut u32) -> c_int;
@@ -243,6 +248,10 @@ impl Dc1394Source {
         let (mut w, mut h) = (0u32, 0u32);
         // SAFETY: the camera handle is live; the out-pointers are local.
         unsafe {
+            // Fix the byte order of the 16-bit pixels so `order` means the same on every
+            // camera, whatever its memory channel says. Not a Point Grey camera: keep its own.
+            let value = ffi::PGR_LITTLE_ENDIAN;
+            let _ = ffi::dc1394_set_control_registers(self.camera, ffi::PGR_IMAGE_DATA_FORMAT, &value, 1);
             check(ffi::dc1394_video_set_iso_speed(self.camera, ffi::ISO_SPEED_400), "setting 400 Mb/s")?;
             check(ffi::dc1394_video_set_mode(self.camera, mode), "setting Format7 mode 3")?;
             check(ffi::dc1394_format7_get_max_image_size(self.camera, mode, &mut w, &mut h), "reading the image size")?;

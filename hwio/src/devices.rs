@@ -18,8 +18,11 @@ const USB_CLASS_VIDEO: u8 = 0x0e;
 /// The cameras found, by bus.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct DeviceList {
+    /// Video4Linux2 nodes.
     pub v4l2: Vec<V4l2Device>,
+    /// USB cameras.
     pub usb: Vec<UsbDevice>,
+    /// FireWire cameras.
     pub firewire: Vec<FirewireDevice>,
     /// What could not be looked at, and why (a bus without permission, a missing library).
     pub notes: Vec<String>,
@@ -39,9 +42,13 @@ pub struct V4l2Device {
 /// A USB camera.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct UsbDevice {
+    /// USB bus number.
     pub bus: u8,
+    /// Device address on the bus.
     pub address: u8,
+    /// USB vendor id.
     pub vendor_id: u16,
+    /// USB product id.
     pub product_id: u16,
     /// Whether it has a USB video class (UVC) interface.
     pub video_class: bool,
@@ -54,7 +61,9 @@ pub struct UsbDevice {
 pub struct FirewireDevice {
     /// The 64-bit GUID, as `dc1394:GUID` takes it (hexadecimal).
     pub guid: u64,
+    /// Maker, as the camera names it.
     pub vendor: String,
+    /// Model, as the camera names it.
     pub model: String,
 }
 

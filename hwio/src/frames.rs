@@ -9,7 +9,9 @@ use crate::Result;
 /// buffers the caller owns and hands back for every frame.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Frames {
+    /// The left camera's shots, in pattern order.
     pub left: Vec<GrayImage>,
+    /// The right camera's shots, in pattern order.
     pub right: Vec<GrayImage>,
 }
 

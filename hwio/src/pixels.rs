@@ -15,8 +15,8 @@ pub enum InterleavedOrder {
     /// Byte 0 of each pixel is the left camera, byte 1 the right.
     LeftFirst,
     /// Byte 0 of each pixel is the right camera, byte 1 the left. The Bumblebee2 in its
-    /// 16-bit Format7 mode sends the right sensor first (Point Grey's Linux samples take the
-    /// first de-interlaced plane as the right image), so this is the default.
+    /// 16-bit Format7 mode with Point Grey's default little-endian pixels (which the
+    /// `dc1394` source sets) sends the right sensor first, so this is the default.
     #[default]
     RightFirst,
 }

@@ -20,13 +20,37 @@ pub enum SourceSpec {
     /// A recorded dataset folder.
     Recorded(PathBuf),
     /// Two V4L2 nodes, one per camera, paired by timestamp.
-    V4l2Pair { left: PathBuf, right: PathBuf, size: Option<(u32, u32)> },
+    V4l2Pair {
+        /// The left camera's node.
+        left: PathBuf,
+        /// The right camera's node.
+        right: PathBuf,
+        /// Frame size to ask both for; their current one when `None`.
+        size: Option<(u32, u32)>,
+    },
     /// One V4L2 node whose frames hold the left image beside the right one.
-    V4l2SideBySide { device: PathBuf, size: Option<(u32, u32)> },
+    V4l2SideBySide {
+        /// The node.
+        device: PathBuf,
+        /// Whole frame size (both halves) to ask for; the current one when `None`.
+        size: Option<(u32, u32)>,
+    },
     /// One V4L2 node of 16-bit pixels, one byte per camera.
-    V4l2Interleaved { device: PathBuf, size: Option<(u32, u32)>, order: InterleavedOrder },
+    V4l2Interleaved {
+        /// The node.
+        device: PathBuf,
+        /// Frame size to ask for; the current one when `None`.
+        size: Option<(u32, u32)>,
+        /// Which byte is the left camera.
+        order: InterleavedOrder,
+    },
     /// A FireWire IIDC stereo camera (Bumblebee2); the first one found when `guid` is None.
-    Dc1394 { guid: Option<u64>, order: InterleavedOrder },
+    Dc1394 {
+        /// The camera's 64-bit GUID.
+        guid: Option<u64>,
+        /// Which byte is the left camera.
+        order: InterleavedOrder,
+    },
 }
 
 /// Parses a source specification; the error lists the accepted forms.
