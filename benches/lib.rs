@@ -1,1 +1,5 @@
-fn main() {}
+//! camplace's benches: one criterion binary, a module per topic.
+
+mod pose;
+
+criterion::criterion_main!(pose::benches);

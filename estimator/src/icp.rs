@@ -1,13 +1,12 @@
 //! Point-to-plane ICP: refines the tray's pose by pulling the scene cloud onto the closest
 //! viewpoint's model cloud, whose normals give the planes. The coarse pose comes from RANSAC.
 //!
-//! Scene points are taken into the tray frame and matched to their nearest model point (a
-//! kd-tree per view, built once); pairs farther than `icp_max_distance` are ignored and the
+//! Scene points are taken into the tray frame and matched to a nearest model point through a
+//! lookup grid per view, built once; pairs farther than `icp_max_distance` are ignored and the
 //! farthest `icp_trim` share of the rest is dropped, so clutter and items absent from the
 //! model do not drag the pose. Each step solves the linearised 6×6 normal equations.
 
 use camplace_config::EstimatorParams;
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::{Isometry3, Matrix6, Point3, Vector3, Vector6};
 
 use crate::error::{Error, ErrorKind, Result};
@@ -63,7 +62,7 @@ pub struct Icp {
     iterations: u32,
     max_distance: f32,
     trim: f32,
-    trees: Vec<ImmutableKdTree<f32, 3>>,
+    grids: Vec<NearestGrid>,
     /// Scene points near the tray at the start pose, world frame.
     near: Vec<Point3<f32>>,
     pairs: Vec<Pair>,
@@ -74,15 +73,15 @@ pub struct Icp {
 
 impl std::fmt::Debug for Icp {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Icp").field("iterations", &self.iterations).field("views", &self.trees.len()).finish()
+        f.debug_struct("Icp").field("iterations", &self.iterations).field("views", &self.grids.len()).finish()
     }
 }
 
 impl Icp {
-    /// Builds a kd-tree over every view of `model`; fails when a view has too few points.
+    /// Builds a lookup grid over every view of `model`; fails when a view has too few points.
     pub fn new(params: &EstimatorParams, model: &Model) -> Result<Self> {
         model.validate()?;
-        let mut trees = Vec::with_capacity(model.views.len());
+        let mut grids = Vec::with_capacity(model.views.len());
         let mut bounds = Vec::with_capacity(model.views.len());
         for (k, view) in model.views.iter().enumerate() {
             if view.points.len() < MIN_PAIRS {
@@ -91,10 +90,7 @@ impl Icp {
                     format!("model: expected at least {MIN_PAIRS} points in view {k}, found {}", view.points.len()),
                 ));
             }
-            let coords: Vec<[f32; 3]> = view.points.iter().map(|p| [p.x, p.y, p.z]).collect();
-            let tree = ImmutableKdTree::new_from_slice(&coords)
-                .map_err(|e| Error::new(ErrorKind::Model, format!("model: view {k} cannot be indexed: {e:?}")))?;
-            trees.push(tree);
+            grids.push(NearestGrid::new(&view.points, model.surface_resolution, params.icp_max_distance as f32));
             let mut lo = view.points[0];
             let mut hi = view.points[0];
             for p in &view.points {
@@ -108,7 +104,7 @@ impl Icp {
             iterations: params.icp_iterations,
             max_distance: params.icp_max_distance as f32,
             trim: params.icp_trim as f32,
-            trees,
+            grids,
             near: Vec::with_capacity(capacity),
             pairs: Vec::with_capacity(capacity),
             distances: Vec::with_capacity(capacity),
@@ -129,13 +125,13 @@ impl Icp {
         out: &mut IcpResult,
     ) -> Result<bool> {
         *out = IcpResult { t_world_tray: *start, ..IcpResult::default() };
-        let Some(model_view) = model.views.get(view).filter(|_| view < self.trees.len()) else {
+        let Some(model_view) = model.views.get(view).filter(|_| view < self.grids.len()) else {
             return Err(Error::new(
                 ErrorKind::Input,
-                format!("icp: expected a view index below {}, found {view}", self.trees.len()),
+                format!("icp: expected a view index below {}, found {view}", self.grids.len()),
             ));
         };
-        if model_view.points.len() != self.trees[view].size() as usize {
+        if model_view.points.len() != self.grids[view].points {
             return Err(Error::new(ErrorKind::Input, "icp: expected the model it was built for"));
         }
 
@@ -152,7 +148,7 @@ impl Icp {
             }
         }
 
-        let tree = &self.trees[view];
+        let grid = &self.grids[view];
         let max2 = self.max_distance * self.max_distance;
         // The tray-frame pose of the world, refined in place.
         let mut t_tray_world = start.inverse();
@@ -162,13 +158,14 @@ impl Icp {
             self.pairs.clear();
             for p in &self.near {
                 let q = pose * p;
-                let nn = tree.query(&[q.x, q.y, q.z]).nearest_one::<SquaredEuclidean<f32>>().execute();
-                let (m, n) = (&model_view.points[nn.item as usize], &model_view.normals[nn.item as usize]);
+                let Some(item) = grid.lookup(&q) else { continue };
+                let (m, n) = (&model_view.points[item as usize], &model_view.normals[item as usize]);
+                let distance2 = (q - m).norm_squared();
                 // The view cloud holds surfaces this sensor may not see (and misses some it
                 // does); a scene point cannot lie on a surface turned away from the sensor, and
                 // pairing it there drags thin walls by their thickness.
-                if nn.distance <= max2 && n.dot(&(eye - m)) > 0.0 {
-                    self.pairs.push(Pair { scene: q, model: nn.item, distance2: nn.distance });
+                if distance2 <= max2 && n.dot(&(eye - m)) > 0.0 {
+                    self.pairs.push(Pair { scene: q, model: item, distance2 });
                 }
             }
             let keep2 = trim_threshold(&self.pairs, &mut self.distances, self.trim);
@@ -215,6 +212,94 @@ impl Icp {
             }
         }
         Ok(true)
+    }
+}
+
+/// A dense grid over one view (tray frame) whose cells hold the model point nearest to the
+/// cell's centre: an O(1) approximate nearest neighbour, off by at most half a cell diagonal,
+/// which the point-to-plane residual hardly feels on the tray's flat faces.
+#[derive(Debug, Clone)]
+struct NearestGrid {
+    origin: Point3<f32>,
+    cell: f32,
+    dims: [usize; 3],
+    /// Model point index per cell, `u32::MAX` where none lies within reach.
+    cells: Vec<u32>,
+    /// Points the grid was built from, to recognise its model.
+    points: usize,
+}
+
+/// Cells per view above which the grid coarsens, bounding memory (4 bytes a cell) on big trays.
+const MAX_GRID_CELLS: usize = 1 << 23;
+
+impl NearestGrid {
+    /// A grid of cells about `surface_resolution` wide covering every query within
+    /// `max_distance` of `points`.
+    fn new(points: &[Point3<f32>], surface_resolution: f32, max_distance: f32) -> Self {
+        let (mut lo, mut hi) = (points[0], points[0]);
+        for p in points {
+            lo = lo.inf(p);
+            hi = hi.sup(p);
+        }
+        let mut cell = surface_resolution;
+        let (mut reach, mut dims, mut origin);
+        loop {
+            // A query within max_distance of a point has its cell centre within this of it.
+            reach = max_distance + cell * 0.87;
+            origin = lo - Vector3::repeat(reach);
+            let extent = hi - lo + Vector3::repeat(2.0 * reach);
+            dims = [0, 1, 2].map(|a| (extent[a] / cell).ceil() as usize + 1);
+            if dims.iter().product::<usize>() <= MAX_GRID_CELLS {
+                break;
+            }
+            cell *= 1.25;
+        }
+        let n = dims.iter().product::<usize>();
+        let mut cells = vec![u32::MAX; n];
+        let mut best = vec![f32::INFINITY; n];
+        let span = (reach / cell).ceil() as isize;
+        for (i, p) in points.iter().enumerate() {
+            let c = [0, 1, 2].map(|a| ((p[a] - origin[a]) / cell).floor() as isize);
+            for dz in -span..=span {
+                let z = c[2] + dz;
+                if z < 0 || z >= dims[2] as isize {
+                    continue;
+                }
+                for dy in -span..=span {
+                    let y = c[1] + dy;
+                    if y < 0 || y >= dims[1] as isize {
+                        continue;
+                    }
+                    for dx in -span..=span {
+                        let x = c[0] + dx;
+                        if x < 0 || x >= dims[0] as isize {
+                            continue;
+                        }
+                        let centre = origin + Vector3::new(x as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5) * cell;
+                        let d2 = (centre - p).norm_squared();
+                        let k = (z as usize * dims[1] + y as usize) * dims[0] + x as usize;
+                        if d2 < best[k] && d2 <= reach * reach {
+                            best[k] = d2;
+                            cells[k] = i as u32;
+                        }
+                    }
+                }
+            }
+        }
+        NearestGrid { origin, cell, dims, cells, points: points.len() }
+    }
+
+    fn lookup(&self, q: &Point3<f32>) -> Option<u32> {
+        let mut k = 0;
+        for a in (0..3).rev() {
+            let c = ((q[a] - self.origin[a]) / self.cell).floor();
+            if !(c >= 0.0 && (c as usize) < self.dims[a]) {
+                return None;
+            }
+            k = k * self.dims[a] + c as usize;
+        }
+        let item = self.cells[k];
+        (item != u32::MAX).then_some(item)
     }
 }
 
@@ -299,6 +384,24 @@ mod tests {
                 .unwrap());
             let (dt, dr) = pose_error(&fine.t_world_tray, &scene.t_world_tray);
             assert!(dt < 1.0 && dr < 0.5, "seed {seed}: {dt} mm {dr} deg {fine:?}");
+        }
+    }
+
+    #[test]
+    fn grid_lookup_is_within_a_cell_diagonal_of_brute_force() {
+        let model = synthetic::tray(false, 1);
+        let points = &model.views[2].points;
+        let grid = NearestGrid::new(points, 2.0, 6.0);
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        for _ in 0..3000 {
+            let base = points[rng.random_range(0..points.len())];
+            let q = base
+                + Vector3::new(rng.random_range(-8.0..8.0), rng.random_range(-8.0..8.0), rng.random_range(-8.0..8.0));
+            let exact = points.iter().map(|p| (p - q).norm()).fold(f32::INFINITY, f32::min);
+            match grid.lookup(&q) {
+                Some(i) => assert!((points[i as usize] - q).norm() <= exact + 2.0 * 3f32.sqrt() + 1e-4),
+                None => assert!(exact > 6.0, "missed a point {exact} mm away"),
+            }
         }
     }
 

@@ -568,6 +568,8 @@ pub mod synthetic {
         pub with_tray: bool,
         /// Tilt of the tray about its x axis, deg (0: resting on the table).
         pub tilt_deg: f32,
+        /// Spacing of the scene's key points, mm.
+        pub keypoint_spacing_mm: f32,
     }
 
     impl Default for SceneSpec {
@@ -581,6 +583,7 @@ pub mod synthetic {
                 clutter_points: 1000,
                 with_tray: true,
                 tilt_deg: 0.0,
+                keypoint_spacing_mm: KEYPOINT_SPACING,
             }
         }
     }
@@ -656,7 +659,7 @@ pub mod synthetic {
             }
 
             let keypoints: Vec<Point3<f32>> =
-                voxel_subsample(&points, KEYPOINT_SPACING).into_iter().map(|i| points[i]).collect();
+                voxel_subsample(&points, spec.keypoint_spacing_mm).into_iter().map(|i| points[i]).collect();
             let mut correspondences = Vec::new();
             let mut correct = 0;
             let n_model = model.feature_points.len() as u32;
