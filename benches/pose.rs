@@ -13,7 +13,7 @@ fn pose(c: &mut Criterion) {
         seed: 21,
         matches_per_keypoint: 25,
         correct_share: 0.8,
-        keypoint_spacing_mm: 6.0,
+        keypoint_spacing_mm: 5.0,
         ..SceneSpec::default()
     };
     let scene = Scene::generate(&model, false, &spec);

@@ -2,7 +2,8 @@
 //! SampleConsensusPrerejective) with the paper's table check: from feature matches to the
 //! tray's coarse pose. ICP refines it afterwards; the matches come from elsewhere.
 //!
-//! Each iteration draws 3 matches, rejects the sample unless its scene and model triangles
+//! Each iteration draws 3 matches (3 distinct key points, then one of each one's matches, as
+//! PCL does), rejects the sample unless its scene and model triangles
 //! have similar edges, fits a pose (Kabsch), rejects it unless the tray rests on the table,
 //! and scores the survivors by the inliers of the closest viewpoint's ICP cloud against the
 //! scene. Scoring walks the view's points in a fixed random order, so every prefix is a random
@@ -71,17 +72,11 @@ pub struct Ransac {
     /// Each view's ICP points in a fixed random order.
     views: Vec<Vec<Point3<f32>>>,
     grid: SceneGrid,
-    /// The matches with both points inlined: sampling then touches one cache line per draw.
-    pairs: Vec<Pair>,
-}
-
-/// A match with its scene key point and model feature position.
-#[derive(Debug, Clone, Copy)]
-struct Pair {
-    scene: Point3<f32>,
-    model: Point3<f32>,
-    scene_index: u32,
-    model_index: u32,
+    /// `match_model[match_start[k]..match_start[k + 1]]` are key point k's model features.
+    match_start: Vec<u32>,
+    match_model: Vec<u32>,
+    /// Key points with at least one match.
+    matched: Vec<u32>,
 }
 
 impl Ransac {
@@ -115,14 +110,17 @@ impl Ransac {
             seed: params.seed,
             views,
             grid: SceneGrid::new(2.0 * inlier_distance, 1 << 16),
-            pairs: Vec::with_capacity(1 << 17),
+            match_start: Vec::with_capacity(1 << 13),
+            match_model: Vec::with_capacity(1 << 17),
+            matched: Vec::with_capacity(1 << 13),
         })
     }
 
     /// Finds the tray's pose from matches of `scene_keypoints` (indexed by
     /// `Correspondence::scene`) to the model's features, scoring against the scene cloud
-    /// `scene_points` (world frame). Returns `Ok(false)` and leaves no pose worth using when no
-    /// hypothesis passes the checks with `min_inlier_share` of its view's points as inliers.
+    /// `scene_points` (world frame). Returns `Ok(false)` when no hypothesis passes the checks
+    /// with `min_inlier_share` of its view's points as inliers; `out` then holds the best
+    /// hypothesis seen, if any, for diagnosis only.
     /// The same inputs give the same result: sampling restarts from `seed` on every call.
     pub fn estimate(
         &mut self,
@@ -140,56 +138,57 @@ impl Ransac {
             return Err(Error::new(ErrorKind::Input, "ransac: expected the model it was built for"));
         }
         let n_features = model.feature_points.len();
-        self.pairs.clear();
-        for c in correspondences {
-            let (Some(scene), Some(feature)) =
-                (scene_keypoints.get(c.scene as usize), model.feature_points.get(c.model as usize))
-            else {
-                return Err(Error::new(
-                    ErrorKind::Input,
-                    format!(
-                        "ransac: expected matches within {} key points and {n_features} features, found scene {} model {}",
-                        scene_keypoints.len(),
-                        c.scene,
-                        c.model
-                    ),
-                ));
-            };
-            self.pairs.push(Pair { scene: *scene, model: *feature, scene_index: c.scene, model_index: c.model });
+        if let Some(c) =
+            correspondences.iter().find(|c| c.scene as usize >= scene_keypoints.len() || c.model as usize >= n_features)
+        {
+            return Err(Error::new(
+                ErrorKind::Input,
+                format!(
+                    "ransac: expected matches within {} key points and {n_features} features, found scene {} model {}",
+                    scene_keypoints.len(),
+                    c.scene,
+                    c.model
+                ),
+            ));
         }
-        if correspondences.len() < 3 || scene_points.is_empty() {
+        self.group_matches(scene_keypoints.len(), correspondences);
+        if self.matched.len() < 3 || scene_points.is_empty() {
             return Ok(false);
         }
         self.grid.rebuild(scene_points);
 
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
         let min_edge2 = self.min_edge * self.min_edge;
-        let n = correspondences.len() as u32;
+        let n = self.matched.len() as u32;
         let mut best: Option<(Isometry3<f64>, usize)> = None;
         let mut best_inliers = 0u32;
         let mut iterations = 0;
         while iterations < self.iterations {
             iterations += 1;
-            let c = [
-                self.pairs[rng.random_range(0..n) as usize],
-                self.pairs[rng.random_range(0..n) as usize],
-                self.pairs[rng.random_range(0..n) as usize],
+            // As PCL does: 3 distinct key points, then one of each one's matches. The key
+            // points are few enough to stay in cache, and the scene-side checks run before
+            // any match is looked at.
+            let k = [
+                self.matched[rng.random_range(0..n) as usize] as usize,
+                self.matched[rng.random_range(0..n) as usize] as usize,
+                self.matched[rng.random_range(0..n) as usize] as usize,
             ];
-            if c[0].scene_index == c[1].scene_index
-                || c[0].scene_index == c[2].scene_index
-                || c[1].scene_index == c[2].scene_index
-            {
+            if k[0] == k[1] || k[0] == k[2] || k[1] == k[2] {
                 continue;
             }
-            if c[0].model_index == c[1].model_index
-                || c[0].model_index == c[2].model_index
-                || c[1].model_index == c[2].model_index
-            {
+            let s = k.map(|i| scene_keypoints[i]);
+            if !good_scene_triangle(&s, min_edge2) {
                 continue;
             }
-            let s = c.map(|p| p.scene);
-            let m = c.map(|p| p.model);
-            if !similar_triangles(&s, &m, self.edge_similarity, min_edge2) {
+            let f = k.map(|i| {
+                let (lo, hi) = (self.match_start[i], self.match_start[i + 1]);
+                self.match_model[rng.random_range(lo..hi) as usize]
+            });
+            if f[0] == f[1] || f[0] == f[2] || f[1] == f[2] {
+                continue;
+            }
+            let m = f.map(|j| model.feature_points[j as usize]);
+            if !edges_agree(&s, &m, self.edge_similarity) {
                 continue;
             }
             let mut fit = RigidFit::new();
@@ -231,6 +230,32 @@ impl Ransac {
         }
         *out = RansacResult { t_world_tray: pose, inliers: best_inliers, iterations, view };
         Ok(best_inliers >= self.required(view))
+    }
+
+    /// Groups the matches by key point (a counting sort into the match buffers).
+    fn group_matches(&mut self, keypoints: usize, correspondences: &[Correspondence]) {
+        self.match_start.clear();
+        self.match_start.resize(keypoints + 1, 0);
+        for c in correspondences {
+            self.match_start[c.scene as usize + 1] += 1;
+        }
+        self.matched.clear();
+        for k in 0..keypoints {
+            if self.match_start[k + 1] > 0 {
+                self.matched.push(k as u32);
+            }
+            self.match_start[k + 1] += self.match_start[k];
+        }
+        self.match_model.clear();
+        self.match_model.resize(correspondences.len(), 0);
+        // Filling from the back leaves each `match_start[k + 1]` at key point k's start.
+        for c in correspondences.iter().rev() {
+            let slot = &mut self.match_start[c.scene as usize + 1];
+            *slot -= 1;
+            self.match_model[*slot as usize] = c.model;
+        }
+        self.match_start.copy_within(1..keypoints + 1, 0);
+        self.match_start[keypoints] = correspondences.len() as u32;
     }
 
     /// The fewest inliers a pose scored on `view` needs to be returned.
@@ -299,22 +324,35 @@ fn split(pose: &Isometry3<f64>) -> (Matrix3<f32>, Vector3<f32>) {
     (pose.rotation.to_rotation_matrix().matrix().cast::<f32>(), pose.translation.vector.cast::<f32>())
 }
 
-/// Buch et al.'s polygonal pre-rejection: every edge of the scene triangle and its model
-/// counterpart agree to `similarity` (shorter over longer), the scene edges are at least
-/// `sqrt(min_edge2)` long and the triangle is not a sliver.
+/// Buch et al.'s polygonal pre-rejection: the scene triangle is usable and every edge of it
+/// and its model counterpart agree to `similarity` (shorter over longer).
+#[cfg(test)]
 fn similar_triangles(s: &[Point3<f32>; 3], m: &[Point3<f32>; 3], similarity: f32, min_edge2: f32) -> bool {
-    let sim2 = similarity * similarity;
+    good_scene_triangle(s, min_edge2) && edges_agree(s, m, similarity)
+}
+
+/// Scene edges at least `sqrt(min_edge2)` long and a triangle that is not a sliver.
+fn good_scene_triangle(s: &[Point3<f32>; 3], min_edge2: f32) -> bool {
     let mut longest2 = 0.0f32;
     for (i, j) in [(0, 1), (1, 2), (2, 0)] {
         let ls = (s[i] - s[j]).norm_squared();
-        let lm = (m[i] - m[j]).norm_squared();
-        if ls < min_edge2 || ls.min(lm) < sim2 * ls.max(lm) {
+        if ls < min_edge2 {
             return false;
         }
         longest2 = longest2.max(ls);
     }
     let twice_area = (s[1] - s[0]).cross(&(s[2] - s[0])).norm();
     twice_area >= MIN_TRIANGLE_SHAPE * longest2
+}
+
+/// Every scene edge and its model counterpart agree to `similarity` (shorter over longer).
+fn edges_agree(s: &[Point3<f32>; 3], m: &[Point3<f32>; 3], similarity: f32) -> bool {
+    let sim2 = similarity * similarity;
+    [(0, 1), (1, 2), (2, 0)].iter().all(|&(i, j)| {
+        let ls = (s[i] - s[j]).norm_squared();
+        let lm = (m[i] - m[j]).norm_squared();
+        ls.min(lm) >= sim2 * ls.max(lm)
+    })
 }
 
 /// A spatial hash of the scene cloud with cells twice the query radius, so a radius query
@@ -475,6 +513,32 @@ mod tests {
                 assert_eq!(grid.any_within(&q, 9.0), nearest <= 9.0);
                 let got = grid.nearest_within(&q, 9.0).map(|p| (p - q).norm_squared());
                 assert_eq!(got, (nearest <= 9.0).then_some(nearest));
+            }
+        }
+    }
+
+    #[test]
+    fn matches_are_grouped_by_key_point() {
+        let model = synthetic::tray(false, 1);
+        let mut ransac = Ransac::new(&params(), &model).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(6);
+        for keypoints in [1, 7, 300] {
+            let matches: Vec<Correspondence> = (0..rng.random_range(0..2000))
+                .map(|_| Correspondence {
+                    scene: rng.random_range(0..keypoints),
+                    model: rng.random_range(0..5000),
+                    distance2: 0.0,
+                })
+                .collect();
+            ransac.group_matches(keypoints as usize, &matches);
+            for k in 0..keypoints {
+                let mut want: Vec<u32> = matches.iter().filter(|c| c.scene == k).map(|c| c.model).collect();
+                let (lo, hi) = (ransac.match_start[k as usize] as usize, ransac.match_start[k as usize + 1] as usize);
+                let mut got = ransac.match_model[lo..hi].to_vec();
+                want.sort();
+                got.sort();
+                assert_eq!(got, want);
+                assert_eq!(ransac.matched.contains(&k), !want.is_empty());
             }
         }
     }
