@@ -188,8 +188,12 @@ pub struct EstimatorParams {
     pub table_height: f64,
     pub table_tilt: f64,
     pub inlier_distance: f64,
+    /// Share of the closest view's ICP points that must be inliers for a pose (0 .. 1).
+    pub min_inlier_share: f64,
     pub icp_iterations: u32,
     pub icp_max_distance: f64,
+    /// Share of the farthest ICP correspondences dropped each iteration (0 .. 0.9).
+    pub icp_trim: f64,
     pub seed: u64,
 }
 
@@ -383,7 +387,14 @@ impl Cell {
         pos("estimator.table_height", e.table_height)?;
         angle_open("estimator.table_tilt", e.table_tilt, 0.0, 90.0)?;
         pos("estimator.inlier_distance", e.inlier_distance)?;
+        unit("estimator.min_inlier_share", e.min_inlier_share)?;
         pos("estimator.icp_max_distance", e.icp_max_distance)?;
+        if !(e.icp_trim.is_finite() && (0.0..=0.9).contains(&e.icp_trim)) {
+            return Err(Error::value(
+                "estimator.icp_trim",
+                format!("expected a share from 0 to 0.9, got {}", e.icp_trim),
+            ));
+        }
         let m = &self.metrics;
         pos("metrics.correct_match", m.correct_match)?;
         pos("metrics.success_position", m.success_position)?;

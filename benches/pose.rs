@@ -1,0 +1,62 @@
+//! Benches of the pose stages (RANSAC and ICP) on a synthetic tray scene: about 10k scene
+//! points and 2k key points with 25 matches each, nearly all wrong.
+
+use camplace_config::Cell;
+use camplace_estimator::model::synthetic::{self, Scene, SceneSpec};
+use camplace_estimator::{Icp, IcpResult, Ransac, RansacResult};
+use criterion::{criterion_group, Criterion};
+
+fn pose(c: &mut Criterion) {
+    let params = Cell::default().estimator;
+    let model = synthetic::tray(false, 1);
+    let spec = SceneSpec {
+        seed: 21,
+        matches_per_keypoint: 25,
+        correct_share: 0.8,
+        keypoint_spacing_mm: 5.0,
+        ..SceneSpec::default()
+    };
+    let scene = Scene::generate(&model, false, &spec);
+    eprintln!(
+        "pose: {} scene points, {} key points, {} matches ({} right)",
+        scene.points.len(),
+        scene.keypoints.len(),
+        scene.correspondences.len(),
+        scene.correct
+    );
+    let mut ransac = Ransac::new(&params, &model).expect("the synthetic model is usable");
+    let mut icp = Icp::new(&params, &model).expect("the synthetic model is usable");
+    let mut coarse = RansacResult::default();
+    let found = ransac
+        .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &model, &scene.sensor_position, &mut coarse)
+        .expect("valid inputs");
+    assert!(found, "the bench scene must be solvable");
+
+    c.bench_function("pose/ransac", |b| {
+        b.iter(|| {
+            ransac
+                .estimate(
+                    &scene.points,
+                    &scene.keypoints,
+                    &scene.correspondences,
+                    &model,
+                    &scene.sensor_position,
+                    &mut coarse,
+                )
+                .expect("valid inputs")
+        })
+    });
+    let mut fine = IcpResult::default();
+    c.bench_function("pose/icp", |b| {
+        b.iter(|| {
+            icp.refine(&scene.points, &model, coarse.view, &scene.sensor_position, &coarse.t_world_tray, &mut fine)
+                .expect("valid inputs")
+        })
+    });
+    eprintln!(
+        "pose: RANSAC {} inliers in {} iterations; ICP {} iterations",
+        coarse.inliers, coarse.iterations, fine.iterations
+    );
+}
+
+criterion_group!(benches, pose);

@@ -1,0 +1,422 @@
+//! Point-to-plane ICP: refines the tray's pose by pulling the scene cloud onto the closest
+//! viewpoint's model cloud, whose normals give the planes. The coarse pose comes from RANSAC.
+//!
+//! Scene points are taken into the tray frame and matched to a nearest model point through a
+//! lookup grid per view, built once; pairs farther than `icp_max_distance` are ignored and the
+//! farthest `icp_trim` share of the rest is dropped, so clutter and items absent from the
+//! model do not drag the pose. Each step solves the linearised 6×6 normal equations.
+
+use camplace_config::EstimatorParams;
+use nalgebra::{Isometry3, Matrix6, Point3, Vector3, Vector6};
+
+use crate::error::{Error, ErrorKind, Result};
+use crate::model::Model;
+
+/// An update smaller than this in translation (mm) and rotation (rad) ends the iterations:
+/// a thousandth of a millimetre is far below the sensor's noise.
+const CONVERGED_TRANSLATION: f64 = 1e-3;
+const CONVERGED_ROTATION: f64 = 1e-5;
+/// Levenberg damping relative to the largest diagonal entry of the normal equations.
+const DAMPING: f64 = 1e-9;
+/// Fewer pairs than this cannot pin down 6 degrees of freedom with any confidence.
+const MIN_PAIRS: usize = 12;
+
+/// The outcome of [`Icp::refine`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IcpResult {
+    /// Refined pose of the tray in the world.
+    pub t_world_tray: Isometry3<f64>,
+    /// Iterations run.
+    pub iterations: u32,
+    /// Pairs used in the last iteration.
+    pub correspondences: u32,
+    /// Root mean square point-to-plane distance of those pairs, mm.
+    pub rms_mm: f32,
+    /// Whether the last update fell below the convergence threshold.
+    pub converged: bool,
+}
+
+impl Default for IcpResult {
+    fn default() -> Self {
+        IcpResult {
+            t_world_tray: Isometry3::identity(),
+            iterations: 0,
+            correspondences: 0,
+            rms_mm: 0.0,
+            converged: false,
+        }
+    }
+}
+
+/// One scene-model pair of the current iteration.
+#[derive(Debug, Clone, Copy)]
+struct Pair {
+    /// Scene point in the tray frame under the current pose.
+    scene: Point3<f32>,
+    model: u32,
+    distance2: f32,
+}
+
+/// Point-to-plane ICP with its kd-trees and buffers, built once per model.
+pub struct Icp {
+    iterations: u32,
+    max_distance: f32,
+    trim: f32,
+    grids: Vec<NearestGrid>,
+    /// Scene points near the tray at the start pose, world frame.
+    near: Vec<Point3<f32>>,
+    pairs: Vec<Pair>,
+    distances: Vec<f32>,
+    /// Each view's bounding box, tray frame.
+    bounds: Vec<(Point3<f32>, Point3<f32>)>,
+}
+
+impl std::fmt::Debug for Icp {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Icp").field("iterations", &self.iterations).field("views", &self.grids.len()).finish()
+    }
+}
+
+impl Icp {
+    /// Builds a lookup grid over every view of `model`; fails when a view has too few points.
+    pub fn new(params: &EstimatorParams, model: &Model) -> Result<Self> {
+        model.validate()?;
+        let mut grids = Vec::with_capacity(model.views.len());
+        let mut bounds = Vec::with_capacity(model.views.len());
+        for (k, view) in model.views.iter().enumerate() {
+            if view.points.len() < MIN_PAIRS {
+                return Err(Error::new(
+                    ErrorKind::Model,
+                    format!("model: expected at least {MIN_PAIRS} points in view {k}, found {}", view.points.len()),
+                ));
+            }
+            grids.push(NearestGrid::new(&view.points, model.surface_resolution, params.icp_max_distance as f32));
+            let mut lo = view.points[0];
+            let mut hi = view.points[0];
+            for p in &view.points {
+                lo = lo.inf(p);
+                hi = hi.sup(p);
+            }
+            bounds.push((lo, hi));
+        }
+        let capacity = 1 << 15;
+        Ok(Icp {
+            iterations: params.icp_iterations,
+            max_distance: params.icp_max_distance as f32,
+            trim: params.icp_trim as f32,
+            grids,
+            near: Vec::with_capacity(capacity),
+            pairs: Vec::with_capacity(capacity),
+            distances: Vec::with_capacity(capacity),
+            bounds,
+        })
+    }
+
+    /// Refines `start` (the tray's pose in the world) against `view` of `model`, using the
+    /// scene cloud `scene_points` seen from `sensor_position_world` (world frame). Returns `Ok(false)`, with `out` holding the
+    /// start pose, when too few scene points lie near the model to fit.
+    pub fn refine(
+        &mut self,
+        scene_points: &[Point3<f32>],
+        model: &Model,
+        view: usize,
+        sensor_position_world: &Point3<f32>,
+        start: &Isometry3<f64>,
+        out: &mut IcpResult,
+    ) -> Result<bool> {
+        *out = IcpResult { t_world_tray: *start, ..IcpResult::default() };
+        let Some(model_view) = model.views.get(view).filter(|_| view < self.grids.len()) else {
+            return Err(Error::new(
+                ErrorKind::Input,
+                format!("icp: expected a view index below {}, found {view}", self.grids.len()),
+            ));
+        };
+        if model_view.points.len() != self.grids[view].points {
+            return Err(Error::new(ErrorKind::Input, "icp: expected the model it was built for"));
+        }
+
+        // Only points that could pair with the model at the start pose take part; a pose
+        // that moves far enough to need others has not converged on this tray anyway.
+        let margin = Vector3::repeat(2.0 * self.max_distance);
+        let (lo, hi) = (self.bounds[view].0 - margin, self.bounds[view].1 + margin);
+        let to_tray = start.inverse().cast::<f32>();
+        self.near.clear();
+        for p in scene_points {
+            let q = to_tray * p;
+            if (0..3).all(|a| q[a] >= lo[a] && q[a] <= hi[a]) {
+                self.near.push(*p);
+            }
+        }
+
+        let grid = &self.grids[view];
+        let max2 = self.max_distance * self.max_distance;
+        // The tray-frame pose of the world, refined in place.
+        let mut t_tray_world = start.inverse();
+        for iteration in 1..=self.iterations {
+            let pose = t_tray_world.cast::<f32>();
+            let eye = pose * sensor_position_world;
+            self.pairs.clear();
+            for p in &self.near {
+                let q = pose * p;
+                let Some(item) = grid.lookup(&q) else { continue };
+                let (m, n) = (&model_view.points[item as usize], &model_view.normals[item as usize]);
+                let distance2 = (q - m).norm_squared();
+                // The view cloud holds surfaces this sensor may not see (and misses some it
+                // does); a scene point cannot lie on a surface turned away from the sensor, and
+                // pairing it there drags thin walls by their thickness.
+                if distance2 <= max2 && n.dot(&(eye - m)) > 0.0 {
+                    self.pairs.push(Pair { scene: q, model: item, distance2 });
+                }
+            }
+            let keep2 = trim_threshold(&self.pairs, &mut self.distances, self.trim);
+            let mut jtj = Matrix6::<f64>::zeros();
+            let mut jtr = Vector6::<f64>::zeros();
+            let (mut used, mut sum2) = (0usize, 0.0f64);
+            for pair in &self.pairs {
+                if pair.distance2 > keep2 {
+                    continue;
+                }
+                let m = model_view.points[pair.model as usize].cast::<f64>();
+                let n = model_view.normals[pair.model as usize].cast::<f64>();
+                let q = pair.scene.cast::<f64>();
+                let r = (q - m).dot(&n);
+                let c = q.coords.cross(&n);
+                let j = Vector6::new(c.x, c.y, c.z, n.x, n.y, n.z);
+                jtj += j * j.transpose();
+                jtr += j * r;
+                used += 1;
+                sum2 += r * r;
+            }
+            out.iterations = iteration;
+            out.correspondences = used as u32;
+            out.rms_mm = if used > 0 { (sum2 / used as f64).sqrt() as f32 } else { 0.0 };
+            if used < MIN_PAIRS {
+                return Ok(iteration > 1);
+            }
+            // A direction no pair constrains (a view that shows no wall across it) gets a tiny
+            // damping term instead of a singular system, so the pose simply stays put along it.
+            let damping = DAMPING * jtj.diagonal().max();
+            for k in 0..6 {
+                jtj[(k, k)] += damping;
+            }
+            let Some(step) = jtj.cholesky().map(|c| c.solve(&(-jtr))) else {
+                return Ok(iteration > 1);
+            };
+            let rotation = Vector3::new(step[0], step[1], step[2]);
+            let translation = Vector3::new(step[3], step[4], step[5]);
+            t_tray_world = Isometry3::new(translation, rotation) * t_tray_world;
+            out.t_world_tray = t_tray_world.inverse();
+            if translation.norm() < CONVERGED_TRANSLATION && rotation.norm() < CONVERGED_ROTATION {
+                out.converged = true;
+                break;
+            }
+        }
+        Ok(true)
+    }
+}
+
+/// A dense grid over one view (tray frame) whose cells hold the model point nearest to the
+/// cell's centre: an O(1) approximate nearest neighbour, off by at most half a cell diagonal,
+/// which the point-to-plane residual hardly feels on the tray's flat faces.
+#[derive(Debug, Clone)]
+struct NearestGrid {
+    origin: Point3<f32>,
+    cell: f32,
+    dims: [usize; 3],
+    /// Model point index per cell, `u32::MAX` where none lies within reach.
+    cells: Vec<u32>,
+    /// Points the grid was built from, to recognise its model.
+    points: usize,
+}
+
+/// Cells per view above which the grid coarsens, bounding memory (4 bytes a cell) on big trays.
+const MAX_GRID_CELLS: usize = 1 << 23;
+
+impl NearestGrid {
+    /// A grid of cells about `surface_resolution` wide covering every query within
+    /// `max_distance` of `points`.
+    fn new(points: &[Point3<f32>], surface_resolution: f32, max_distance: f32) -> Self {
+        let (mut lo, mut hi) = (points[0], points[0]);
+        for p in points {
+            lo = lo.inf(p);
+            hi = hi.sup(p);
+        }
+        let mut cell = surface_resolution;
+        let (mut reach, mut dims, mut origin);
+        loop {
+            // A query within max_distance of a point has its cell centre within this of it.
+            reach = max_distance + cell * 0.87;
+            origin = lo - Vector3::repeat(reach);
+            let extent = hi - lo + Vector3::repeat(2.0 * reach);
+            dims = [0, 1, 2].map(|a| (extent[a] / cell).ceil() as usize + 1);
+            if dims.iter().product::<usize>() <= MAX_GRID_CELLS {
+                break;
+            }
+            cell *= 1.25;
+        }
+        let n = dims.iter().product::<usize>();
+        let mut cells = vec![u32::MAX; n];
+        let mut best = vec![f32::INFINITY; n];
+        let span = (reach / cell).ceil() as isize;
+        for (i, p) in points.iter().enumerate() {
+            let c = [0, 1, 2].map(|a| ((p[a] - origin[a]) / cell).floor() as isize);
+            for dz in -span..=span {
+                let z = c[2] + dz;
+                if z < 0 || z >= dims[2] as isize {
+                    continue;
+                }
+                for dy in -span..=span {
+                    let y = c[1] + dy;
+                    if y < 0 || y >= dims[1] as isize {
+                        continue;
+                    }
+                    for dx in -span..=span {
+                        let x = c[0] + dx;
+                        if x < 0 || x >= dims[0] as isize {
+                            continue;
+                        }
+                        let centre = origin + Vector3::new(x as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5) * cell;
+                        let d2 = (centre - p).norm_squared();
+                        let k = (z as usize * dims[1] + y as usize) * dims[0] + x as usize;
+                        if d2 < best[k] && d2 <= reach * reach {
+                            best[k] = d2;
+                            cells[k] = i as u32;
+                        }
+                    }
+                }
+            }
+        }
+        NearestGrid { origin, cell, dims, cells, points: points.len() }
+    }
+
+    fn lookup(&self, q: &Point3<f32>) -> Option<u32> {
+        let mut k = 0;
+        for a in (0..3).rev() {
+            let c = ((q[a] - self.origin[a]) / self.cell).floor();
+            if !(c >= 0.0 && (c as usize) < self.dims[a]) {
+                return None;
+            }
+            k = k * self.dims[a] + c as usize;
+        }
+        let item = self.cells[k];
+        (item != u32::MAX).then_some(item)
+    }
+}
+
+/// The squared distance at or below which pairs are kept once the farthest `trim` share of
+/// them is dropped.
+fn trim_threshold(pairs: &[Pair], distances: &mut Vec<f32>, trim: f32) -> f32 {
+    let drop = (trim * pairs.len() as f32) as usize;
+    if drop == 0 {
+        return f32::INFINITY;
+    }
+    distances.clear();
+    distances.extend(pairs.iter().map(|p| p.distance2));
+    let keep = distances.len() - drop;
+    *distances.select_nth_unstable_by(keep - 1, f32::total_cmp).1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::synthetic::{self, Scene, SceneSpec};
+    use crate::ransac::{Ransac, RansacResult};
+    use camplace_config::Cell;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn pose_error(a: &Isometry3<f64>, b: &Isometry3<f64>) -> (f64, f64) {
+        ((a.translation.vector - b.translation.vector).norm(), (a.inverse() * b).rotation.angle().to_degrees())
+    }
+
+    /// From a start a few mm and degrees off, ICP lands within a fraction of a mm.
+    #[test]
+    fn converges_from_a_perturbed_start() {
+        let model = synthetic::tray(false, 1);
+        let params = Cell::default().estimator;
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        for seed in 0..8 {
+            let mut params = params.clone();
+            params.icp_trim = if seed % 2 == 0 { 0.0 } else { 0.1 };
+            let mut icp = Icp::new(&params, &model).unwrap();
+            let scene = Scene::generate(&model, false, &SceneSpec { seed, ..SceneSpec::default() });
+            let nudge = Isometry3::new(
+                Vector3::new(rng.random_range(-2.5..2.5), rng.random_range(-2.5..2.5), rng.random_range(-1.5..1.5)),
+                Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-2.0..2.0))
+                    * 1f64.to_radians(),
+            );
+            let start = scene.t_world_tray * nudge;
+            let view = model.closest_view(&start, &scene.sensor_position);
+            let mut out = IcpResult::default();
+            assert!(icp.refine(&scene.points, &model, view, &scene.sensor_position, &start, &mut out).unwrap());
+            let (dt, dr) = pose_error(&out.t_world_tray, &scene.t_world_tray);
+            assert!(dt < 0.5 && dr < 0.25, "seed {seed}: {dt} mm {dr} deg {out:?}");
+            assert!(out.converged, "{out:?}");
+        }
+    }
+
+    /// The whole pose stage on a noisy, partly hidden, cluttered scene with 90 % wrong
+    /// matches: within 1 mm and 0.5 degree of the truth.
+    #[test]
+    fn ransac_then_icp_recovers_the_pose() {
+        let model = synthetic::tray(false, 1);
+        let params = Cell::default().estimator;
+        let mut ransac = Ransac::new(&params, &model).unwrap();
+        let mut icp = Icp::new(&params, &model).unwrap();
+        for seed in 10..14 {
+            let spec =
+                SceneSpec { seed, noise_mm: 0.5, correct_share: 0.5, matches_per_keypoint: 5, ..SceneSpec::default() };
+            let scene = Scene::generate(&model, false, &spec);
+            let mut coarse = RansacResult::default();
+            assert!(ransac
+                .estimate(
+                    &scene.points,
+                    &scene.keypoints,
+                    &scene.correspondences,
+                    &model,
+                    &scene.sensor_position,
+                    &mut coarse
+                )
+                .unwrap());
+            let mut fine = IcpResult::default();
+            assert!(icp
+                .refine(&scene.points, &model, coarse.view, &scene.sensor_position, &coarse.t_world_tray, &mut fine)
+                .unwrap());
+            let (dt, dr) = pose_error(&fine.t_world_tray, &scene.t_world_tray);
+            assert!(dt < 1.0 && dr < 0.5, "seed {seed}: {dt} mm {dr} deg {fine:?}");
+        }
+    }
+
+    #[test]
+    fn grid_lookup_is_within_a_cell_diagonal_of_brute_force() {
+        let model = synthetic::tray(false, 1);
+        let points = &model.views[2].points;
+        let grid = NearestGrid::new(points, 2.0, 6.0);
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        for _ in 0..3000 {
+            let base = points[rng.random_range(0..points.len())];
+            let q = base
+                + Vector3::new(rng.random_range(-8.0..8.0), rng.random_range(-8.0..8.0), rng.random_range(-8.0..8.0));
+            let exact = points.iter().map(|p| (p - q).norm()).fold(f32::INFINITY, f32::min);
+            match grid.lookup(&q) {
+                Some(i) => assert!((points[i as usize] - q).norm() <= exact + 2.0 * 3f32.sqrt() + 1e-4),
+                None => assert!(exact > 6.0, "missed a point {exact} mm away"),
+            }
+        }
+    }
+
+    #[test]
+    fn too_few_scene_points_keep_the_start() {
+        let model = synthetic::tray(false, 1);
+        let mut icp = Icp::new(&Cell::default().estimator, &model).unwrap();
+        let start = Isometry3::translation(10.0, 0.0, 0.0);
+        let mut out = IcpResult::default();
+        let far = [Point3::new(900.0, 900.0, 0.0); 50];
+        assert!(!icp.refine(&far, &model, 0, &Point3::new(0.0, 0.0, 800.0), &start, &mut out).unwrap());
+        assert_eq!(out.t_world_tray, start);
+        assert_eq!(
+            icp.refine(&far, &model, 6, &Point3::new(0.0, 0.0, 800.0), &start, &mut out).unwrap_err().kind(),
+            ErrorKind::Input
+        );
+    }
+}

@@ -1,0 +1,664 @@
+//! Prerejective RANSAC after Buch et al. 2013 (the method of PCL's
+//! SampleConsensusPrerejective) with the paper's table check: from feature matches to the
+//! tray's coarse pose. ICP refines it afterwards; the matches come from elsewhere.
+//!
+//! Each iteration draws 3 matches (3 distinct key points, then one of each one's matches, as
+//! PCL does), rejects the sample unless its scene and model triangles
+//! have similar edges, fits a pose (Kabsch), rejects it unless the tray rests on the table,
+//! and scores the survivors by the inliers of the closest viewpoint's ICP cloud against the
+//! scene. Scoring walks the view's points in a fixed random order, so every prefix is a random
+//! sample, and gives up once that sample shows the hypothesis cannot win (a sequential test in
+//! the spirit of Chum and Matas' randomized RANSAC).
+//!
+//! A pose is returned only when its inliers reach `min_inlier_share` of the view's points:
+//! a scene without the tray then yields no pose rather than the least bad wrong one.
+
+use camplace_config::EstimatorParams;
+use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
+use rand::seq::SliceRandom;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::correspondence::Correspondence;
+use crate::error::{Error, ErrorKind, Result};
+use crate::kabsch::RigidFit;
+use crate::model::Model;
+
+/// Points scored between two early-exit checks.
+const SCORE_BLOCK: usize = 32;
+/// A hypothesis is dropped once its inliers on the points scored so far fall this many
+/// standard deviations below what a hypothesis with exactly the count to beat would show.
+/// The points come in a random order, so a truly better hypothesis is dropped with about the
+/// one-sided normal tail at this level (0.1 %) per check; a hypothesis near the truth is
+/// drawn many times over, so losing one costs nothing.
+const EARLY_EXIT_SIGMAS: f32 = 3.0;
+/// Samples whose scene triangle is thinner than this (twice its area over its longest edge
+/// squared) fix the rotation about their long side poorly.
+const MIN_TRIANGLE_SHAPE: f32 = 0.05;
+/// Consensus re-fits of the winner (each a point-to-point step on its inliers); ICP does the
+/// fine work, so one is enough.
+const REFITS: usize = 1;
+
+/// The outcome of [`Ransac::estimate`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RansacResult {
+    /// Pose of the tray in the world (the best hypothesis re-fitted on its consensus set).
+    pub t_world_tray: Isometry3<f64>,
+    /// Points of the view's ICP cloud with a scene point within `inlier_distance`.
+    pub inliers: u32,
+    /// Iterations run.
+    pub iterations: u32,
+    /// Index of the viewpoint scored (the one closest to the sensor under the pose).
+    pub view: usize,
+}
+
+impl Default for RansacResult {
+    fn default() -> Self {
+        RansacResult { t_world_tray: Isometry3::identity(), inliers: 0, iterations: 0, view: 0 }
+    }
+}
+
+/// The prerejective RANSAC with every buffer it needs, built once per model.
+#[derive(Debug, Clone)]
+pub struct Ransac {
+    iterations: u32,
+    edge_similarity: f32,
+    min_edge: f32,
+    table_height: f64,
+    cos_tilt: f64,
+    inlier_distance: f32,
+    min_inlier_share: f32,
+    seed: u64,
+    /// Each view's ICP points in a fixed random order.
+    views: Vec<Vec<Point3<f32>>>,
+    grid: SceneGrid,
+    /// `match_model[match_start[k]..match_start[k + 1]]` are key point k's model features.
+    match_start: Vec<u32>,
+    match_model: Vec<u32>,
+    /// Key points with at least one match.
+    matched: Vec<u32>,
+}
+
+impl Ransac {
+    /// Prepares RANSAC for `model`; fails when the model has no usable viewpoint.
+    pub fn new(params: &EstimatorParams, model: &Model) -> Result<Self> {
+        model.validate()?;
+        if model.views.is_empty() || model.views.iter().any(|v| v.points.len() < 3) {
+            return Err(Error::new(ErrorKind::Model, "model: expected viewpoints of at least 3 points each"));
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
+        let views = model
+            .views
+            .iter()
+            .map(|v| {
+                let mut points = v.points.clone();
+                points.shuffle(&mut rng);
+                points
+            })
+            .collect();
+        let inlier_distance = params.inlier_distance as f32;
+        Ok(Ransac {
+            iterations: params.ransac_iterations,
+            edge_similarity: params.edge_similarity as f32,
+            // Key points closer than a feature's support share most of it, so their matches
+            // are not independent evidence, and short edges make a shaky rotation.
+            min_edge: params.feature_radius as f32,
+            table_height: params.table_height,
+            cos_tilt: params.table_tilt.to_radians().cos(),
+            inlier_distance,
+            min_inlier_share: params.min_inlier_share as f32,
+            seed: params.seed,
+            views,
+            grid: SceneGrid::new(2.0 * inlier_distance, 1 << 16),
+            match_start: Vec::with_capacity(1 << 13),
+            match_model: Vec::with_capacity(1 << 17),
+            matched: Vec::with_capacity(1 << 13),
+        })
+    }
+
+    /// Finds the tray's pose from matches of `scene_keypoints` (indexed by
+    /// `Correspondence::scene`) to the model's features, scoring against the scene cloud
+    /// `scene_points` (world frame). Returns `Ok(false)` when no hypothesis passes the checks
+    /// with `min_inlier_share` of its view's points as inliers; `out` then holds the best
+    /// hypothesis seen, if any, for diagnosis only.
+    /// The same inputs give the same result: sampling restarts from `seed` on every call.
+    pub fn estimate(
+        &mut self,
+        scene_points: &[Point3<f32>],
+        scene_keypoints: &[Point3<f32>],
+        correspondences: &[Correspondence],
+        model: &Model,
+        sensor_position_world: &Point3<f32>,
+        out: &mut RansacResult,
+    ) -> Result<bool> {
+        *out = RansacResult::default();
+        if model.views.len() != self.views.len()
+            || model.views.iter().zip(&self.views).any(|(a, b)| a.points.len() != b.len())
+        {
+            return Err(Error::new(ErrorKind::Input, "ransac: expected the model it was built for"));
+        }
+        let n_features = model.feature_points.len();
+        if let Some(c) =
+            correspondences.iter().find(|c| c.scene as usize >= scene_keypoints.len() || c.model as usize >= n_features)
+        {
+            return Err(Error::new(
+                ErrorKind::Input,
+                format!(
+                    "ransac: expected matches within {} key points and {n_features} features, found scene {} model {}",
+                    scene_keypoints.len(),
+                    c.scene,
+                    c.model
+                ),
+            ));
+        }
+        self.group_matches(scene_keypoints.len(), correspondences);
+        if self.matched.len() < 3 || scene_points.is_empty() {
+            return Ok(false);
+        }
+        self.grid.rebuild(scene_points);
+
+        let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
+        let min_edge2 = self.min_edge * self.min_edge;
+        let n = self.matched.len() as u32;
+        let mut best: Option<(Isometry3<f64>, usize)> = None;
+        let mut best_inliers = 0u32;
+        let mut iterations = 0;
+        while iterations < self.iterations {
+            iterations += 1;
+            // As PCL does: 3 distinct key points, then one of each one's matches. The key
+            // points are few enough to stay in cache, and the scene-side checks run before
+            // any match is looked at.
+            let k = [
+                self.matched[rng.random_range(0..n) as usize] as usize,
+                self.matched[rng.random_range(0..n) as usize] as usize,
+                self.matched[rng.random_range(0..n) as usize] as usize,
+            ];
+            if k[0] == k[1] || k[0] == k[2] || k[1] == k[2] {
+                continue;
+            }
+            let s = k.map(|i| scene_keypoints[i]);
+            if !good_scene_triangle(&s, min_edge2) {
+                continue;
+            }
+            let f = k.map(|i| {
+                let (lo, hi) = (self.match_start[i], self.match_start[i + 1]);
+                self.match_model[rng.random_range(lo..hi) as usize]
+            });
+            if f[0] == f[1] || f[0] == f[2] || f[1] == f[2] {
+                continue;
+            }
+            let m = f.map(|j| model.feature_points[j as usize]);
+            if !edges_agree(&s, &m, self.edge_similarity) {
+                continue;
+            }
+            let mut fit = RigidFit::new();
+            for k in 0..3 {
+                fit.add(&m[k], &s[k]);
+            }
+            let Some(pose) = fit.solve() else { continue };
+            if !self.on_table(&pose) {
+                continue;
+            }
+            let view = model.closest_view(&pose, sensor_position_world);
+            // Reaching the minimum exactly is enough to qualify.
+            let to_beat = best_inliers.max(self.required(view).saturating_sub(1));
+            if let Some(inliers) = self.score(&pose, view, to_beat) {
+                if inliers > best_inliers {
+                    best_inliers = inliers;
+                    best = Some((pose, view));
+                }
+            }
+        }
+        out.iterations = iterations;
+        let Some((mut pose, mut view)) = best else { return Ok(false) };
+
+        for _ in 0..REFITS {
+            let Some(refit) = self.consensus_fit(&pose, view) else { break };
+            if !self.on_table(&refit) {
+                break;
+            }
+            let refit_view = model.closest_view(&refit, sensor_position_world);
+            let inliers = self.count(&refit, refit_view);
+            if inliers < best_inliers {
+                break;
+            }
+            let gain = inliers - best_inliers;
+            (pose, view, best_inliers) = (refit, refit_view, inliers);
+            if gain == 0 {
+                break;
+            }
+        }
+        *out = RansacResult { t_world_tray: pose, inliers: best_inliers, iterations, view };
+        Ok(best_inliers >= self.required(view))
+    }
+
+    /// Groups the matches by key point (a counting sort into the match buffers).
+    fn group_matches(&mut self, keypoints: usize, correspondences: &[Correspondence]) {
+        self.match_start.clear();
+        self.match_start.resize(keypoints + 1, 0);
+        for c in correspondences {
+            self.match_start[c.scene as usize + 1] += 1;
+        }
+        self.matched.clear();
+        for k in 0..keypoints {
+            if self.match_start[k + 1] > 0 {
+                self.matched.push(k as u32);
+            }
+            self.match_start[k + 1] += self.match_start[k];
+        }
+        self.match_model.clear();
+        self.match_model.resize(correspondences.len(), 0);
+        // Filling from the back leaves each `match_start[k + 1]` at key point k's start.
+        for c in correspondences.iter().rev() {
+            let slot = &mut self.match_start[c.scene as usize + 1];
+            *slot -= 1;
+            self.match_model[*slot as usize] = c.model;
+        }
+        self.match_start.copy_within(1..keypoints + 1, 0);
+        self.match_start[keypoints] = correspondences.len() as u32;
+    }
+
+    /// The fewest inliers a pose scored on `view` needs to be returned.
+    fn required(&self, view: usize) -> u32 {
+        (self.min_inlier_share * self.views[view].len() as f32).ceil() as u32
+    }
+
+    /// The paper's quick rejection: the tray's bottom near the table, its z axis near world z.
+    fn on_table(&self, pose: &Isometry3<f64>) -> bool {
+        let z_axis = pose.rotation * Vector3::z();
+        pose.translation.vector.z.abs() <= self.table_height && z_axis.z >= self.cos_tilt
+    }
+
+    /// Inliers of `pose` on `view`, or `None` as soon as the sample scored so far shows it
+    /// will not reach `to_beat`.
+    fn score(&self, pose: &Isometry3<f64>, view: usize, to_beat: u32) -> Option<u32> {
+        let (r, t) = split(pose);
+        let points = &self.views[view];
+        let total = points.len();
+        let r2 = self.inlier_distance * self.inlier_distance;
+        let mut inliers = 0u32;
+        for (b, block) in points.chunks(SCORE_BLOCK).enumerate() {
+            for p in block {
+                if self.grid.any_within(&(r * p + t), r2) {
+                    inliers += 1;
+                }
+            }
+            let scored = (b * SCORE_BLOCK + block.len()) as u32;
+            let left = total as u32 - scored;
+            if inliers + left <= to_beat && to_beat > 0 {
+                return None;
+            }
+            let rate = to_beat as f32 / total as f32;
+            let expected = rate * scored as f32;
+            let sigma = (expected * (1.0 - rate)).max(0.0).sqrt();
+            if (inliers as f32) < expected - EARLY_EXIT_SIGMAS * sigma {
+                return None;
+            }
+        }
+        Some(inliers)
+    }
+
+    /// Inliers of `pose` on `view`, every point counted.
+    fn count(&self, pose: &Isometry3<f64>, view: usize) -> u32 {
+        let (r, t) = split(pose);
+        let r2 = self.inlier_distance * self.inlier_distance;
+        self.views[view].iter().filter(|p| self.grid.any_within(&(r * *p + t), r2)).count() as u32
+    }
+
+    /// The pose fitted to the inliers of `pose`, each paired with its nearest scene point.
+    fn consensus_fit(&self, pose: &Isometry3<f64>, view: usize) -> Option<Isometry3<f64>> {
+        let (r, t) = split(pose);
+        let r2 = self.inlier_distance * self.inlier_distance;
+        let mut fit = RigidFit::new();
+        for p in &self.views[view] {
+            if let Some(s) = self.grid.nearest_within(&(r * p + t), r2) {
+                fit.add(p, &s);
+            }
+        }
+        fit.solve()
+    }
+}
+
+/// The rotation matrix and translation of `pose` in f32, for transforming many points.
+fn split(pose: &Isometry3<f64>) -> (Matrix3<f32>, Vector3<f32>) {
+    (pose.rotation.to_rotation_matrix().matrix().cast::<f32>(), pose.translation.vector.cast::<f32>())
+}
+
+/// Buch et al.'s polygonal pre-rejection: the scene triangle is usable and every edge of it
+/// and its model counterpart agree to `similarity` (shorter over longer).
+#[cfg(test)]
+fn similar_triangles(s: &[Point3<f32>; 3], m: &[Point3<f32>; 3], similarity: f32, min_edge2: f32) -> bool {
+    good_scene_triangle(s, min_edge2) && edges_agree(s, m, similarity)
+}
+
+/// Scene edges at least `sqrt(min_edge2)` long and a triangle that is not a sliver.
+fn good_scene_triangle(s: &[Point3<f32>; 3], min_edge2: f32) -> bool {
+    let mut longest2 = 0.0f32;
+    for (i, j) in [(0, 1), (1, 2), (2, 0)] {
+        let ls = (s[i] - s[j]).norm_squared();
+        if ls < min_edge2 {
+            return false;
+        }
+        longest2 = longest2.max(ls);
+    }
+    let twice_area = (s[1] - s[0]).cross(&(s[2] - s[0])).norm();
+    twice_area >= MIN_TRIANGLE_SHAPE * longest2
+}
+
+/// Every scene edge and its model counterpart agree to `similarity` (shorter over longer).
+fn edges_agree(s: &[Point3<f32>; 3], m: &[Point3<f32>; 3], similarity: f32) -> bool {
+    let sim2 = similarity * similarity;
+    [(0, 1), (1, 2), (2, 0)].iter().all(|&(i, j)| {
+        let ls = (s[i] - s[j]).norm_squared();
+        let lm = (m[i] - m[j]).norm_squared();
+        ls.min(lm) >= sim2 * ls.max(lm)
+    })
+}
+
+/// A spatial hash of the scene cloud with cells twice the query radius, so a radius query
+/// visits 8 cells. Rebuilt every frame into buffers that only grow when a scene is larger
+/// than any before; hash collisions only add candidates, which the distance test removes.
+#[derive(Debug, Clone)]
+struct SceneGrid {
+    inv_cell: f32,
+    /// Bucket count − 1 (a power of two).
+    mask: u32,
+    /// `starts[b]..starts[b + 1]` are bucket b's points in `points`.
+    starts: Vec<u32>,
+    points: Vec<Point3<f32>>,
+    bucket_of: Vec<u32>,
+}
+
+impl SceneGrid {
+    fn new(cell: f32, capacity: usize) -> Self {
+        let buckets = (2 * capacity).next_power_of_two();
+        SceneGrid {
+            inv_cell: 1.0 / cell,
+            mask: buckets as u32 - 1,
+            starts: vec![0; buckets + 1],
+            points: Vec::with_capacity(capacity),
+            bucket_of: Vec::with_capacity(capacity),
+        }
+    }
+
+    fn cell(&self, p: &Point3<f32>) -> [i32; 3] {
+        [
+            (p.x * self.inv_cell).floor() as i32,
+            (p.y * self.inv_cell).floor() as i32,
+            (p.z * self.inv_cell).floor() as i32,
+        ]
+    }
+
+    fn bucket(&self, c: [i32; 3]) -> usize {
+        let h = (c[0] as u32).wrapping_mul(73_856_093)
+            ^ (c[1] as u32).wrapping_mul(19_349_663)
+            ^ (c[2] as u32).wrapping_mul(83_492_791);
+        (h & self.mask) as usize
+    }
+
+    fn rebuild(&mut self, scene: &[Point3<f32>]) {
+        if 2 * scene.len() > self.starts.len() - 1 {
+            let buckets = (2 * scene.len()).next_power_of_two();
+            self.mask = buckets as u32 - 1;
+            self.starts.resize(buckets + 1, 0);
+        }
+        self.starts.fill(0);
+        self.bucket_of.clear();
+        for p in scene {
+            let b = self.bucket(self.cell(p));
+            self.bucket_of.push(b as u32);
+            self.starts[b + 1] += 1;
+        }
+        for b in 1..self.starts.len() {
+            self.starts[b] += self.starts[b - 1];
+        }
+        self.points.clear();
+        self.points.resize(scene.len(), Point3::origin());
+        // Scatter from the back so each bucket's points keep their input order.
+        for (p, &b) in scene.iter().zip(&self.bucket_of).rev() {
+            let slot = &mut self.starts[b as usize + 1];
+            *slot -= 1;
+            self.points[*slot as usize] = *p;
+        }
+        // Each `starts[b + 1]` now holds bucket b's start; shift back into place.
+        let n = self.starts.len();
+        self.starts.copy_within(1..n, 0);
+        self.starts[n - 1] = scene.len() as u32;
+    }
+
+    /// The 8 cells that hold every point within half a cell of `q`, starting with q's own.
+    fn neighbour_buckets(&self, q: &Point3<f32>) -> [usize; 8] {
+        let c = self.cell(q);
+        let mut step = [0i32; 3];
+        for a in 0..3 {
+            let f = q[a] * self.inv_cell - c[a] as f32;
+            step[a] = if f < 0.5 { -1 } else { 1 };
+        }
+        let mut out = [0; 8];
+        for (k, slot) in out.iter_mut().enumerate() {
+            let mut cc = c;
+            for a in 0..3 {
+                if k & (1 << a) != 0 {
+                    cc[a] += step[a];
+                }
+            }
+            *slot = self.bucket(cc);
+        }
+        out
+    }
+
+    fn any_within(&self, q: &Point3<f32>, r2: f32) -> bool {
+        for b in self.neighbour_buckets(q) {
+            let (lo, hi) = (self.starts[b] as usize, self.starts[b + 1] as usize);
+            if self.points[lo..hi].iter().any(|p| (p - q).norm_squared() <= r2) {
+                return true;
+            }
+        }
+        false
+    }
+
+    fn nearest_within(&self, q: &Point3<f32>, r2: f32) -> Option<Point3<f32>> {
+        let mut best = (r2, None);
+        for b in self.neighbour_buckets(q) {
+            let (lo, hi) = (self.starts[b] as usize, self.starts[b + 1] as usize);
+            for p in &self.points[lo..hi] {
+                let d2 = (p - q).norm_squared();
+                if d2 <= best.0 {
+                    best = (d2, Some(*p));
+                }
+            }
+        }
+        best.1
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::synthetic::{self, Scene, SceneSpec};
+    use camplace_config::Cell;
+
+    fn params() -> EstimatorParams {
+        Cell::default().estimator
+    }
+
+    fn pose_error(a: &Isometry3<f64>, b: &Isometry3<f64>) -> (f64, f64) {
+        let d = a.inverse() * b;
+        ((a.translation.vector - b.translation.vector).norm(), d.rotation.angle().to_degrees())
+    }
+
+    #[test]
+    fn grid_queries_match_brute_force() {
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let mut grid = SceneGrid::new(6.0, 16);
+        for round in 0..4 {
+            let n = [10, 500, 3000, 40_000][round];
+            let scene: Vec<Point3<f32>> = (0..n)
+                .map(|_| {
+                    Point3::new(
+                        rng.random_range(-80.0..80.0),
+                        rng.random_range(-80.0..80.0),
+                        rng.random_range(-5.0..20.0),
+                    )
+                })
+                .collect();
+            grid.rebuild(&scene);
+            for _ in 0..2000 {
+                let q = Point3::new(
+                    rng.random_range(-90.0..90.0),
+                    rng.random_range(-90.0..90.0),
+                    rng.random_range(-8.0..25.0),
+                );
+                let nearest = scene.iter().map(|p| (p - q).norm_squared()).fold(f32::INFINITY, f32::min);
+                assert_eq!(grid.any_within(&q, 9.0), nearest <= 9.0);
+                let got = grid.nearest_within(&q, 9.0).map(|p| (p - q).norm_squared());
+                assert_eq!(got, (nearest <= 9.0).then_some(nearest));
+            }
+        }
+    }
+
+    #[test]
+    fn matches_are_grouped_by_key_point() {
+        let model = synthetic::tray(false, 1);
+        let mut ransac = Ransac::new(&params(), &model).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(6);
+        for keypoints in [1, 7, 300] {
+            let matches: Vec<Correspondence> = (0..rng.random_range(0..2000))
+                .map(|_| Correspondence {
+                    scene: rng.random_range(0..keypoints),
+                    model: rng.random_range(0..5000),
+                    distance2: 0.0,
+                })
+                .collect();
+            ransac.group_matches(keypoints as usize, &matches);
+            for k in 0..keypoints {
+                let mut want: Vec<u32> = matches.iter().filter(|c| c.scene == k).map(|c| c.model).collect();
+                let (lo, hi) = (ransac.match_start[k as usize] as usize, ransac.match_start[k as usize + 1] as usize);
+                let mut got = ransac.match_model[lo..hi].to_vec();
+                want.sort();
+                got.sort();
+                assert_eq!(got, want);
+                assert_eq!(ransac.matched.contains(&k), !want.is_empty());
+            }
+        }
+    }
+
+    #[test]
+    fn triangle_check_follows_edge_ratios() {
+        let s = [Point3::new(0.0, 0.0, 0.0), Point3::new(100.0, 0.0, 0.0), Point3::new(0.0, 80.0, 0.0)];
+        let same = s.map(|p| p + Vector3::new(5.0, -3.0, 2.0));
+        assert!(similar_triangles(&s, &same, 0.9, 400.0));
+        let stretched = [s[0], Point3::new(115.0, 0.0, 0.0), s[2]];
+        assert!(!similar_triangles(&s, &stretched, 0.9, 400.0));
+        assert!(similar_triangles(&s, &stretched, 0.8, 400.0));
+        let small = s.map(|p| p * 0.1);
+        assert!(!similar_triangles(&small, &small, 0.9, 400.0));
+        let sliver = [s[0], s[1], Point3::new(50.0, 1.0, 0.0)];
+        assert!(!similar_triangles(&sliver, &sliver, 0.9, 400.0));
+    }
+
+    /// The same scene and matches yield the same pose, and it lies near the truth even
+    /// with 90 % wrong matches, partial visibility, noise and clutter.
+    #[test]
+    fn recovers_the_pose_through_mostly_wrong_matches() {
+        let model = synthetic::tray(false, 1);
+        let mut ransac = Ransac::new(&params(), &model).unwrap();
+        for seed in 0..4 {
+            let spec = SceneSpec { seed, correct_share: 0.5, matches_per_keypoint: 5, ..SceneSpec::default() };
+            let scene = Scene::generate(&model, false, &spec);
+            let wrong = 1.0 - scene.correct as f64 / scene.correspondences.len() as f64;
+            assert!(wrong > 0.85, "{wrong}");
+            let mut out = RansacResult::default();
+            let found = ransac
+                .estimate(
+                    &scene.points,
+                    &scene.keypoints,
+                    &scene.correspondences,
+                    &model,
+                    &scene.sensor_position,
+                    &mut out,
+                )
+                .unwrap();
+            assert!(found, "seed {seed}: {out:?}");
+            let (dt, dr) = pose_error(&out.t_world_tray, &scene.t_world_tray);
+            assert!(dt < 3.0 && dr < 2.0, "seed {seed}: {dt} mm {dr} deg");
+            assert_eq!(out.view, model.closest_view(&out.t_world_tray, &scene.sensor_position));
+            let mut again = RansacResult::default();
+            ransac
+                .estimate(
+                    &scene.points,
+                    &scene.keypoints,
+                    &scene.correspondences,
+                    &model,
+                    &scene.sensor_position,
+                    &mut again,
+                )
+                .unwrap();
+            assert_eq!(out, again);
+        }
+    }
+
+    /// A tilted tray with every match right still gives no pose: each hypothesis fails the
+    /// table check. Loosening the check lets the same scene through.
+    #[test]
+    fn poses_off_the_table_are_rejected() {
+        let model = synthetic::tray(false, 1);
+        let spec =
+            SceneSpec { seed: 3, tilt_deg: 25.0, correct_share: 1.0, matches_per_keypoint: 1, ..SceneSpec::default() };
+        let scene = Scene::generate(&model, false, &spec);
+        let mut out = RansacResult::default();
+        let mut p = params();
+        p.ransac_iterations = 5000;
+        let mut strict = Ransac::new(&p, &model).unwrap();
+        let found = strict
+            .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &model, &scene.sensor_position, &mut out)
+            .unwrap();
+        assert!(!found && out.inliers == 0, "{out:?}");
+        p.table_tilt = 40.0;
+        p.table_height = 60.0;
+        let mut loose = Ransac::new(&p, &model).unwrap();
+        let found = loose
+            .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &model, &scene.sensor_position, &mut out)
+            .unwrap();
+        let (dt, dr) = pose_error(&out.t_world_tray, &scene.t_world_tray);
+        assert!(found && dt < 3.0 && dr < 2.0, "{out:?} {dt} {dr}");
+    }
+
+    #[test]
+    fn a_scene_without_the_tray_gives_no_pose() {
+        let model = synthetic::tray(false, 1);
+        let mut p = params();
+        p.ransac_iterations = 20_000;
+        let mut ransac = Ransac::new(&p, &model).unwrap();
+        for seed in 0..3 {
+            let spec = SceneSpec { seed, with_tray: false, clutter_points: 8000, ..SceneSpec::default() };
+            let scene = Scene::generate(&model, false, &spec);
+            let mut out = RansacResult::default();
+            let found = ransac
+                .estimate(
+                    &scene.points,
+                    &scene.keypoints,
+                    &scene.correspondences,
+                    &model,
+                    &scene.sensor_position,
+                    &mut out,
+                )
+                .unwrap();
+            assert!(!found, "seed {seed}: {out:?}");
+            assert!(out.inliers < ransac.required(out.view));
+        }
+    }
+
+    #[test]
+    fn bad_indices_are_input_errors() {
+        let model = synthetic::tray(false, 1);
+        let mut ransac = Ransac::new(&params(), &model).unwrap();
+        let scene = [Point3::origin(); 4];
+        let bad = [Correspondence { scene: 9, model: 0, distance2: 0.0 }; 3];
+        let mut out = RansacResult::default();
+        let e = ransac.estimate(&scene, &scene, &bad, &model, &Point3::new(0.0, 0.0, 800.0), &mut out).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::Input);
+        let empty = Model { surface_resolution: 2.0, ..Model::default() };
+        assert_eq!(Ransac::new(&params(), &empty).unwrap_err().kind(), ErrorKind::Model);
+    }
+}
