@@ -30,21 +30,9 @@ pub fn pixel_noise(key: u64, pixel: u64, amplitude: u32) -> i32 {
     (((h >> 32) * n) >> 32) as i32 - amplitude as i32
 }
 
-/// Adds the noise of image `key` to `image` (grey levels, row-major, `width` wide).
-pub fn add_noise(image: &mut [f32], width: usize, key: u64, amplitude: u32) {
-    if amplitude == 0 {
-        return;
-    }
-    image.par_chunks_mut(width * CHUNK_ROWS).enumerate().for_each(|(c, chunk)| {
-        let first = c * width * CHUNK_ROWS;
-        for (i, p) in chunk.iter_mut().enumerate() {
-            *p += pixel_noise(key, (first + i) as u64, amplitude) as f32;
-        }
-    });
-}
-
 /// The `blur` x `blur` mean of `image` (edge pixels repeated beyond the border), rounded
-/// and clamped into `out`; `scratch` holds the row sums and is resized as needed.
+/// and clamped into `out`; `scratch` holds the row sums and is resized as needed. `blur`
+/// is odd and at most 15 (the cell file's range).
 pub fn mean_filter_to_u8(image: &[f32], width: usize, blur: usize, scratch: &mut Vec<f32>, out: &mut [u8]) {
     let height = image.len() / width.max(1);
     if blur <= 1 {
@@ -60,22 +48,26 @@ pub fn mean_filter_to_u8(image: &[f32], width: usize, blur: usize, scratch: &mut
     scratch.resize(image.len(), 0.0);
     scratch.par_chunks_mut(width).zip(image.par_chunks(width)).for_each(|(s, row)| {
         for (x, s) in s.iter_mut().enumerate() {
-            let mut sum = 0.0;
-            for dx in 0..blur {
-                let xx = (x + dx).saturating_sub(r).min(width - 1);
-                sum += row[xx];
-            }
-            *s = sum;
+            *s = if x >= r && x + r < width {
+                // Away from the borders: no index clamping, which lets the loop vectorise.
+                row[x - r..=x + r].iter().sum()
+            } else {
+                (0..blur).map(|dx| row[(x + dx).saturating_sub(r).min(width - 1)]).sum()
+            };
         }
     });
     let sums = &scratch[..];
     let scale = 1.0 / (blur * blur) as f32;
     out.par_chunks_mut(width).enumerate().for_each(|(y, o)| {
+        let mut rows: [&[f32]; 15] = [&[]; 15];
+        for (dy, row) in rows.iter_mut().take(blur).enumerate() {
+            let yy = (y + dy).saturating_sub(r).min(height - 1);
+            *row = &sums[yy * width..(yy + 1) * width];
+        }
         for (x, o) in o.iter_mut().enumerate() {
             let mut sum = 0.0;
-            for dy in 0..blur {
-                let yy = (y + dy).saturating_sub(r).min(height - 1);
-                sum += sums[yy * width + x];
+            for row in &rows[..blur] {
+                sum += row[x];
             }
             *o = (sum * scale).round().clamp(0.0, 255.0) as u8;
         }

@@ -62,25 +62,45 @@ pub fn fringe_set(sensor: &Sensor) -> Vec<GrayImage> {
     set
 }
 
-/// A projector image prepared for sampling: brightness 0..1, bilinear between pixel
-/// centres, black outside. An image whose rows are all alike (the fringes) is kept as one
-/// row, which is much cheaper to sample.
+/// A projector image prepared for sampling: brightness 0..1, box-filtered over
+/// `footprint` x `footprint` pixels (the projector pixels one camera pixel spans, so the
+/// camera sees the pattern without aliasing), bilinear between pixel centres, black
+/// outside. An image whose rows are all alike (the fringes) is kept as one row, which is
+/// much cheaper to sample.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProjectorImage {
     width: usize,
     height: usize,
-    /// The whole image, or its one row.
+    /// The filtered image, or its one row.
     values: Vec<f32>,
     one_row: bool,
+    /// The filtered value at index i is centred on pixel i + offset.
+    offset: f32,
 }
 
 impl ProjectorImage {
-    /// Prepares `image` for sampling.
-    pub fn new(image: &GrayImage) -> ProjectorImage {
+    /// Prepares `image` for sampling, box-filtered over `footprint` pixels (1: not at all).
+    pub fn new(image: &GrayImage, footprint: usize) -> ProjectorImage {
         let (w, h) = (image.width, image.height);
+        let b = footprint.max(1);
         let one_row = h > 0 && (1..h).all(|y| image.row(y) == image.row(0));
-        let src = if one_row { &image.data[..w] } else { &image.data[..] };
-        ProjectorImage { width: w, height: h, values: src.iter().map(|&v| v as f32 / 255.0).collect(), one_row }
+        let rows = if one_row { 1 } else { h };
+        let rows_b = if one_row { 1 } else { b };
+        let mut values = vec![0.0; w * rows];
+        let scale = 1.0 / (255.0 * (b * rows_b) as f32);
+        for (y, out) in values.chunks_mut(w.max(1)).enumerate() {
+            for (x, o) in out.iter_mut().enumerate() {
+                let mut sum = 0u32;
+                for dy in 0..rows_b {
+                    let row = image.row((y + dy).min(h - 1));
+                    for dx in 0..b {
+                        sum += row[(x + dx).min(w - 1)] as u32;
+                    }
+                }
+                *o = sum as f32 * scale;
+            }
+        }
+        ProjectorImage { width: w, height: h, values, one_row, offset: (b as f32 - 1.0) / 2.0 }
     }
 
     /// Brightness at projector pixel coordinates (u, v), pixel centres at integers.
@@ -90,6 +110,7 @@ impl ProjectorImage {
         if !(u >= -0.5 && v >= -0.5 && u < w - 0.5 && v < h - 0.5) {
             return 0.0;
         }
+        let (u, v) = (u - self.offset, if self.one_row { v } else { v - self.offset });
         let uc = u.clamp(0.0, w - 1.0);
         let x0 = (uc as usize).min(self.width.saturating_sub(2));
         let fx = uc - x0 as f32;
@@ -147,7 +168,7 @@ mod tests {
     fn sampling_is_bilinear_and_black_outside() {
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         for img in [random_dots(50, 30, 1, 0.5, 9), fringe(50, 30, 3.0, 1)] {
-            let p = ProjectorImage::new(&img);
+            let p = ProjectorImage::new(&img, 1);
             for _ in 0..500 {
                 let u: f32 = rng.random_range(0.0..49.0);
                 let v: f32 = rng.random_range(0.0..29.0);
@@ -160,6 +181,31 @@ mod tests {
             }
             assert_eq!(p.sample(-0.6, 3.0), 0.0);
             assert_eq!(p.sample(3.0, 29.6), 0.0);
+        }
+    }
+
+    #[test]
+    fn filtering_averages_the_footprint() {
+        // Box filter then bilinear equals the mean of bilinear samples over the box.
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        for b in [2usize, 3] {
+            for img in [random_dots(60, 40, 1, 0.5, 8), fringe(60, 40, 5.0, 2)] {
+                let plain = ProjectorImage::new(&img, 1);
+                let filtered = ProjectorImage::new(&img, b);
+                let off = (b as f32 - 1.0) / 2.0;
+                for _ in 0..300 {
+                    let u: f32 = rng.random_range(4.0..50.0);
+                    let v: f32 = rng.random_range(4.0..30.0);
+                    let mut want = 0.0;
+                    for dy in 0..b {
+                        for dx in 0..b {
+                            want += plain.sample(u - off + dx as f32, v - off + dy as f32);
+                        }
+                    }
+                    want /= (b * b) as f32;
+                    assert!((filtered.sample(u, v) - want).abs() < 1e-4, "b {b} at ({u}, {v})");
+                }
+            }
         }
     }
 }

@@ -142,6 +142,9 @@ pub struct ZBuffer {
     /// Inverse-depth plane of every scene triangle in this view (zeros when not drawn).
     pub planes: Vec<[f64; 3]>,
     screen: Vec<ScreenTriangle>,
+    /// Per band, whether it holds anything; clean bands that stay empty are not touched,
+    /// which makes shadow maps (mostly empty) cheap.
+    dirty: Vec<bool>,
 }
 
 impl ZBuffer {
@@ -154,6 +157,7 @@ impl ZBuffer {
             triangle: vec![NO_TRIANGLE; width * height],
             planes: Vec::new(),
             screen: Vec::new(),
+            dirty: vec![true; height.div_ceil(BAND_ROWS)],
         }
     }
 
@@ -191,12 +195,20 @@ impl ZBuffer {
         self.inverse_depth
             .par_chunks_mut(w * BAND_ROWS)
             .zip(self.triangle.par_chunks_mut(w * BAND_ROWS))
+            .zip(self.dirty.par_iter_mut())
             .enumerate()
-            .for_each(|(band, (z, t))| {
-                z.fill(0.0);
-                t.fill(NO_TRIANGLE);
+            .for_each(|(band, ((z, t), dirty))| {
                 let y0 = band * BAND_ROWS;
-                fill_band(screen, w, y0, y0 + z.len() / w, z, t);
+                let y1 = y0 + z.len() / w;
+                let touched = screen.iter().any(|st| st.y0 < y1 && st.y1 >= y0);
+                if *dirty || touched {
+                    z.fill(0.0);
+                    t.fill(NO_TRIANGLE);
+                }
+                if touched {
+                    fill_band(screen, w, y0, y1, z, t);
+                }
+                *dirty = touched;
             });
     }
 
@@ -294,6 +306,8 @@ fn fill_band(screen: &[ScreenTriangle], w: usize, y_begin: usize, y_end: usize, 
             // so the exact test below decides the border pixels.
             let (mut lo, mut hi) = (st.x0 as f64, st.x1 as f64);
             let mut empty = false;
+            // A row lying exactly on a horizontal edge needs the fill rule at every pixel.
+            let mut on_edge = false;
             for &[ex, ey, ga, gb] in &st.edges {
                 let r = gb * (fy - ey);
                 if ga > 0.0 {
@@ -302,6 +316,8 @@ fn fill_band(screen: &[ScreenTriangle], w: usize, y_begin: usize, y_end: usize, 
                     hi = hi.min(ex - r / ga);
                 } else if r < 0.0 {
                     empty = true;
+                } else if r == 0.0 {
+                    on_edge = true;
                 }
             }
             if empty || lo > hi + 1.0 {
@@ -309,15 +325,20 @@ fn fill_band(screen: &[ScreenTriangle], w: usize, y_begin: usize, y_end: usize, 
             }
             let xs = ((lo.floor() - 1.0).max(st.x0 as f64)) as usize;
             let xe = ((hi.ceil() + 1.0).min(st.x1 as f64)) as usize;
+            // Pixels a whole pixel inside the span are inside whatever the rounding.
+            let (sure_lo, sure_hi) = if on_edge { (1.0, 0.0) } else { (lo + 1.0, hi - 1.0) };
             let row = (y - y_begin) * w;
             for x in xs..=xe {
                 let fx = x as f64;
-                let inside = st.edges.iter().zip(st.top_left).all(|(&[ex, ey, ga, gb], tl)| {
-                    let e = ga * (fx - ex) + gb * (fy - ey);
-                    e > 0.0 || (e == 0.0 && tl)
-                });
-                if !inside {
-                    continue;
+                let sure = fx >= sure_lo && fx <= sure_hi;
+                if !sure {
+                    let inside = st.edges.iter().zip(st.top_left).all(|(&[ex, ey, ga, gb], tl)| {
+                        let e = ga * (fx - ex) + gb * (fy - ey);
+                        e > 0.0 || (e == 0.0 && tl)
+                    });
+                    if !inside {
+                        continue;
+                    }
                 }
                 let iz = (pa * fx + pb * fy + pc) as f32;
                 let i = row + x;

@@ -14,7 +14,7 @@ use camplace_config::{Cell, Placement};
 use camplace_estimator::{Camera, FloatImage, GrayImage, Rig};
 use nalgebra::Point3;
 
-use crate::noise::{add_noise, image_key, mean_filter_to_u8};
+use crate::noise::{image_key, mean_filter_to_u8};
 use crate::pattern::{fringe_set, one_shot, ProjectorImage};
 use crate::placement_rig::{look_at, rig_for};
 use crate::raster::{View, ZBuffer};
@@ -100,6 +100,12 @@ impl Simulator {
     /// The sensor of `cell` at `placement`, its one-shot dots drawn from `pattern_seed`.
     pub fn new(cell: &Cell, placement: &Placement, pattern_seed: u64) -> Result<Simulator> {
         let sensor = &cell.sensor;
+        if sensor.blur % 2 == 0 || sensor.blur > 15 {
+            return Err(Error::Other(format!(
+                "sensor.blur: expected an odd filter side up to 15, got {}",
+                sensor.blur
+            )));
+        }
         let rig = rig_for(placement, sensor);
         let cameras = [View::new(&rig.left)?, View::new(&rig.right)?];
         let projector_camera =
@@ -108,10 +114,11 @@ impl Simulator {
         let one_shot_images = vec![one_shot(sensor, pattern_seed)];
         let fringe_images = fringe_set(sensor);
         let (w, h) = (cameras[0].width, cameras[0].height);
+        let footprint = footprint(&rig.left, projector_camera);
         Ok(Simulator {
             objects: Objects::from_cell(cell)?,
-            one_shot: one_shot_images.iter().map(ProjectorImage::new).collect(),
-            fringes: fringe_images.iter().map(ProjectorImage::new).collect(),
+            one_shot: one_shot_images.iter().map(|i| ProjectorImage::new(i, footprint)).collect(),
+            fringes: fringe_images.iter().map(|i| ProjectorImage::new(i, footprint)).collect(),
             one_shot_images,
             fringe_images,
             zbuffers: [ZBuffer::new(w, h), ZBuffer::new(w, h)],
@@ -173,15 +180,10 @@ impl Simulator {
                 if !(image.width == w && image.height == h && image.data.len() == w * h) {
                     image.reset(w, h, 0);
                 }
-                self.terms[cam].shade(pattern, &mut self.clean);
-                match noise_key {
-                    Some(key) => {
-                        let key = image_key(key, cam as u64, shot as u64);
-                        add_noise(&mut self.clean, w, key, self.noise_amplitude);
-                        mean_filter_to_u8(&self.clean, w, self.blur, &mut self.scratch, &mut image.data);
-                    }
-                    None => mean_filter_to_u8(&self.clean, w, 1, &mut self.scratch, &mut image.data),
-                }
+                let noise = noise_key.map(|key| (image_key(key, cam as u64, shot as u64), self.noise_amplitude));
+                self.terms[cam].shade(pattern, noise, &mut self.clean);
+                let blur = if noise.is_some() { self.blur } else { 1 };
+                mean_filter_to_u8(&self.clean, w, blur, &mut self.scratch, &mut image.data);
             }
         }
     }
@@ -210,6 +212,19 @@ impl Simulator {
             zbuffers[c].rasterize(&cameras[c], triangles, false);
             terms[c].compute(&cameras[c], &zbuffers[c], triangles, &lights, depth, ids);
         }
+    }
+}
+
+/// Projector pixels that one camera pixel spans where the optical axes meet the table,
+/// rounded to a whole box-filter width.
+fn footprint(camera: &Camera, projector: &Camera) -> usize {
+    let mm_per_camera_px = camera.centre().coords.norm() / camera.k[(0, 0)];
+    let projector_px_per_mm = projector.k[(0, 0)] / projector.centre().coords.norm();
+    let span = mm_per_camera_px * projector_px_per_mm;
+    if span.is_finite() {
+        span.round().clamp(1.0, 16.0) as usize
+    } else {
+        1
     }
 }
 
@@ -411,14 +426,16 @@ mod tests {
         scene.filled.clear();
         let mut frame = Frame::default();
         sim.render_clean(&scene, Method::OneShot, &mut frame);
-        // Projector pixels per camera pixel, from sub-samples half a camera pixel apart.
+        // Projector pixels per camera pixel, from neighbouring pixels on one surface.
         let t = &sim.terms[0];
-        let mut spans: Vec<f64> = (0..t.base.len())
-            .filter(|&i| t.projector_lit(i))
+        let w = t.width;
+        let tri = &sim.zbuffers[0].triangle;
+        let mut spans: Vec<f64> = (0..t.base.len() - w - 1)
+            .filter(|&i| [i + 1, i + w].iter().all(|&j| t.projector_lit(j) && tri[j] == tri[i]) && t.projector_lit(i))
             .map(|i| {
-                let s = t.projector_uv[i];
-                let dx = ((s[2] - s[0]).hypot(s[3] - s[1]) * 2.0) as f64;
-                let dy = ((s[4] - s[0]).hypot(s[5] - s[1]) * 2.0) as f64;
+                let (s, sx, sy) = (t.projector_uv[i], t.projector_uv[i + 1], t.projector_uv[i + w]);
+                let dx = (sx[0] - s[0]).hypot(sx[1] - s[1]) as f64;
+                let dy = (sy[0] - s[0]).hypot(sy[1] - s[1]) as f64;
                 (dx * dy).sqrt()
             })
             .collect();
