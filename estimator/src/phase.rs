@@ -224,7 +224,6 @@ impl PhaseDecoder {
         }
         out.reset(self.width, self.height, f32::INFINITY);
 
-        let t0 = std::time::Instant::now();
         let w = self.width;
         let periods = &self.periods[..];
         let min_sq4 = self.min_modulation_sq4;
@@ -246,7 +245,6 @@ impl PhaseDecoder {
         // neighbour steps over both images says which, and only segments rising that way are
         // matched, which drops the folds that noise makes in flat-phase regions.
         let increasing = slope_left + slope_right >= 0;
-        let t_dec = std::time::Instant::now();
 
         let matcher =
             RowMatcher { width: w, bins: self.bins, increasing, d_min, d_max, lr_tolerance: self.lr_tolerance };
