@@ -262,6 +262,10 @@ impl PhaseDecoder {
     }
 }
 
+/// 1.5 * 2^23: adding and taking it away rounds an f32 of magnitude below 2^22 to an
+/// integer.
+const ROUNDING: f32 = 12_582_912.0;
+
 /// Decodes the absolute phase of the rows starting at `y0` into `rows`; returns the sum of
 /// the signs of horizontal phase steps between valid neighbours (which way phase runs).
 fn decode_band(shots: &[GrayImage], periods: &[f32], min_sq4: i32, y0: usize, rows: &mut [f32]) -> i64 {
@@ -300,11 +304,11 @@ fn decode_row(shots: &[GrayImage], periods: &[f32], min_sq4: i32, start: usize, 
             let mut wrapped = atan2_fast(s, c);
             wrapped += if wrapped < 0.0 { TAU } else { 0.0 };
             // The coarser absolute phase predicts this one; the wrapped phase supplies the
-            // precision and the prediction the period number. Rounding goes through a
-            // truncating integer conversion (offset to stay positive) because `round` is a
-            // library call without SSE4.1 and would stop vectorisation.
+            // precision and the prediction the period number. Adding and taking away 1.5 *
+            // 2^23 rounds to the nearest integer in plain f32 arithmetic, which vectorises
+            // where `round` (a library call without SSE4.1) and saturating casts do not.
             let predicted = *o * ratio;
-            let order = (((predicted - wrapped) * (1.0 / TAU) + 1024.5) as i32 - 1024) as f32;
+            let order = ((predicted - wrapped) * (1.0 / TAU) + ROUNDING) - ROUNDING;
             let absolute = if fi == 0 { wrapped } else { wrapped + order * TAU };
             *o = if clipped || weak || (fi > 0 && o.is_nan()) { f32::NAN } else { absolute };
         }
