@@ -9,6 +9,13 @@
 //! `x_p / W_proj` (a fraction of the projector width), NaN where a pixel is masked: where
 //! the modulation `B = sqrt((I0 - I2)^2 + (I1 - I3)^2) / 2` of any frequency is below
 //! `min_modulation`, or where any shot is clipped at 255.
+//!
+//! Matching looks up, per rectified row, the segments between neighbouring pixels whose
+//! phase interval holds the wanted phase (a bin index built once per row), interpolates
+//! linearly inside the segment, refuses a phase found at places more than a pixel apart,
+//! and keeps a match only when matching back from the right image lands within
+//! `lr_tolerance`. Pixels on a depth edge, where the camera blur mixes two surfaces'
+//! fringes, can still match wrongly; the later stages must tolerate a few such points.
 
 use camplace_config::PhaseParams;
 use rayon::prelude::*;
@@ -26,8 +33,8 @@ const BAND_ROWS: usize = 16;
 const BINS_PER_COLUMN: usize = 2;
 
 /// A neighbouring pair of pixels whose phase differs by more than this many bins is taken to
-/// straddle a depth edge and is never interpolated across (eight times the phase slope of a
-/// surface facing both projector and camera at the default sensor).
+/// straddle a depth edge and is never interpolated across (about seven times the phase slope
+/// of a surface facing both projector and camera at the default sensor).
 const MAX_STEP_BINS: usize = 16;
 
 /// A grey level at which a shot is clipped: the sinusoid is cut off there and its phase is
