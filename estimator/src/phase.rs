@@ -9,6 +9,13 @@
 //! `x_p / W_proj` (a fraction of the projector width), NaN where a pixel is masked: where
 //! the modulation `B = sqrt((I0 - I2)^2 + (I1 - I3)^2) / 2` of any frequency is below
 //! `min_modulation`, or where any shot is clipped at 255.
+//!
+//! Matching looks up, per rectified row, the segments between neighbouring pixels whose
+//! phase interval holds the wanted phase (a bin index built once per row), interpolates
+//! linearly inside the segment, refuses a phase found at places more than a pixel apart,
+//! and keeps a match only when matching back from the right image lands within
+//! `lr_tolerance`. Pixels on a depth edge, where the camera blur mixes two surfaces'
+//! fringes, can still match wrongly; the later stages must tolerate a few such points.
 
 use camplace_config::PhaseParams;
 use rayon::prelude::*;
@@ -26,8 +33,8 @@ const BAND_ROWS: usize = 16;
 const BINS_PER_COLUMN: usize = 2;
 
 /// A neighbouring pair of pixels whose phase differs by more than this many bins is taken to
-/// straddle a depth edge and is never interpolated across (eight times the phase slope of a
-/// surface facing both projector and camera at the default sensor).
+/// straddle a depth edge and is never interpolated across (about seven times the phase slope
+/// of a surface facing both projector and camera at the default sensor).
 const MAX_STEP_BINS: usize = 16;
 
 /// A grey level at which a shot is clipped: the sinusoid is cut off there and its phase is
@@ -37,13 +44,92 @@ const SATURATED: u8 = u8::MAX;
 /// Scratch of one band of rows: the phase index of one row and the other side's disparities.
 #[derive(Debug, Clone)]
 struct BandScratch {
-    /// Start of each bin's segment list in `entries` (bins + 1 entries).
-    bin_start: Vec<u32>,
-    /// First column of every segment of the indexed row, grouped by the bins its phase
-    /// interval covers.
-    entries: Vec<u16>,
+    index: PhaseIndex,
     /// Disparity found from the right image's side, per right column.
     right_disparity: Vec<f32>,
+}
+
+/// The segments of one row (neighbouring valid pixels rising the matched way, no larger
+/// than a depth-edge step) listed by the phase bins their interval covers: bin `b` lists
+/// its segments in `entries[bin_start[b]..bin_start[b + 1]]` for `b` in `lo..=hi`.
+#[derive(Debug, Clone)]
+struct PhaseIndex {
+    bin_start: Vec<u32>,
+    /// First column of every listed segment.
+    entries: Vec<u16>,
+    /// Bins `[first, last]` of the segment starting at each column; `first > last` when
+    /// that segment is not matchable.
+    segments: Vec<[u32; 2]>,
+    lo: usize,
+    hi: usize,
+}
+
+impl PhaseIndex {
+    fn new(width: usize, bins: usize) -> Self {
+        PhaseIndex {
+            bin_start: vec![0; bins + 2],
+            entries: vec![0; width * (MAX_STEP_BINS + 2)],
+            segments: vec![[1, 0]; width],
+            lo: 1,
+            hi: 0,
+        }
+    }
+
+    /// Indexes `row`; only the bins the row's segments reach are touched.
+    fn build(&mut self, m: &RowMatcher, row: &[f32]) {
+        let (mut lo, mut hi) = (usize::MAX, 0);
+        for (seg, pair) in self.segments.iter_mut().zip(row.windows(2)) {
+            *seg = match m.segment_bins(pair) {
+                Some((b0, b1)) => {
+                    lo = lo.min(b0);
+                    hi = hi.max(b1);
+                    [b0 as u32, b1 as u32]
+                }
+                None => [1, 0],
+            };
+        }
+        self.lo = lo;
+        self.hi = hi;
+        if lo > hi {
+            return;
+        }
+        let segments = &self.segments[..row.len().saturating_sub(1)];
+        let starts = &mut self.bin_start[lo..=hi + 1];
+        starts.fill(0);
+        for &[b0, b1] in segments {
+            if b0 <= b1 {
+                for c in &mut starts[b0 as usize - lo + 1..=b1 as usize - lo + 1] {
+                    *c += 1;
+                }
+            }
+        }
+        for b in 0..starts.len() - 1 {
+            starts[b + 1] += starts[b];
+        }
+        // Fill with starts[b] as bin b's cursor, then shift the cursors (now each bin's
+        // end) back into starts.
+        for (i, &[b0, b1]) in segments.iter().enumerate() {
+            for b in b0 as usize..=b1 as usize {
+                let c = &mut starts[b - lo];
+                self.entries[*c as usize] = i as u16;
+                *c += 1;
+            }
+        }
+        for b in (1..starts.len()).rev() {
+            starts[b] = starts[b - 1];
+        }
+        starts[0] = 0;
+    }
+
+    /// Columns of the segments that may hold phases of bin `b`.
+    #[inline]
+    fn candidates(&self, b: usize) -> &[u16] {
+        if b < self.lo || b > self.hi {
+            return &[];
+        }
+        let k = b - self.lo;
+        &self.entries[self.bin_start[self.lo + k] as usize..self.bin_start[self.lo + k + 1] as usize]
+    }
 }
 
 /// The 12-shot decoder: every buffer is allocated by [`PhaseDecoder::new`].
@@ -82,11 +168,7 @@ impl PhaseDecoder {
         }
         let bins = BINS_PER_COLUMN * width;
         let band_count = height.div_ceil(BAND_ROWS);
-        let scratch = BandScratch {
-            bin_start: vec![0; bins + 2],
-            entries: vec![0; width * (MAX_STEP_BINS + 2)],
-            right_disparity: vec![f32::INFINITY; width],
-        };
+        let scratch = BandScratch { index: PhaseIndex::new(width, bins), right_disparity: vec![f32::INFINITY; width] };
         let m2 = 2.0 * params.min_modulation;
         Ok(PhaseDecoder {
             width,
@@ -187,6 +269,10 @@ impl PhaseDecoder {
     }
 }
 
+/// 1.5 * 2^23: adding and taking it away rounds an f32 of magnitude below 2^22 to an
+/// integer.
+const ROUNDING: f32 = 12_582_912.0;
+
 /// Decodes the absolute phase of the rows starting at `y0` into `rows`; returns the sum of
 /// the signs of horizontal phase steps between valid neighbours (which way phase runs).
 fn decode_band(shots: &[GrayImage], periods: &[f32], min_sq4: i32, y0: usize, rows: &mut [f32]) -> i64 {
@@ -210,26 +296,28 @@ fn decode_band(shots: &[GrayImage], periods: &[f32], min_sq4: i32, y0: usize, ro
 /// frequency that masks it, and NaN survives the later passes.
 fn decode_row(shots: &[GrayImage], periods: &[f32], min_sq4: i32, start: usize, out: &mut [f32]) {
     let w = out.len();
+    let min_sq4 = min_sq4 as f32;
     for (fi, &f) in periods.iter().enumerate() {
         let row = |k: usize| &shots[4 * fi + k].data[start..start + w];
-        let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
         let ratio = if fi == 0 { 0.0 } else { f / periods[fi - 1] };
-        for x in 0..w {
-            let (i0, i1, i2, i3) = (r0[x], r1[x], r2[x], r3[x]);
+        let pixels = out.iter_mut().zip(row(0)).zip(row(1)).zip(row(2)).zip(row(3));
+        for ((((o, &i0), &i1), &i2), &i3) in pixels {
             let clipped = i0.max(i1).max(i2).max(i3) == SATURATED;
-            let c = i0 as i32 - i2 as i32;
-            let s = i1 as i32 - i3 as i32;
+            // Differences of 8-bit values and their squares are exact in f32, and f32
+            // multiplies vectorise where 32-bit integer ones need SSE4.1.
+            let c = i0 as f32 - i2 as f32;
+            let s = i1 as f32 - i3 as f32;
             let weak = c * c + s * s < min_sq4;
-            let mut wrapped = atan2_fast(s as f32, c as f32);
+            let mut wrapped = atan2_fast(s, c);
             wrapped += if wrapped < 0.0 { TAU } else { 0.0 };
             // The coarser absolute phase predicts this one; the wrapped phase supplies the
-            // precision and the prediction the period number. Rounding goes through a
-            // truncating integer conversion (offset to stay positive) because `round` is a
-            // library call without SSE4.1 and would stop vectorisation.
-            let predicted = out[x] * ratio;
-            let order = (((predicted - wrapped) * (1.0 / TAU) + 1024.5) as i32 - 1024) as f32;
+            // precision and the prediction the period number. Adding and taking away 1.5 *
+            // 2^23 rounds to the nearest integer in plain f32 arithmetic, which vectorises
+            // where `round` (a library call without SSE4.1) and saturating casts do not.
+            let predicted = *o * ratio;
+            let order = ((predicted - wrapped) * (1.0 / TAU) + ROUNDING) - ROUNDING;
             let absolute = if fi == 0 { wrapped } else { wrapped + order * TAU };
-            out[x] = if clipped || weak || (fi > 0 && out[x].is_nan()) { f32::NAN } else { absolute };
+            *o = if clipped || weak || (fi > 0 && o.is_nan()) { f32::NAN } else { absolute };
         }
     }
     let scale = 1.0 / (TAU * periods[periods.len() - 1]);
@@ -284,19 +372,19 @@ struct RowMatcher {
 impl RowMatcher {
     /// Left-to-right and right-to-left matching of one row, then the left-right check.
     fn match_row(&self, left: &[f32], right: &[f32], scratch: &mut BandScratch, out: &mut [f32]) {
-        let BandScratch { bin_start, entries, right_disparity } = scratch;
+        let BandScratch { index, right_disparity } = scratch;
         // Right-to-left first: its disparities are what the check compares against.
-        self.build_index(left, bin_start, entries);
+        index.build(self, left);
         for (xr, d) in right_disparity.iter_mut().enumerate() {
-            *d = match self.find(right[xr], left, bin_start, entries, xr as f32, -1.0) {
+            *d = match self.find(right[xr], left, index, xr as f32, -1.0) {
                 Some(xl) => xl - xr as f32,
                 None => f32::INFINITY,
             };
         }
-        self.build_index(right, bin_start, entries);
+        index.build(self, right);
         for (xl, o) in out.iter_mut().enumerate() {
             *o = f32::INFINITY;
-            let Some(xr) = self.find(left[xl], right, bin_start, entries, xl as f32, 1.0) else {
+            let Some(xr) = self.find(left[xl], right, index, xl as f32, 1.0) else {
                 continue;
             };
             let d = xl as f32 - xr;
@@ -312,38 +400,6 @@ impl RowMatcher {
     #[inline]
     fn bin(&self, u: f32) -> usize {
         ((u * self.bins as f32).max(0.0) as usize).min(self.bins)
-    }
-
-    /// Indexes the segments (neighbouring valid pixels rising the matched way, no larger
-    /// than a depth-edge step) of `row` by the phase bins their interval covers: bin `b`
-    /// lists its segments in `entries[bin_start[b]..bin_start[b + 1]]`.
-    fn build_index(&self, row: &[f32], bin_start: &mut [u32], entries: &mut [u16]) {
-        let n_bins = self.bins + 1;
-        bin_start.fill(0);
-        for pair in row.windows(2) {
-            if let Some((b0, b1)) = self.segment_bins(pair) {
-                for c in &mut bin_start[b0 + 1..=b1 + 1] {
-                    *c += 1;
-                }
-            }
-        }
-        for b in 0..n_bins {
-            bin_start[b + 1] += bin_start[b];
-        }
-        // Fill with bin_start[b] as bin b's cursor, then shift the cursors (now each bin's
-        // end) back into starts.
-        for (i, pair) in row.windows(2).enumerate() {
-            if let Some((b0, b1)) = self.segment_bins(pair) {
-                for b in b0..=b1 {
-                    entries[bin_start[b] as usize] = i as u16;
-                    bin_start[b] += 1;
-                }
-            }
-        }
-        for b in (1..=n_bins).rev() {
-            bin_start[b] = bin_start[b - 1];
-        }
-        bin_start[0] = 0;
     }
 
     /// The bins covered by a segment, or `None` when it is not matchable.
@@ -362,13 +418,13 @@ impl RowMatcher {
     /// `sign * (x - x_other)` within the range; `None` when there is none or when the phase
     /// appears at places more than a pixel apart (an unwrapping error somewhere).
     #[inline]
-    fn find(&self, u: f32, other: &[f32], bin_start: &[u32], entries: &[u16], x: f32, sign: f32) -> Option<f32> {
+    fn find(&self, u: f32, other: &[f32], index: &PhaseIndex, x: f32, sign: f32) -> Option<f32> {
         if u.is_nan() {
             return None;
         }
         let b = self.bin(u);
         let (mut lo, mut hi, mut sum, mut n) = (f32::INFINITY, f32::NEG_INFINITY, 0.0f32, 0u32);
-        for &seg in &entries[bin_start[b] as usize..bin_start[b + 1] as usize] {
+        for &seg in index.candidates(b) {
             let i = seg as usize;
             let (a, c) = (other[i], other[i + 1]);
             if !(a.min(c) <= u && u <= a.max(c)) {
