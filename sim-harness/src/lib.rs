@@ -4,5 +4,6 @@
 
 mod error;
 pub mod placement_rig;
+pub mod search;
 
 pub use error::{Error, Result};

@@ -1,0 +1,532 @@
+//! The placement search (DESIGN.md §6): a radial-basis-function surrogate optimizer in the
+//! spirit of RBFopt (Costa & Nannicini 2018) and Regis & Shoemaker's stochastic RBF method.
+//! It minimises over a box through an ask/tell interface; it never calls the objective.
+//!
+//! The method, on the box scaled to [0,1]^d:
+//! - a space-filling start: the box centre plus a maximin Latin hypercube, 2(d+1) points;
+//! - a cubic surrogate with a linear tail (`rbf`), optionally smoothed for noisy values.
+//!   Values are clipped to their median before fitting, and log-scaled first when a few
+//!   huge values would otherwise swamp the interesting low region (as RBFopt does);
+//! - steps cycling from exploration to exploitation: candidates drawn around the incumbent
+//!   (Gaussian, radius = the trust radius) and uniformly over the box, scored by
+//!   w·surrogate + (1 − w)·closeness to evaluated points with w cycling through
+//!   `weight_cycle`, then one trust-region step that minimises the surrogate in a box of the
+//!   trust radius around the incumbent;
+//! - the trust radius doubles after a streak of improvements and halves after a streak of
+//!   failures, and starts again from its initial size once it falls below its minimum.
+//!
+//! Everything the next `ask` does is a function of the seed, the told history in order
+//! and the points asked but not yet told, so a study that replays its results file through
+//! `tell` resumes exactly where it stopped.
+
+pub mod design;
+pub mod rbf;
+pub mod test_functions;
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use rbf::{distance, Surrogate};
+
+/// Settings of the surrogate search; `Default` suits a smooth, noise-free objective.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RbfSettings {
+    /// λ added to the kernel diagonal: 0 interpolates; > 0 smooths a noisy objective
+    /// (about 0.01–0.1 for success rates at 250 scenarios).
+    pub noise_smoothing: f64,
+    /// Size of the space-filling start; 0 means 2(d+1).
+    pub initial_points: usize,
+    /// Latin hypercubes tried for the maximin start.
+    pub design_tries: usize,
+    /// Surrogate weights of the candidate score, one step each, exploration first.
+    pub weight_cycle: Vec<f64>,
+    /// Random candidates scored per step, per dimension.
+    pub candidates_per_dim: usize,
+    /// Least distance between two asked points in the unit box.
+    pub min_distance: f64,
+    /// Trust radius at the start, in the unit box.
+    pub trust_radius_init: f64,
+    /// Below this the trust radius starts again from `trust_radius_init`.
+    pub trust_radius_min: f64,
+    /// The trust radius never grows beyond this.
+    pub trust_radius_max: f64,
+    /// Improvements in a row that double the trust radius.
+    pub success_streak: usize,
+    /// Failures in a row that halve the trust radius; 0 means max(5, d).
+    pub failure_streak: usize,
+}
+
+impl Default for RbfSettings {
+    fn default() -> Self {
+        RbfSettings {
+            noise_smoothing: 0.0,
+            initial_points: 0,
+            design_tries: 20,
+            weight_cycle: vec![0.3, 0.5, 0.8, 0.95],
+            candidates_per_dim: 200,
+            min_distance: 1e-4,
+            trust_radius_init: 0.2,
+            trust_radius_min: 0.2 * 0.5f64.powi(6),
+            trust_radius_max: 0.4,
+            success_streak: 3,
+            failure_streak: 0,
+        }
+    }
+}
+
+/// The surrogate fitted to the told values, with the value transform it was fitted under.
+#[derive(Debug, Clone)]
+struct Fit {
+    surrogate: Surrogate,
+    /// `Some(ymin)` when values were fitted as ln(1 + y − ymin).
+    log_from: Option<f64>,
+    /// The number of told values it was fitted to.
+    told: usize,
+}
+
+impl Fit {
+    /// A surrogate value back in the objective's units.
+    fn to_objective(&self, v: f64) -> f64 {
+        match self.log_from {
+            Some(ymin) => ymin + v.exp() - 1.0,
+            None => v,
+        }
+    }
+}
+
+/// A minimiser over a box by radial-basis-function surrogate, driven by ask and tell.
+#[derive(Debug, Clone)]
+pub struct RbfOptimizer {
+    lower: Vec<f64>,
+    width: Vec<f64>,
+    settings: RbfSettings,
+    seed: u64,
+    /// The space-filling start, in the unit box.
+    design: Vec<Vec<f64>>,
+    /// Told points in the unit box, and as told.
+    told_unit: Vec<Vec<f64>>,
+    told_raw: Vec<Vec<f64>>,
+    told_values: Vec<f64>,
+    /// Asked and not yet told, in the unit box and as handed out.
+    pending_unit: Vec<Vec<f64>>,
+    pending_raw: Vec<Vec<f64>>,
+    trust_radius: f64,
+    successes: usize,
+    failures: usize,
+    fit: Option<Fit>,
+}
+
+impl RbfOptimizer {
+    /// An optimizer over the box `bounds` (lower, upper per parameter), deterministic for
+    /// `seed`.
+    ///
+    /// # Panics
+    /// If `bounds` is empty or some lower bound is not finite and below its upper bound:
+    /// a fixed parameter belongs outside the search.
+    pub fn new(bounds: Vec<(f64, f64)>, settings: RbfSettings, seed: u64) -> RbfOptimizer {
+        assert!(!bounds.is_empty(), "the search box needs at least one parameter");
+        for &(lo, hi) in &bounds {
+            assert!(
+                lo.is_finite() && hi.is_finite() && lo < hi,
+                "search bounds must be finite with lower < upper, got ({lo}, {hi})"
+            );
+        }
+        let dim = bounds.len();
+        let n0 = if settings.initial_points == 0 { 2 * (dim + 1) } else { settings.initial_points };
+        let mut rng = ChaCha8Rng::seed_from_u64(mix(seed, u64::MAX));
+        let design = design::latin_hypercube_with_centre(n0, dim, settings.design_tries, &mut rng);
+        RbfOptimizer {
+            lower: bounds.iter().map(|b| b.0).collect(),
+            width: bounds.iter().map(|b| b.1 - b.0).collect(),
+            trust_radius: settings.trust_radius_init,
+            settings,
+            seed,
+            design,
+            told_unit: Vec::new(),
+            told_raw: Vec::new(),
+            told_values: Vec::new(),
+            pending_unit: Vec::new(),
+            pending_raw: Vec::new(),
+            successes: 0,
+            failures: 0,
+            fit: None,
+        }
+    }
+
+    /// The number of parameters.
+    pub fn dim(&self) -> usize {
+        self.lower.len()
+    }
+
+    /// The number of told evaluations.
+    pub fn evaluations(&self) -> usize {
+        self.told_values.len()
+    }
+
+    /// The next point to evaluate; it stays pending until told.
+    pub fn ask(&mut self) -> Vec<f64> {
+        let u = self.next_unit_point();
+        let x = self.to_raw(&u);
+        self.pending_unit.push(u);
+        self.pending_raw.push(x.clone());
+        x
+    }
+
+    /// `n` distinct points to evaluate in parallel; they stay pending until told.
+    pub fn ask_batch(&mut self, n: usize) -> Vec<Vec<f64>> {
+        (0..n).map(|_| self.ask()).collect()
+    }
+
+    /// Records the objective `y` at `x` (a point from `ask` or any point of the box).
+    /// A value that is not finite counts as the worst value seen.
+    ///
+    /// # Panics
+    /// If `x` has the wrong number of coordinates.
+    pub fn tell(&mut self, x: &[f64], y: f64) {
+        assert_eq!(x.len(), self.dim(), "told point has the wrong dimension");
+        let u = self.to_unit(x);
+        if let Some(i) = self.pending_unit.iter().position(|p| p.iter().zip(&u).all(|(a, b)| (a - b).abs() <= 1e-12)) {
+            self.pending_unit.remove(i);
+            self.pending_raw.remove(i);
+        }
+        if self.told_values.len() >= self.design.len() {
+            self.update_trust_region(y);
+        }
+        self.told_unit.push(u);
+        self.told_raw.push(x.to_vec());
+        self.told_values.push(y);
+    }
+
+    /// The best value told so far and where.
+    pub fn best_observed(&self) -> Option<(Vec<f64>, f64)> {
+        let i = argmin(&self.clean_values())?;
+        Some((self.told_raw[i].clone(), self.told_values[i]))
+    }
+
+    /// The evaluated point where the (smoothed) surrogate is lowest, with the surrogate's
+    /// value there: the winner for a noisy objective. Equal to `best_observed` for an
+    /// interpolating surrogate; `best_observed` stands in while no surrogate can be fitted.
+    pub fn best_by_surrogate(&self) -> Option<(Vec<f64>, f64)> {
+        let fit = match &self.fit {
+            Some(f) if f.told == self.told_values.len() => f.clone(),
+            _ => match self.fit_surrogate() {
+                Some(f) => f,
+                None => return self.best_observed(),
+            },
+        };
+        let order = self.by_surrogate(&fit);
+        let &(i, v) = order.first()?;
+        Some((self.told_raw[i].clone(), fit.to_objective(v)))
+    }
+
+    /// Up to `n` evaluated points, lowest surrogate value first, no two closer than the
+    /// minimum distance: the ones worth re-evaluating on fresh scenarios.
+    pub fn top_candidates(&self, n: usize) -> Vec<Vec<f64>> {
+        let order: Vec<usize> = match self.fit_surrogate() {
+            Some(fit) => self.by_surrogate(&fit).into_iter().map(|(i, _)| i).collect(),
+            None => {
+                let y = self.clean_values();
+                let mut idx: Vec<usize> = (0..y.len()).collect();
+                idx.sort_by(|&a, &b| y[a].total_cmp(&y[b]));
+                idx
+            }
+        };
+        let mut picked: Vec<usize> = Vec::new();
+        for i in order {
+            if picked.len() == n {
+                break;
+            }
+            let u = &self.told_unit[i];
+            if picked.iter().all(|&j| distance(u, &self.told_unit[j]) >= self.settings.min_distance) {
+                picked.push(i);
+            }
+        }
+        picked.into_iter().map(|i| self.told_raw[i].clone()).collect()
+    }
+
+    /// Evaluated indices with their surrogate values, lowest first.
+    fn by_surrogate(&self, fit: &Fit) -> Vec<(usize, f64)> {
+        let mut v: Vec<(usize, f64)> =
+            self.told_unit.iter().enumerate().map(|(i, u)| (i, fit.surrogate.value(u))).collect();
+        v.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+        v
+    }
+
+    fn to_unit(&self, x: &[f64]) -> Vec<f64> {
+        x.iter().zip(&self.lower).zip(&self.width).map(|((v, lo), w)| (v - lo) / w).collect()
+    }
+
+    fn to_raw(&self, u: &[f64]) -> Vec<f64> {
+        u.iter().zip(&self.lower).zip(&self.width).map(|((v, lo), w)| lo + v * w).collect()
+    }
+
+    /// Told values with every non-finite one replaced by the worst finite one.
+    fn clean_values(&self) -> Vec<f64> {
+        let worst = self.told_values.iter().filter(|v| v.is_finite()).fold(f64::NEG_INFINITY, |a, &b| a.max(b));
+        let worst = if worst.is_finite() { worst } else { 0.0 };
+        self.told_values.iter().map(|&v| if v.is_finite() { v } else { worst }).collect()
+    }
+
+    fn failure_streak(&self) -> usize {
+        if self.settings.failure_streak == 0 {
+            self.dim().max(5)
+        } else {
+            self.settings.failure_streak
+        }
+    }
+
+    fn update_trust_region(&mut self, y: f64) {
+        let best = self.clean_values().into_iter().fold(f64::INFINITY, f64::min);
+        let improved = y.is_finite() && y < best - 1e-3 * best.abs().max(1e-9);
+        if improved {
+            self.successes += 1;
+            self.failures = 0;
+        } else {
+            self.failures += 1;
+            self.successes = 0;
+        }
+        let s = &self.settings;
+        if self.successes >= s.success_streak.max(1) {
+            self.trust_radius = (2.0 * self.trust_radius).min(s.trust_radius_max);
+            self.successes = 0;
+        }
+        if self.failures >= self.failure_streak() {
+            self.trust_radius *= 0.5;
+            if self.trust_radius < s.trust_radius_min {
+                self.trust_radius = s.trust_radius_init;
+            }
+            self.failures = 0;
+        }
+    }
+
+    /// Fits the surrogate to the told values, or `None` while too few points fix it.
+    fn fit_surrogate(&self) -> Option<Fit> {
+        let d = self.dim();
+        let n = self.told_values.len();
+        if n < d + 2 {
+            return None;
+        }
+        let mut y = self.clean_values();
+        let ymin = y.iter().copied().fold(f64::INFINITY, f64::min);
+        let ymax = y.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let mut log_from = None;
+        // Log scaling when the spread above the median dwarfs the spread below it: a few
+        // huge values (Goldstein–Price's corners) would otherwise bend the whole surface.
+        if ymax - ymin > 50.0 * (median(&y) - ymin).max(1e-300) {
+            for v in &mut y {
+                *v = (1.0 + *v - ymin).ln();
+            }
+            log_from = Some(ymin);
+        }
+        let med = median(&y);
+        for v in &mut y {
+            *v = v.min(med);
+        }
+        let pts: Vec<f64> = self.told_unit.iter().flatten().copied().collect();
+        let surrogate = Surrogate::fit(&pts, d, &y, self.settings.noise_smoothing).ok()?;
+        Some(Fit { surrogate, log_from, told: n })
+    }
+
+    /// The unit-box point the next `ask` hands out.
+    fn next_unit_point(&mut self) -> Vec<f64> {
+        for p in &self.design {
+            if !self.is_taken(p, 1e-12) {
+                return p.clone();
+            }
+        }
+        let k = self.told_values.len() + self.pending_unit.len();
+        let mut rng = ChaCha8Rng::seed_from_u64(mix(self.seed, k as u64));
+        if self.fit.as_ref().map(|f| f.told) != Some(self.told_values.len()) {
+            self.fit = self.fit_surrogate();
+        }
+        let Some(fit) = self.fit.clone() else {
+            return self.weighted_step(None, 0.0, &mut rng);
+        };
+        let cycle = self.settings.weight_cycle.len() + 1;
+        let step = k.saturating_sub(self.design.len()) % cycle;
+        match self.settings.weight_cycle.get(step) {
+            Some(&w) => self.weighted_step(Some(&fit), w, &mut rng),
+            None => self.trust_region_step(&fit, &mut rng),
+        }
+    }
+
+    /// Whether a told or pending point lies within `tol` of `u`.
+    fn is_taken(&self, u: &[f64], tol: f64) -> bool {
+        self.told_unit.iter().chain(&self.pending_unit).any(|p| distance(p, u) <= tol)
+    }
+
+    /// The distance from `u` to the nearest told or pending point.
+    fn nearest(&self, u: &[f64]) -> f64 {
+        self.told_unit.iter().chain(&self.pending_unit).map(|p| distance(p, u)).fold(f64::INFINITY, f64::min)
+    }
+
+    /// The point searches centre on: the lowest told value, or for a smoothed surrogate
+    /// the evaluated point it rates lowest (a lucky noisy draw should not steer).
+    fn incumbent(&self, fit: Option<&Fit>) -> Vec<f64> {
+        let i = match fit {
+            Some(f) if self.settings.noise_smoothing > 0.0 => self.by_surrogate(f).first().map(|p| p.0),
+            _ => argmin(&self.clean_values()),
+        };
+        i.map_or_else(|| vec![0.5; self.dim()], |i| self.told_unit[i].clone())
+    }
+
+    /// A Regis–Shoemaker step: score random candidates by w·surrogate + (1 − w)·closeness.
+    fn weighted_step(&self, fit: Option<&Fit>, w: f64, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        let d = self.dim();
+        let centre = self.incumbent(fit);
+        let n = (self.settings.candidates_per_dim * d).max(2);
+        let sigma = self.trust_radius;
+        let mut cands: Vec<Vec<f64>> = Vec::with_capacity(n);
+        for i in 0..n {
+            let c = if i % 2 == 0 && fit.is_some() {
+                centre.iter().map(|&c| reflect(c + sigma * gaussian(rng))).collect()
+            } else {
+                (0..d).map(|_| rng.random::<f64>()).collect()
+            };
+            cands.push(c);
+        }
+        self.pick_by_score(&cands, fit, w)
+    }
+
+    /// The candidate of least score among those far enough from every point; the
+    /// farthest candidate when none is.
+    fn pick_by_score(&self, cands: &[Vec<f64>], fit: Option<&Fit>, w: f64) -> Vec<f64> {
+        let dist: Vec<f64> = cands.iter().map(|c| self.nearest(c)).collect();
+        let sval: Vec<f64> = match fit {
+            Some(f) => cands.iter().map(|c| f.surrogate.value(c)).collect(),
+            None => vec![0.0; cands.len()],
+        };
+        let ok = |i: &usize| dist[*i] >= self.settings.min_distance;
+        let idx: Vec<usize> = (0..cands.len()).filter(ok).collect();
+        if idx.is_empty() {
+            let i = argmax(&dist).unwrap_or(0);
+            return cands[i].clone();
+        }
+        let (smin, smax) = min_max(idx.iter().map(|&i| sval[i]));
+        let (dmin, dmax) = min_max(idx.iter().map(|&i| dist[i]));
+        let scale = |v: f64, lo: f64, hi: f64| if hi > lo { (v - lo) / (hi - lo) } else { 1.0 };
+        let mut best = idx[0];
+        let mut best_score = f64::INFINITY;
+        for &i in &idx {
+            let score = w * scale(sval[i], smin, smax) + (1.0 - w) * (1.0 - scale(dist[i], dmin, dmax));
+            if score < best_score {
+                best_score = score;
+                best = i;
+            }
+        }
+        cands[best].clone()
+    }
+
+    /// Minimises the surrogate within the trust radius of the incumbent, from the incumbent
+    /// and the best few random starts; falls back to an exploiting candidate step when the
+    /// minimiser lands on an evaluated point.
+    fn trust_region_step(&self, fit: &Fit, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        let d = self.dim();
+        let centre = self.incumbent(Some(fit));
+        let r = self.trust_radius;
+        let lo: Vec<f64> = centre.iter().map(|c| (c - r).max(0.0)).collect();
+        let hi: Vec<f64> = centre.iter().map(|c| (c + r).min(1.0)).collect();
+        let mut starts: Vec<(f64, Vec<f64>)> = (0..50 * d)
+            .map(|_| {
+                let x: Vec<f64> = (0..d).map(|k| lo[k] + (hi[k] - lo[k]) * rng.random::<f64>()).collect();
+                (fit.surrogate.value(&x), x)
+            })
+            .collect();
+        starts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        starts.truncate(4);
+        starts.push((fit.surrogate.value(&centre), centre));
+        let mut best: Option<(f64, Vec<f64>)> = None;
+        for (_, x0) in starts {
+            let (x, v) = descend(&fit.surrogate, x0, &lo, &hi, 200);
+            if self.nearest(&x) >= self.settings.min_distance && best.as_ref().is_none_or(|b| v < b.0) {
+                best = Some((v, x));
+            }
+        }
+        match best {
+            Some((_, x)) => x,
+            None => self.weighted_step(Some(fit), 0.95, rng),
+        }
+    }
+}
+
+/// Projected gradient descent with a backtracking step on the box [lo, hi].
+fn descend(s: &Surrogate, mut x: Vec<f64>, lo: &[f64], hi: &[f64], iters: usize) -> (Vec<f64>, f64) {
+    let d = x.len();
+    let mut g = vec![0.0; d];
+    let mut gt = vec![0.0; d];
+    let mut f = s.value_and_gradient(&x, &mut g);
+    let span = lo.iter().zip(hi).map(|(a, b)| b - a).fold(0.0, f64::max);
+    let mut step = 0.1 * span;
+    let mut trial = vec![0.0; d];
+    for _ in 0..iters {
+        let gn = g.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if gn == 0.0 || step < 1e-10 * span.max(1e-12) {
+            break;
+        }
+        for k in 0..d {
+            trial[k] = (x[k] - step * g[k] / gn).clamp(lo[k], hi[k]);
+        }
+        let ft = s.value_and_gradient(&trial, &mut gt);
+        let decrease: f64 = (0..d).map(|k| g[k] * (x[k] - trial[k])).sum();
+        if ft <= f - 1e-4 * decrease && ft < f {
+            x.copy_from_slice(&trial);
+            g.copy_from_slice(&gt);
+            f = ft;
+            step *= 2.0;
+        } else {
+            step *= 0.5;
+        }
+    }
+    (x, f)
+}
+
+/// A standard normal draw (Box–Muller).
+fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
+    let u1: f64 = 1.0 - rng.random::<f64>();
+    let u2: f64 = rng.random();
+    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}
+
+/// Folds a coordinate back into [0, 1] by reflection at the faces.
+fn reflect(v: f64) -> f64 {
+    let m = v.rem_euclid(2.0);
+    if m > 1.0 {
+        2.0 - m
+    } else {
+        m
+    }
+}
+
+/// A seed for step `k` of the search seeded `seed` (splitmix64 finaliser on both).
+fn mix(seed: u64, k: u64) -> u64 {
+    let mut z = seed ^ k.wrapping_add(0x9E37_79B9_7F4A_7C15).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    if n == 0 {
+        return 0.0;
+    }
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    }
+}
+
+fn min_max(it: impl Iterator<Item = f64>) -> (f64, f64) {
+    it.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)))
+}
+
+fn argmin(v: &[f64]) -> Option<usize> {
+    (0..v.len()).min_by(|&a, &b| v[a].total_cmp(&v[b]))
+}
+
+fn argmax(v: &[f64]) -> Option<usize> {
+    (0..v.len()).max_by(|&a, &b| v[a].total_cmp(&v[b]))
+}
