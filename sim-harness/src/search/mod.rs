@@ -5,13 +5,14 @@
 //! The method, on the box scaled to [0,1]^d:
 //! - a space-filling start: the box centre plus a maximin Latin hypercube, 2(d+1) points;
 //! - a cubic surrogate with a linear tail (`rbf`), optionally smoothed for noisy values.
-//!   Values are clipped to their median before fitting, and log-scaled first when a few
-//!   huge values would otherwise swamp the interesting low region (as RBFopt does);
-//! - steps cycling from exploration to exploitation: candidates drawn around the incumbent
-//!   (Gaussian, radius = the trust radius) and uniformly over the box, scored by
-//!   w·surrogate + (1 − w)·closeness to evaluated points with w cycling through
-//!   `weight_cycle`, then one trust-region step that minimises the surrogate in a box of the
-//!   trust radius around the incumbent;
+//!   Values are log-scaled when a few huge values would otherwise swamp the interesting
+//!   low region (as RBFopt does), and optionally clipped at their median;
+//! - steps cycling from exploration to exploitation (`SearchStep`, by default
+//!   Regis–Shoemaker weights 0.3, 0.5, 0.8, 0.95 then a trust-region step): candidates
+//!   drawn around the incumbent (Gaussian, sd = the trust radius, a few coordinates at a
+//!   time) and uniformly over the box, scored by w·surrogate + (1 − w)·closeness to
+//!   evaluated points; the trust-region step minimises the surrogate within the trust
+//!   radius of the incumbent, and is taken again right after every improvement;
 //! - the trust radius doubles after a streak of improvements and halves after a streak of
 //!   failures, and starts again from its initial size once it falls below its minimum.
 //!
@@ -38,10 +39,17 @@ pub struct RbfSettings {
     pub initial_points: usize,
     /// Latin hypercubes tried for the maximin start.
     pub design_tries: usize,
-    /// Surrogate weights of the candidate score, one step each, exploration first.
-    pub weight_cycle: Vec<f64>,
+    /// The steps after the start design, repeated in order, exploration first.
+    pub cycle: Vec<SearchStep>,
     /// Random candidates scored per step, per dimension.
     pub candidates_per_dim: usize,
+    /// Chance that a candidate drawn around the incumbent moves a given coordinate (at
+    /// least one always moves): below 1 it probes along few axes at a time (DYCORS).
+    pub perturbation_probability: f64,
+    /// Clip values above their median to the median before fitting (Regis–Shoemaker).
+    pub clip_at_median: bool,
+    /// Take a trust-region step right after a point that improved the incumbent.
+    pub refine_after_improvement: bool,
     /// Least distance between two asked points in the unit box.
     pub min_distance: f64,
     /// Trust radius at the start, in the unit box.
@@ -62,8 +70,17 @@ impl Default for RbfSettings {
             noise_smoothing: 0.0,
             initial_points: 0,
             design_tries: 20,
-            weight_cycle: vec![0.3, 0.5, 0.8, 0.95],
+            cycle: vec![
+                SearchStep::Weighted(0.3),
+                SearchStep::Weighted(0.5),
+                SearchStep::Weighted(0.8),
+                SearchStep::Weighted(0.95),
+                SearchStep::TrustRegion,
+            ],
             candidates_per_dim: 200,
+            perturbation_probability: 0.4,
+            clip_at_median: false,
+            refine_after_improvement: true,
             min_distance: 1e-4,
             trust_radius_init: 0.2,
             trust_radius_min: 0.2 * 0.5f64.powi(6),
@@ -74,6 +91,21 @@ impl Default for RbfSettings {
     }
 }
 
+/// One kind of step of the search cycle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SearchStep {
+    /// Regis–Shoemaker: the candidate of least w·surrogate + (1 − w)·closeness to
+    /// evaluated points (w in [0, 1]; larger exploits more).
+    Weighted(f64),
+    /// Gutmann's target value: the candidate of least bumpiness growth if the objective
+    /// there were f* = min s − W·(max y − min s). W = ∞ explores purely, W = 0 exploits.
+    Target(f64),
+    /// The surrogate's minimum over the whole box.
+    SurrogateMinimum,
+    /// The surrogate's minimum within the trust radius of the incumbent.
+    TrustRegion,
+}
+
 /// The surrogate fitted to the told values, with the value transform it was fitted under.
 #[derive(Debug, Clone)]
 struct Fit {
@@ -82,6 +114,8 @@ struct Fit {
     log_from: Option<f64>,
     /// The number of told values it was fitted to.
     told: usize,
+    /// The largest value it was fitted to (after transform and clipping).
+    fitted_max: f64,
 }
 
 impl Fit {
@@ -111,6 +145,8 @@ pub struct RbfOptimizer {
     pending_unit: Vec<Vec<f64>>,
     pending_raw: Vec<Vec<f64>>,
     trust_radius: f64,
+    /// Whether the last told value improved on the best before it.
+    last_improved: bool,
     successes: usize,
     failures: usize,
     fit: Option<Fit>,
@@ -147,6 +183,7 @@ impl RbfOptimizer {
             told_values: Vec::new(),
             pending_unit: Vec::new(),
             pending_raw: Vec::new(),
+            last_improved: false,
             successes: 0,
             failures: 0,
             fit: None,
@@ -278,6 +315,7 @@ impl RbfOptimizer {
     fn update_trust_region(&mut self, y: f64) {
         let best = self.clean_values().into_iter().fold(f64::INFINITY, f64::min);
         let improved = y.is_finite() && y < best - 1e-3 * best.abs().max(1e-9);
+        self.last_improved = improved;
         if improved {
             self.successes += 1;
             self.failures = 0;
@@ -319,12 +357,15 @@ impl RbfOptimizer {
             log_from = Some(ymin);
         }
         let med = median(&y);
-        for v in &mut y {
-            *v = v.min(med);
+        if self.settings.clip_at_median {
+            for v in &mut y {
+                *v = v.min(med);
+            }
         }
+        let fitted_max = y.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let pts: Vec<f64> = self.told_unit.iter().flatten().copied().collect();
         let surrogate = Surrogate::fit(&pts, d, &y, self.settings.noise_smoothing).ok()?;
-        Some(Fit { surrogate, log_from, told: n })
+        Some(Fit { surrogate, log_from, told: n, fitted_max })
     }
 
     /// The unit-box point the next `ask` hands out.
@@ -342,11 +383,18 @@ impl RbfOptimizer {
         let Some(fit) = self.fit.clone() else {
             return self.weighted_step(None, 0.0, &mut rng);
         };
-        let cycle = self.settings.weight_cycle.len() + 1;
-        let step = k.saturating_sub(self.design.len()) % cycle;
-        match self.settings.weight_cycle.get(step) {
-            Some(&w) => self.weighted_step(Some(&fit), w, &mut rng),
-            None => self.trust_region_step(&fit, &mut rng),
+        let cycle = &self.settings.cycle;
+        // After an improvement the incumbent's neighbourhood is worth another look at once,
+        // which is what makes the local convergence quick.
+        let refine = self.settings.refine_after_improvement && self.last_improved && self.pending_unit.is_empty();
+        if cycle.is_empty() || refine {
+            return self.trust_region_step(&fit, &mut rng);
+        }
+        match cycle[k.saturating_sub(self.design.len()) % cycle.len()] {
+            SearchStep::Weighted(w) => self.weighted_step(Some(&fit), w, &mut rng),
+            SearchStep::Target(w) => self.target_step(&fit, w, &mut rng),
+            SearchStep::SurrogateMinimum => self.global_step(&fit, &mut rng),
+            SearchStep::TrustRegion => self.trust_region_step(&fit, &mut rng),
         }
     }
 
@@ -370,21 +418,69 @@ impl RbfOptimizer {
         i.map_or_else(|| vec![0.5; self.dim()], |i| self.told_unit[i].clone())
     }
 
-    /// A Regis–Shoemaker step: score random candidates by w·surrogate + (1 − w)·closeness.
-    fn weighted_step(&self, fit: Option<&Fit>, w: f64, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    /// Random candidates: half Gaussian around the incumbent with the trust radius, half
+    /// uniform over the box.
+    fn candidates(&self, fit: Option<&Fit>, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
         let d = self.dim();
         let centre = self.incumbent(fit);
         let n = (self.settings.candidates_per_dim * d).max(2);
         let sigma = self.trust_radius;
-        let mut cands: Vec<Vec<f64>> = Vec::with_capacity(n);
-        for i in 0..n {
-            let c = if i % 2 == 0 && fit.is_some() {
-                centre.iter().map(|&c| reflect(c + sigma * gaussian(rng))).collect()
-            } else {
-                (0..d).map(|_| rng.random::<f64>()).collect()
-            };
-            cands.push(c);
+        (0..n)
+            .map(|i| {
+                if i % 2 == 0 && fit.is_some() {
+                    let p = self.settings.perturbation_probability;
+                    let mut x = centre.clone();
+                    let mut moved = false;
+                    for v in x.iter_mut() {
+                        if rng.random::<f64>() < p {
+                            *v = reflect(*v + sigma * gaussian(rng));
+                            moved = true;
+                        }
+                    }
+                    if !moved {
+                        let k = rng.random_range(0..d);
+                        x[k] = reflect(x[k] + sigma * gaussian(rng));
+                    }
+                    x
+                } else {
+                    (0..d).map(|_| rng.random::<f64>()).collect()
+                }
+            })
+            .collect()
+    }
+
+    /// A Gutmann step: the candidate that would least raise the bumpiness of a surrogate
+    /// passing through the target value f* there.
+    fn target_step(&self, fit: &Fit, w: f64, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        let cands = self.candidates(Some(fit), rng);
+        let s = &fit.surrogate;
+        let sval: Vec<f64> = cands.iter().map(|c| s.value(c)).collect();
+        let smin = sval.iter().copied().fold(f64::INFINITY, f64::min);
+        let ymax = fit.fitted_max;
+        let target = if w.is_finite() { smin - w * (ymax - smin).max(0.0) } else { f64::NEG_INFINITY };
+        let mut scratch = Vec::new();
+        let mut best = None;
+        let mut best_score = f64::INFINITY;
+        for (c, &v) in cands.iter().zip(&sval) {
+            if self.nearest(c) < self.settings.min_distance {
+                continue;
+            }
+            let mu = s.bumpiness_weight(c, &mut scratch);
+            let score = if target.is_finite() { mu * (v - target) * (v - target) } else { mu };
+            if score < best_score || best.is_none() {
+                best_score = score;
+                best = Some(c);
+            }
         }
+        match best {
+            Some(c) => c.clone(),
+            None => self.pick_by_score(&cands, Some(fit), 0.0),
+        }
+    }
+
+    /// A Regis–Shoemaker step: score random candidates by w·surrogate + (1 − w)·closeness.
+    fn weighted_step(&self, fit: Option<&Fit>, w: f64, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        let cands = self.candidates(fit, rng);
         self.pick_by_score(&cands, fit, w)
     }
 
@@ -415,6 +511,29 @@ impl RbfOptimizer {
             }
         }
         cands[best].clone()
+    }
+
+    /// Minimises the surrogate over the whole box from the best few random candidates
+    /// (Gutmann's target at the surrogate's own minimum: pure exploitation).
+    fn global_step(&self, fit: &Fit, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        let d = self.dim();
+        let mut starts: Vec<(f64, Vec<f64>)> =
+            self.candidates(Some(fit), rng).into_iter().map(|x| (fit.surrogate.value(&x), x)).collect();
+        starts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        starts.truncate(5);
+        let lo = vec![0.0; d];
+        let hi = vec![1.0; d];
+        let mut best: Option<(f64, Vec<f64>)> = None;
+        for (_, x0) in starts {
+            let (x, v) = descend(&fit.surrogate, x0, &lo, &hi, 200);
+            if self.nearest(&x) >= self.settings.min_distance && best.as_ref().is_none_or(|b| v < b.0) {
+                best = Some((v, x));
+            }
+        }
+        match best {
+            Some((_, x)) => x,
+            None => self.weighted_step(Some(fit), 0.95, rng),
+        }
     }
 
     /// Minimises the surrogate within the trust radius of the incumbent, from the incumbent
@@ -529,4 +648,137 @@ fn argmin(v: &[f64]) -> Option<usize> {
 
 fn argmax(v: &[f64]) -> Option<usize> {
     (0..v.len()).max_by(|&a, &b| v[a].total_cmp(&v[b]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use test_functions::branin;
+
+    fn branin_optimizer(seed: u64) -> RbfOptimizer {
+        RbfOptimizer::new(vec![(-5.0, 10.0), (0.0, 15.0)], RbfSettings::default(), seed)
+    }
+
+    #[test]
+    fn same_seed_same_sequence_other_seed_other_sequence() {
+        let run = |seed: u64| {
+            let mut opt = branin_optimizer(seed);
+            (0..30)
+                .map(|_| {
+                    let x = opt.ask();
+                    opt.tell(&x, branin(&x));
+                    x
+                })
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(run(4), run(4));
+        assert_ne!(run(4), run(5));
+    }
+
+    #[test]
+    fn replaying_the_history_resumes_with_the_same_next_point() {
+        let mut rng = ChaCha8Rng::seed_from_u64(99);
+        let bounds = vec![(0.0, 1.0), (-2.0, 2.0), (10.0, 20.0)];
+        let f = |x: &[f64]| (x[0] - 0.3).powi(2) + (x[1] * x[1] - 1.0).powi(2) + 0.01 * x[2];
+        let mut opt = RbfOptimizer::new(bounds.clone(), RbfSettings::default(), 17);
+        let mut history: Vec<(Vec<f64>, f64)> = Vec::new();
+        // Batches of three told in a shuffled order, as parallel workers finish.
+        for round in 0..12 {
+            let mut batch = opt.ask_batch(3);
+            for i in (1..batch.len()).rev() {
+                batch.swap(i, rng.random_range(0..=i));
+            }
+            for x in batch {
+                let y = f(&x);
+                opt.tell(&x, y);
+                history.push((x, y));
+            }
+            let mut resumed = RbfOptimizer::new(bounds.clone(), RbfSettings::default(), 17);
+            for (x, y) in &history {
+                resumed.tell(x, *y);
+            }
+            assert_eq!(resumed.ask_batch(3), opt.clone().ask_batch(3), "round {round}");
+            assert_eq!(resumed.best_by_surrogate(), opt.best_by_surrogate());
+        }
+    }
+
+    #[test]
+    fn a_batch_holds_distinct_points_inside_the_box() {
+        let mut opt = branin_optimizer(8);
+        for _ in 0..5 {
+            let batch = opt.ask_batch(4);
+            for (i, a) in batch.iter().enumerate() {
+                assert!((-5.0..=10.0).contains(&a[0]) && (0.0..=15.0).contains(&a[1]));
+                for b in &batch[..i] {
+                    assert!(distance(&opt.to_unit(a), &opt.to_unit(b)) >= 1e-4);
+                }
+            }
+            for x in batch {
+                opt.tell(&x, branin(&x));
+            }
+        }
+    }
+
+    #[test]
+    fn failed_evaluations_do_not_break_the_search() {
+        let mut opt = branin_optimizer(2);
+        for i in 0..30 {
+            let x = opt.ask();
+            let y = if i % 4 == 3 { f64::NAN } else { branin(&x) };
+            opt.tell(&x, y);
+        }
+        let (_, best) = opt.best_observed().unwrap();
+        assert!(best.is_finite() && best < 5.0, "{best}");
+        assert!(opt.best_by_surrogate().unwrap().1.is_finite());
+    }
+
+    #[test]
+    fn top_candidates_are_evaluated_distinct_and_led_by_the_winner() {
+        let mut opt = branin_optimizer(6);
+        let mut seen = Vec::new();
+        for _ in 0..25 {
+            let x = opt.ask();
+            opt.tell(&x, branin(&x));
+            seen.push(x);
+        }
+        let top = opt.top_candidates(5);
+        assert_eq!(top.len(), 5);
+        assert_eq!(top[0], opt.best_by_surrogate().unwrap().0);
+        for (i, t) in top.iter().enumerate() {
+            assert!(seen.contains(t));
+            assert!(!top[..i].contains(t));
+        }
+        // Interpolating: the surrogate's winner is the best observation.
+        let (xs, vs) = opt.best_by_surrogate().unwrap();
+        let (xo, vo) = opt.best_observed().unwrap();
+        assert_eq!(xs, xo);
+        assert!((vs - vo).abs() < 1e-6 * (1.0 + vo.abs()), "{vs} vs {vo}");
+    }
+
+    /// A smooth success-rate-like surface with Gaussian noise (sd 0.02): the smoothed
+    /// surrogate's winner lands nearer the true optimum than the best raw observation.
+    #[test]
+    fn surrogate_winner_beats_the_luckiest_draw_on_a_noisy_objective() {
+        let optimum = [0.35, 0.6];
+        let truth = |x: &[f64]| -0.9 + 1.5 * ((x[0] - optimum[0]).powi(2) + (x[1] - optimum[1]).powi(2));
+        let settings = RbfSettings { noise_smoothing: 0.01, ..RbfSettings::default() };
+        let (mut by_surrogate, mut by_observation) = (0.0, 0.0);
+        for seed in 1..=10 {
+            let mut noise = ChaCha8Rng::seed_from_u64(1000 + seed);
+            let mut opt = RbfOptimizer::new(vec![(0.0, 1.0), (0.0, 1.0)], settings.clone(), seed);
+            for _ in 0..50 {
+                let x = opt.ask();
+                let y = truth(&x) + 0.02 * gaussian(&mut noise);
+                opt.tell(&x, y);
+            }
+            by_surrogate += distance(&opt.best_by_surrogate().unwrap().0, &optimum);
+            by_observation += distance(&opt.best_observed().unwrap().0, &optimum);
+        }
+        println!(
+            "mean distance to the optimum: surrogate {:.4}, raw {:.4}",
+            by_surrogate / 10.0,
+            by_observation / 10.0
+        );
+        assert!(by_surrogate < by_observation, "{by_surrogate} vs {by_observation}");
+    }
 }
