@@ -197,17 +197,17 @@ mod tests {
     }
 
     #[test]
-    fn matches_rbfopt_on_the_two_dimensional_functions() {
-        let missing = functions_missing_the_bar(&[("branin", 45), ("goldstein_price", 36)]);
+    fn matches_rbfopt_on_branin_goldstein_price_and_hartmann3() {
+        let missing = functions_missing_the_bar(&[("branin", 45), ("goldstein_price", 36), ("hartmann3", 35)]);
         assert!(missing.is_empty(), "slower than RBFopt on {missing:?}");
     }
 
-    /// Not met yet: the search too often settles in a local minimum of Hartmann 6 (and
-    /// Hartmann 3 needs more evaluations than RBFopt). Run with `--ignored` to see the table.
+    /// Not met yet: every seed is solved, but the median is about 48.5 evaluations against
+    /// RBFopt's 47. Run with `--ignored` to see the table.
     #[test]
-    #[ignore = "Hartmann 3 and 6 do not yet meet RBFopt's figures"]
-    fn matches_rbfopt_on_the_hartmann_functions() {
-        let missing = functions_missing_the_bar(&[("hartmann3", 35), ("hartmann6", 47)]);
+    #[ignore = "Hartmann 6 does not yet meet RBFopt's median"]
+    fn matches_rbfopt_on_hartmann6() {
+        let missing = functions_missing_the_bar(&[("hartmann6", 47)]);
         assert!(missing.is_empty(), "slower than RBFopt on {missing:?}");
     }
 }
