@@ -841,6 +841,36 @@ mod tests {
         assert!((vs - vo).abs() < 1e-6 * (1.0 + vo.abs()), "{vs} vs {vo}");
     }
 
+    #[test]
+    fn every_kind_of_step_makes_progress_on_branin() {
+        let steps = [
+            SearchStep::Weighted(0.5),
+            SearchStep::Target(f64::INFINITY),
+            SearchStep::Target(0.3),
+            SearchStep::Spaced(0.5),
+            SearchStep::SurrogateMinimum,
+            SearchStep::TrustRegion,
+        ];
+        for step in steps {
+            // The step alone, apart from the refinement after an improvement.
+            let settings = RbfSettings { cycle: vec![step], ..RbfSettings::default() };
+            let mut opt = RbfOptimizer::new(vec![(-5.0, 10.0), (0.0, 15.0)], settings, 3);
+            for _ in 0..6 {
+                let x = opt.ask();
+                opt.tell(&x, branin(&x));
+            }
+            let start = opt.best_observed().unwrap().1;
+            for _ in 0..60 {
+                let x = opt.ask();
+                opt.tell(&x, branin(&x));
+            }
+            let end = opt.best_observed().unwrap().1;
+            // Pure exploration only improves by the refinements its lucky draws trigger.
+            let bar = if step == SearchStep::Target(f64::INFINITY) { start } else { 0.897887 };
+            assert!(end < start && end < bar, "{step:?}: {start} -> {end}");
+        }
+    }
+
     /// A smooth success-rate-like surface with Gaussian noise (sd 0.02): the smoothed
     /// surrogate's winner lands nearer the true optimum than the best raw observation.
     #[test]
