@@ -12,6 +12,7 @@ pub mod raster;
 pub mod render;
 pub mod scenario;
 pub mod scene;
+pub mod search;
 pub mod shade;
 pub mod tray;
 
