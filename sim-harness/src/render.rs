@@ -7,10 +7,8 @@
 //! shot then costs one pass of pattern sampling and the noise. Every buffer is allocated
 //! in `Simulator::new` or on the first frame, and reused after.
 
-use std::fmt;
-use std::str::FromStr;
-
 use camplace_config::{Cell, Placement};
+pub use camplace_estimator::Method;
 use camplace_estimator::{Camera, FloatImage, GrayImage, Rig};
 use nalgebra::Point3;
 
@@ -25,36 +23,6 @@ use crate::{Error, Result};
 /// Side of the lamp's square shadow map, pixels (about 0.5 mm per pixel on a tray seen
 /// from the default 1.5 m).
 pub const LAMP_MAP_SIZE: usize = 512;
-
-/// How the sensor captures a frame.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Method {
-    /// One random-dot image per camera, matched by the ELAS-class stereo matcher.
-    OneShot,
-    /// Twelve phase-shift fringe images per camera (3 frequencies x 4 steps by default).
-    Phase12,
-}
-
-impl fmt::Display for Method {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Method::OneShot => "one-shot",
-            Method::Phase12 => "phase-12",
-        })
-    }
-}
-
-impl FromStr for Method {
-    type Err = Error;
-
-    fn from_str(s: &str) -> Result<Method> {
-        match s {
-            "one-shot" => Ok(Method::OneShot),
-            "phase-12" => Ok(Method::Phase12),
-            _ => Err(Error::Other(format!("unknown method \"{s}\", expected \"one-shot\" or \"phase-12\""))),
-        }
-    }
-}
 
 /// One captured frame: the shots of both cameras and their ground truth.
 #[derive(Debug, Clone, Default, PartialEq)]
