@@ -40,39 +40,37 @@ fn patch(cloud: &mut Vec<Point3<f32>>, origin: Point3<f32>, u: Vector3<f32>, v: 
     }
 }
 
-/// An axis-aligned box's top and its four sides, from corner `lo` to `hi`.
-fn open_box(cloud: &mut Vec<Point3<f32>>, lo: Point3<f32>, hi: Point3<f32>, spacing: f32) {
+/// The faces of an axis-aligned box from `lo` to `hi` a sensor above and in front (-y)
+/// sees: the top, the -y side, and the -x or +x side facing the tray's centre line.
+fn visible_box(cloud: &mut Vec<Point3<f32>>, lo: Point3<f32>, hi: Point3<f32>, spacing: f32) {
     let (dx, dy, dz) = (hi.x - lo.x, hi.y - lo.y, hi.z - lo.z);
     patch(cloud, Point3::new(lo.x, lo.y, hi.z), Vector3::x() * dx, Vector3::y() * dy, spacing);
-    for y in [lo.y, hi.y] {
-        patch(cloud, Point3::new(lo.x, y, lo.z), Vector3::x() * dx, Vector3::z() * dz, spacing);
-    }
-    for x in [lo.x, hi.x] {
-        patch(cloud, Point3::new(x, lo.y, lo.z), Vector3::y() * dy, Vector3::z() * dz, spacing);
-    }
+    patch(cloud, Point3::new(lo.x, lo.y, lo.z), Vector3::x() * dx, Vector3::z() * dz, spacing);
+    let x = if lo.x + hi.x > 0.0 { lo.x } else { hi.x };
+    patch(cloud, Point3::new(x, lo.y, lo.z), Vector3::y() * dy, Vector3::z() * dz, spacing);
 }
 
-/// A 240 x 160 mm tray with 20 mm walls and a chamfered corner, holding `items` boxes,
-/// sampled about 1 mm apart (some 55k points for a full tray).
+/// A 200 x 140 mm tray with 15 mm walls and a chamfered corner, holding `items` boxes,
+/// sampled about 0.9 mm apart as a sensor at some 600 mm sees it (about 60k points full).
 fn tray_cloud(items: usize) -> Vec<Point3<f32>> {
     let mut cloud = Vec::new();
-    let s = 1.0;
+    let s = 0.9;
     // Floor at z = 3, inside the walls.
-    patch(&mut cloud, Point3::new(-116.0, -76.0, 3.0), Vector3::x() * 232.0, Vector3::y() * 152.0, s);
-    // Rim (4 mm) and the walls' inner and outer faces.
+    patch(&mut cloud, Point3::new(-96.0, -66.0, 3.0), Vector3::x() * 192.0, Vector3::y() * 132.0, s);
+    // Walls (4 mm thick): rim and the faces turned to the sensor.
     for (lo, hi) in [
-        ([-120.0, -80.0], [120.0, -76.0]),
-        ([-120.0, 76.0], [120.0, 80.0]),
-        ([-120.0, -76.0], [-116.0, 76.0]),
-        ([116.0, -76.0], [120.0, 76.0]),
+        ([-100.0, -70.0], [100.0, -66.0]),
+        ([-100.0, 66.0], [100.0, 70.0]),
+        ([-100.0, -66.0], [-96.0, 66.0]),
+        ([96.0, -66.0], [100.0, 66.0]),
     ] {
-        open_box(&mut cloud, Point3::new(lo[0], lo[1], 0.0), Point3::new(hi[0], hi[1], 20.0), s);
+        visible_box(&mut cloud, Point3::new(lo[0], lo[1], 0.0), Point3::new(hi[0], hi[1], 15.0), s);
     }
     // The chamfer breaking the tray's symmetry.
-    patch(&mut cloud, Point3::new(100.0, 80.0, 0.0), Vector3::new(20.0, -20.0, 0.0), Vector3::z() * 20.0, s);
+    patch(&mut cloud, Point3::new(80.0, 70.0, 0.0), Vector3::new(20.0, -20.0, 0.0), Vector3::z() * 15.0, s);
     for slot in 0..items {
-        let (x, y) = (-80.0 + 55.0 * (slot % 4) as f32, if slot < 4 { -35.0 } else { 35.0 });
-        open_box(&mut cloud, Point3::new(x - 20.0, y - 25.0, 3.0), Point3::new(x + 20.0, y + 25.0, 28.0), s);
+        let (x, y) = (-60.0 + 40.0 * (slot % 4) as f32, if slot < 4 { -30.0 } else { 30.0 });
+        visible_box(&mut cloud, Point3::new(x - 15.0, y - 22.0, 3.0), Point3::new(x + 15.0, y + 22.0, 23.0), s);
     }
     cloud
 }
@@ -106,7 +104,7 @@ fn describe(raw: &[Point3<f32>], all_points: bool) -> Frame {
 
 /// Registers the feature benches.
 pub fn benches(c: &mut Criterion) {
-    let raw = tray_cloud(8);
+    let raw = tray_cloud(4);
     let scene = describe(&raw, false);
     // A model the size the paper's would have: every SRes point of a full and an empty tray.
     let full = describe(&raw, true);
