@@ -1,9 +1,11 @@
 //! camplace's benches, one module per topic, in a single criterion binary.
 
+mod features;
 mod phase;
 mod pose;
 mod render;
 mod stereo;
 
 criterion::criterion_group!(phase_benches, phase::benches);
-criterion::criterion_main!(render::benches, stereo::benches, phase_benches, pose::benches);
+criterion::criterion_group!(feature_benches, features::benches);
+criterion::criterion_main!(render::benches, stereo::benches, phase_benches, feature_benches, pose::benches);

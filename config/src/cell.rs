@@ -179,6 +179,8 @@ pub struct ReconstructionParams {
 #[serde(deny_unknown_fields)]
 pub struct EstimatorParams {
     pub surface_resolution: f64,
+    /// Radius of the neighbourhood a normal is fitted to, mm.
+    pub normal_radius: f64,
     pub keypoint_spacing: f64,
     pub feature_radius: f64,
     pub k: u32,
@@ -374,10 +376,17 @@ impl Cell {
         }
         let e = &self.estimator;
         pos("estimator.surface_resolution", e.surface_resolution)?;
+        pos("estimator.normal_radius", e.normal_radius)?;
+        if e.normal_radius < e.surface_resolution {
+            return Err(Error::value(
+                "estimator.normal_radius",
+                "expected at least surface_resolution, or a normal has too few points to fit",
+            ));
+        }
         pos("estimator.keypoint_spacing", e.keypoint_spacing)?;
         pos("estimator.feature_radius", e.feature_radius)?;
-        if e.k == 0 {
-            return Err(Error::value("estimator.k", "expected at least 1 nearest neighbour"));
+        if e.k == 0 || e.k > 64 {
+            return Err(Error::value("estimator.k", format!("expected 1 to 64 nearest neighbours, got {}", e.k)));
         }
         pos("estimator.height_band", e.height_band)?;
         if e.ransac_iterations == 0 {

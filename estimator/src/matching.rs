@@ -1,0 +1,407 @@
+//! Feature matching: the k nearest model features of each scene key point by squared L2
+//! distance between ECSAD descriptors, then the height check (a scene key point and its
+//! model feature must sit at about the same height above the table). Descriptors are
+//! compared exactly after quantisation to whole steps of pi/255 rad (see [`quantise`]).
+//!
+//! The search is a blocked brute force: model descriptors sit in blocks of 16 features laid
+//! out dimension-major, so a group of 4 queries times 16 features is a register tile the
+//! compiler turns into vector multiply-adds; groups of queries run in parallel and walk the
+//! model in cache-sized tiles. Distances use |q|^2 + |m|^2 - 2 q.m, which is exact here:
+//! every quantised value is a whole number and every sum stays below 2^24, so f32
+//! arithmetic makes no rounding error in any order and the result equals a plain loop's.
+
+use rayon::prelude::*;
+use std::f32::consts::PI;
+
+use crate::ecsad::{Descriptor, ECSAD_DIM};
+use crate::{Correspondence, Error, ErrorKind, Result};
+
+/// Largest k the matcher keeps per scene key point.
+pub const MAX_K: usize = 64;
+
+/// Quantisation steps over 0..pi: 8 bits per bin, 0.7 degrees a step, far finer than the
+/// bins' noise, and small enough that 30 squared differences sum exactly in f32.
+pub const QUANTISATION_STEPS: f32 = 255.0;
+
+/// Model features per block (one AVX-512 register, two AVX2 ones).
+const LANES: usize = 16;
+
+/// Scene key points per register tile.
+const TILE_QUERIES: usize = 4;
+
+/// Scene key points per parallel task.
+const GROUP: usize = 32;
+
+/// Model blocks per cache tile: 2048 features, about 256 KiB.
+const TILE_BLOCKS: usize = 128;
+
+/// Marks a dropped match in the output before compaction.
+const DROPPED: u32 = u32::MAX;
+
+/// A descriptor quantised to whole steps of pi/255 rad (values 0..=255 held as f32); a NaN
+/// bin reads as flat (pi/2).
+pub fn quantise(descriptor: &Descriptor) -> [f32; ECSAD_DIM] {
+    descriptor.map(|v| {
+        let v = if v.is_nan() { PI / 2.0 } else { v.clamp(0.0, PI) };
+        (v * (QUANTISATION_STEPS / PI)).round()
+    })
+}
+
+/// Squared distance in radians^2 of a squared distance in quantisation steps.
+#[inline]
+fn to_radians2(steps2: f32) -> f32 {
+    steps2 * (PI / QUANTISATION_STEPS) * (PI / QUANTISATION_STEPS)
+}
+
+/// 16 model features, dimension-major, with their squared norms (+inf pads a short block).
+#[derive(Clone, Copy)]
+#[repr(C, align(64))]
+struct ModelBlock {
+    dims: [[f32; LANES]; ECSAD_DIM],
+    norms: [f32; LANES],
+}
+
+/// Which build of the search kernel the CPU runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Kernel {
+    Baseline,
+    #[cfg(target_arch = "x86_64")]
+    Avx2,
+    #[cfg(target_arch = "x86_64")]
+    Avx512,
+}
+
+/// The k best matches of one query so far, sorted by (distance, model index).
+#[derive(Clone, Copy)]
+struct TopK {
+    distance2: [f32; MAX_K],
+    model: [u32; MAX_K],
+    len: usize,
+    /// Distance a candidate must beat: the k-th best, or +inf until k are held.
+    worst: f32,
+}
+
+impl TopK {
+    const EMPTY: TopK = TopK { distance2: [0.0; MAX_K], model: [0; MAX_K], len: 0, worst: f32::INFINITY };
+
+    /// Inserts a candidate that beats `worst`. Candidates arrive in increasing model index,
+    /// so placing it after every equal distance keeps ties in index order.
+    #[inline]
+    fn insert(&mut self, k: usize, d2: f32, model: u32) {
+        let mut at = self.len.min(k - 1);
+        while at > 0 && self.distance2[at - 1] > d2 {
+            at -= 1;
+        }
+        let end = self.len.min(k - 1);
+        self.distance2.copy_within(at..end, at + 1);
+        self.model.copy_within(at..end, at + 1);
+        self.distance2[at] = d2;
+        self.model[at] = model;
+        self.len = (self.len + 1).min(k);
+        if self.len == k {
+            self.worst = self.distance2[k - 1];
+        }
+    }
+}
+
+/// k-nearest-neighbour matcher over a model's descriptors, built once per model.
+#[derive(Clone)]
+pub struct FeatureMatcher {
+    blocks: Vec<ModelBlock>,
+    heights: Vec<f32>,
+    kernel: Kernel,
+    /// Quantised scene descriptors and their squared norms, reused from frame to frame.
+    queries: Vec<[f32; ECSAD_DIM]>,
+    query_norms: Vec<f32>,
+}
+
+impl std::fmt::Debug for FeatureMatcher {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FeatureMatcher").field("features", &self.heights.len()).field("kernel", &self.kernel).finish()
+    }
+}
+
+impl FeatureMatcher {
+    /// A matcher over model `descriptors`, each with its feature's height above the table
+    /// (z in the tray frame), mm.
+    pub fn new(descriptors: &[Descriptor], heights: &[f32]) -> Result<Self> {
+        if descriptors.len() != heights.len() {
+            return Err(Error::new(
+                ErrorKind::Model,
+                format!("matcher: {} model descriptors but {} heights", descriptors.len(), heights.len()),
+            ));
+        }
+        if descriptors.len() >= u32::MAX as usize {
+            return Err(Error::new(ErrorKind::Model, "matcher: too many model features for u32 indices"));
+        }
+        let empty = ModelBlock { dims: [[0.0; LANES]; ECSAD_DIM], norms: [f32::INFINITY; LANES] };
+        let mut blocks = vec![empty; descriptors.len().div_ceil(LANES)];
+        for (i, d) in descriptors.iter().enumerate() {
+            let q = quantise(d);
+            let block = &mut blocks[i / LANES];
+            for (dim, &v) in q.iter().enumerate() {
+                block.dims[dim][i % LANES] = v;
+            }
+            block.norms[i % LANES] = q.iter().map(|v| v * v).sum();
+        }
+        Ok(FeatureMatcher {
+            blocks,
+            heights: heights.to_vec(),
+            kernel: Self::detect(),
+            queries: Vec::new(),
+            query_norms: Vec::new(),
+        })
+    }
+
+    fn detect() -> Kernel {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                return Kernel::Avx512;
+            }
+            if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+                return Kernel::Avx2;
+            }
+        }
+        Kernel::Baseline
+    }
+
+    /// Number of model features.
+    pub fn len(&self) -> usize {
+        self.heights.len()
+    }
+
+    /// Whether the model has no features.
+    pub fn is_empty(&self) -> bool {
+        self.heights.is_empty()
+    }
+
+    /// Replaces `out` with the matches of every scene key point: its `k` nearest model
+    /// features (squared L2, ties to the lower model index) whose height differs from
+    /// `scene_heights` by at most `height_band` mm; grouped by scene key point in order,
+    /// nearest first. `distance2` is in radians^2 of the quantised descriptors.
+    pub fn match_into(
+        &mut self,
+        scene: &[Descriptor],
+        scene_heights: &[f32],
+        k: usize,
+        height_band: f32,
+        out: &mut Vec<Correspondence>,
+    ) -> Result<()> {
+        if scene.len() != scene_heights.len() {
+            return Err(Error::new(
+                ErrorKind::Input,
+                format!("matcher: {} scene descriptors but {} heights", scene.len(), scene_heights.len()),
+            ));
+        }
+        if k == 0 || k > MAX_K {
+            return Err(Error::new(ErrorKind::Input, format!("matcher: expected k from 1 to {MAX_K}, got {k}")));
+        }
+        if scene.len() >= u32::MAX as usize {
+            return Err(Error::new(ErrorKind::Input, "matcher: too many scene descriptors for u32 indices"));
+        }
+        out.clear();
+        if scene.is_empty() || self.is_empty() {
+            return Ok(());
+        }
+        self.queries.clear();
+        self.query_norms.clear();
+        for d in scene {
+            let q = quantise(d);
+            self.query_norms.push(q.iter().map(|v| v * v).sum());
+            self.queries.push(q);
+        }
+        out.resize(scene.len() * k, Correspondence { scene: DROPPED, model: 0, distance2: 0.0 });
+        let (blocks, heights, kernel) = (&self.blocks, &self.heights, self.kernel);
+        out.par_chunks_mut(GROUP * k)
+            .zip(self.queries.par_chunks(GROUP))
+            .zip(self.query_norms.par_chunks(GROUP))
+            .zip(scene_heights.par_chunks(GROUP))
+            .enumerate()
+            .for_each(|(group, (((slots, queries), norms), scene_heights))| {
+                let mut tops = [TopK::EMPTY; GROUP];
+                search(kernel, blocks, queries, norms, k, &mut tops);
+                let first = group * GROUP;
+                for (qi, top) in tops.iter().take(queries.len()).enumerate() {
+                    let h = scene_heights[qi];
+                    for j in 0..top.len {
+                        let model = top.model[j];
+                        if (h - heights[model as usize]).abs() <= height_band {
+                            slots[qi * k + j] = Correspondence {
+                                scene: (first + qi) as u32,
+                                model,
+                                distance2: to_radians2(top.distance2[j]),
+                            };
+                        }
+                    }
+                }
+            });
+        out.retain(|c| c.scene != DROPPED);
+        Ok(())
+    }
+}
+
+/// Runs the kernel build chosen for this CPU.
+fn search(
+    kernel: Kernel,
+    blocks: &[ModelBlock],
+    queries: &[[f32; ECSAD_DIM]],
+    norms: &[f32],
+    k: usize,
+    tops: &mut [TopK],
+) {
+    match kernel {
+        Kernel::Baseline => search_tiles::<false>(blocks, queries, norms, k, tops),
+        // SAFETY: `detect` chose these only after the CPU reported the features.
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 => unsafe { search_avx2(blocks, queries, norms, k, tops) },
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx512 => unsafe { search_avx512(blocks, queries, norms, k, tops) },
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn search_avx2(blocks: &[ModelBlock], queries: &[[f32; ECSAD_DIM]], norms: &[f32], k: usize, tops: &mut [TopK]) {
+    search_tiles::<true>(blocks, queries, norms, k, tops)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx2,fma")]
+fn search_avx512(blocks: &[ModelBlock], queries: &[[f32; ECSAD_DIM]], norms: &[f32], k: usize, tops: &mut [TopK]) {
+    search_tiles::<true>(blocks, queries, norms, k, tops)
+}
+
+/// The k nearest model features of up to GROUP queries, walking the model tile by tile.
+/// `FMA` fuses the multiply-adds, which changes nothing in exact whole-number arithmetic.
+// Indexed loops over fixed-size arrays are the shape the vectoriser turns into registers.
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn search_tiles<const FMA: bool>(
+    blocks: &[ModelBlock],
+    queries: &[[f32; ECSAD_DIM]],
+    norms: &[f32],
+    k: usize,
+    tops: &mut [TopK],
+) {
+    for (tile, tile_blocks) in blocks.chunks(TILE_BLOCKS).enumerate() {
+        let first_block = tile * TILE_BLOCKS;
+        for (sub, (qs, ns)) in queries.chunks(TILE_QUERIES).zip(norms.chunks(TILE_QUERIES)).enumerate() {
+            let mut q = [[0.0f32; ECSAD_DIM]; TILE_QUERIES];
+            q[..qs.len()].copy_from_slice(qs);
+            let tops = &mut tops[sub * TILE_QUERIES..sub * TILE_QUERIES + qs.len()];
+            for (b, block) in tile_blocks.iter().enumerate() {
+                let mut acc = [[0.0f32; LANES]; TILE_QUERIES];
+                for dim in 0..ECSAD_DIM {
+                    let m = &block.dims[dim];
+                    for qi in 0..TILE_QUERIES {
+                        let v = q[qi][dim];
+                        for l in 0..LANES {
+                            acc[qi][l] = if FMA { v.mul_add(m[l], acc[qi][l]) } else { acc[qi][l] + v * m[l] };
+                        }
+                    }
+                }
+                let base = ((first_block + b) * LANES) as u32;
+                for (qi, top) in tops.iter_mut().enumerate() {
+                    let mut dist = [0.0f32; LANES];
+                    let mut any = false;
+                    for l in 0..LANES {
+                        dist[l] = ns[qi] + block.norms[l] - 2.0 * acc[qi][l];
+                        any |= dist[l] < top.worst;
+                    }
+                    if any {
+                        for (l, &d2) in dist.iter().enumerate() {
+                            if d2 < top.worst {
+                                top.insert(k, d2, base + l as u32);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// The plain obvious version: every distance, a full sort, the first k, the band.
+    fn plain(
+        model: &[Descriptor],
+        model_heights: &[f32],
+        scene: &[Descriptor],
+        scene_heights: &[f32],
+        k: usize,
+        band: f32,
+    ) -> Vec<Correspondence> {
+        let model_q: Vec<_> = model.iter().map(quantise).collect();
+        let mut out = Vec::new();
+        for (s, d) in scene.iter().enumerate() {
+            let q = quantise(d);
+            let mut all: Vec<(u64, u32)> = model_q
+                .iter()
+                .enumerate()
+                .map(|(m, v)| (q.iter().zip(v).map(|(a, b)| ((a - b) as i64).pow(2) as u64).sum(), m as u32))
+                .collect();
+            all.sort_unstable();
+            for &(d2, m) in all.iter().take(k) {
+                if (scene_heights[s] - model_heights[m as usize]).abs() <= band {
+                    out.push(Correspondence { scene: s as u32, model: m, distance2: to_radians2(d2 as f32) });
+                }
+            }
+        }
+        out
+    }
+
+    fn random_descriptors(rng: &mut ChaCha8Rng, n: usize, centres: &[Descriptor]) -> Vec<Descriptor> {
+        // Clustered around a few centres, so near ties and exact ties both occur.
+        (0..n)
+            .map(|_| {
+                let c = centres[rng.random_range(0..centres.len())];
+                c.map(|v| (v + rng.random_range(-0.05..0.05f32)).clamp(0.0, PI))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn fast_search_equals_the_plain_loop() {
+        let mut rng = ChaCha8Rng::seed_from_u64(31);
+        let centres: Vec<Descriptor> =
+            (0..20).map(|_| std::array::from_fn(|_| rng.random_range(0.8..2.3f32))).collect();
+        for &(n_model, n_scene, k, band) in
+            &[(3001usize, 150usize, 25usize, 20.0f32), (37, 70, 64, 5.0), (5, 9, 25, 100.0), (1000, 33, 1, 1e9)]
+        {
+            let model = random_descriptors(&mut rng, n_model, &centres);
+            let model_heights: Vec<f32> = (0..n_model).map(|_| rng.random_range(0.0..60.0)).collect();
+            let mut scene = random_descriptors(&mut rng, n_scene, &centres);
+            scene[0] = model[n_model / 2];
+            scene[1][3] = f32::NAN;
+            let scene_heights: Vec<f32> = (0..n_scene).map(|_| rng.random_range(-10.0..70.0)).collect();
+            let mut matcher = FeatureMatcher::new(&model, &model_heights).unwrap();
+            let mut got = Vec::new();
+            let want = plain(&model, &model_heights, &scene, &scene_heights, k, band);
+            for kernel in [Kernel::Baseline, FeatureMatcher::detect()] {
+                matcher.kernel = kernel;
+                matcher.match_into(&scene, &scene_heights, k, band, &mut got).unwrap();
+                assert_eq!(got, want, "kernel {kernel:?}, model {n_model}, scene {n_scene}, k {k}");
+            }
+            if band > 1e6 {
+                assert_eq!(got.len(), n_scene * k.min(n_model));
+            }
+        }
+    }
+
+    #[test]
+    fn bad_inputs_are_errors() {
+        let model = vec![[1.0; ECSAD_DIM]; 4];
+        assert!(FeatureMatcher::new(&model, &[0.0; 3]).is_err());
+        let mut m = FeatureMatcher::new(&model, &[0.0; 4]).unwrap();
+        let mut out = Vec::new();
+        assert!(m.match_into(&model, &[0.0; 4], 0, 20.0, &mut out).is_err());
+        assert!(m.match_into(&model, &[0.0; 4], MAX_K + 1, 20.0, &mut out).is_err());
+        assert!(m.match_into(&model, &[0.0; 2], 5, 20.0, &mut out).is_err());
+    }
+}
