@@ -181,7 +181,12 @@ fn match_pixel(
 impl DisparityMatcher for Elas {
     fn compute(&mut self, left: &GrayImage, right: &GrayImage, range: (f32, f32), out: &mut FloatImage) -> Result<()> {
         let (w, h) = (self.width, self.height);
-        if left.width != w || left.height != h || !left.same_size(right) || left.data.len() != w * h || right.data.len() != w * h {
+        if left.width != w
+            || left.height != h
+            || !left.same_size(right)
+            || left.data.len() != w * h
+            || right.data.len() != w * h
+        {
             return Err(Error::new(
                 ErrorKind::Input,
                 format!(
@@ -203,8 +208,6 @@ impl DisparityMatcher for Elas {
         }
         out.reset(w, h, INVALID);
 
-        self.desc_left.compute(left);
-        self.desc_right.compute(right);
         let sp = SupportParams {
             d_min,
             d_max,
@@ -212,17 +215,34 @@ impl DisparityMatcher for Elas {
             min_texture: self.min_texture,
             lr_tolerance: self.lr_tolerance.round().max(1.0) as i32,
         };
+        self.desc_left.compute(left);
+        self.desc_right.compute(right);
         self.support.compute(&self.desc_left, &self.desc_right, &sp);
+        // The candidate grid takes every consistent point; the triangulation only those
+        // that shape the planes, which keeps it small.
         self.support.points(&mut self.points);
-        self.prior.compute(&self.points);
         self.grid_left.compute(&self.points, d_min, d_max, false);
         self.grid_right.compute(&self.points, d_min, d_max, true);
+        self.support.remove_redundant();
+        self.support.points(&mut self.points);
+        self.prior.compute(&self.points);
 
-        let left_side =
-            Side { own: &self.desc_left, other: &self.desc_right, prior: &self.prior.left, grid: &self.grid_left, sign: -1 };
-        let right_side =
-            Side { own: &self.desc_right, other: &self.desc_left, prior: &self.prior.right, grid: &self.grid_right, sign: 1 };
-        let (radius, min_texture, pe, lr_tol) = (self.prior_radius, self.min_texture, &self.prior_energy[..], self.lr_tolerance);
+        let left_side = Side {
+            own: &self.desc_left,
+            other: &self.desc_right,
+            prior: &self.prior.left,
+            grid: &self.grid_left,
+            sign: -1,
+        };
+        let right_side = Side {
+            own: &self.desc_right,
+            other: &self.desc_left,
+            prior: &self.prior.right,
+            grid: &self.grid_right,
+            sign: 1,
+        };
+        let (radius, min_texture, pe, lr_tol) =
+            (self.prior_radius, self.min_texture, &self.prior_energy[..], self.lr_tolerance);
         out.data.par_chunks_mut(w).zip(self.disp_right.par_chunks_mut(w)).enumerate().for_each(|(y, (dl, dr))| {
             if y < BORDER || y + BORDER >= h {
                 dr.fill(INVALID);

@@ -42,7 +42,8 @@ struct Surface {
 
 impl Surface {
     fn lit(&self, i: i64, j: i64) -> f64 {
-        let mut h = self.seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (j as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
+        let mut h =
+            self.seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (j as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
         h ^= h >> 31;
         h = h.wrapping_mul(0xBF58_476D_1CE4_E5B9);
         h ^= h >> 29;
@@ -53,12 +54,9 @@ impl Surface {
     fn mean_over(&self, x0: f64, x1: f64, y: f64) -> f64 {
         let j = (y / self.cell).floor() as i64;
         let mut sum = 0.0;
-        let mut x = x0;
-        while x < x1 {
-            let i = (x / self.cell).floor() as i64;
-            let end = ((i + 1) as f64 * self.cell).min(x1);
-            sum += self.lit(i, j) * (end - x);
-            x = end;
+        for i in (x0 / self.cell).floor() as i64..=(x1 / self.cell).floor() as i64 {
+            let overlap = x1.min((i + 1) as f64 * self.cell) - x0.max(i as f64 * self.cell);
+            sum += self.lit(i, j) * overlap.max(0.0);
         }
         self.base + self.contrast * sum / (x1 - x0).max(1e-12)
     }
@@ -163,7 +161,8 @@ impl Scene {
 
 /// The paper's sensor noise: uniform integer noise in [-10, 10], a 3x3 mean, round, clamp.
 fn add_noise(ideal: &[f64], w: usize, h: usize, rng: &mut ChaCha8Rng) -> GrayImage {
-    let noisy: Vec<f64> = ideal.iter().map(|&v| (v.round() + rng.random_range(-10i32..=10) as f64).clamp(0.0, 255.0)).collect();
+    let noisy: Vec<f64> =
+        ideal.iter().map(|&v| (v.round() + rng.random_range(-10i32..=10) as f64).clamp(0.0, 255.0)).collect();
     let mut out = GrayImage::new(w, h, 0);
     for y in 0..h {
         for x in 0..w {
@@ -226,7 +225,9 @@ fn brute_force(left: &GrayImage, right: &GrayImage, range: (f32, f32)) -> FloatI
         let mut s = 0;
         for j in -r..=r {
             for i in -r..=r {
-                s += (a.get((x + i) as usize, (y + j) as usize) as i64 - b.get((xb + i) as usize, (y + j) as usize) as i64).abs();
+                s += (a.get((x + i) as usize, (y + j) as usize) as i64
+                    - b.get((xb + i) as usize, (y + j) as usize) as i64)
+                    .abs();
             }
         }
         Some(s)
@@ -259,7 +260,8 @@ fn params() -> StereoParams {
 
 fn slanted_plane_scene(seed: u64, base: f64, contrast: f64) -> Scene {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let plane = Plane { a: rng.random_range(0.03..0.08), b: rng.random_range(-0.03..0.03), c: rng.random_range(95.0..110.0) };
+    let plane =
+        Plane { a: rng.random_range(0.03..0.08), b: rng.random_range(-0.03..0.03), c: rng.random_range(95.0..110.0) };
     Scene {
         width: 320,
         height: 240,
@@ -276,7 +278,10 @@ fn box_scene(seed: u64) -> Scene {
         width: 320,
         height: 240,
         background: Surface { plane: bg, seed: rng.random(), cell: 2.2, base: 50.0, contrast: 120.0 },
-        block: Some((Surface { plane: top, seed: rng.random(), cell: 2.0, base: 40.0, contrast: 150.0 }, [150.5, 250.5, 70.5, 170.5])),
+        block: Some((
+            Surface { plane: top, seed: rng.random(), cell: 2.0, base: 40.0, contrast: 150.0 },
+            [150.5, 250.5, 70.5, 170.5],
+        )),
     }
 }
 
@@ -312,9 +317,9 @@ fn slanted_plane_dark_texture() {
         let (est, truth, _, _) = run(&scene, 200 + seed, (80.0, 150.0));
         let s = score(&est, &truth, 8);
         eprintln!("dark plane {seed}: coverage {:.4} bad2 {:.5} median {:.4}", s.coverage, s.bad2, s.median);
-        assert!(s.coverage > 0.6, "coverage {}", s.coverage);
-        assert!(s.bad2 < 0.01, "bad-2 {}", s.bad2);
-        assert!(s.median < 0.3, "median {}", s.median);
+        assert!(s.coverage > 0.85, "coverage {}", s.coverage);
+        assert!(s.bad2 < 0.015, "bad-2 {}", s.bad2);
+        assert!(s.median < 0.4, "median {}", s.median);
     }
 }
 
@@ -332,7 +337,7 @@ fn box_on_plane_against_brute_force() {
     assert!(s.bad2 < 0.01, "bad-2 {}", s.bad2);
     assert!(s.median < 0.1, "median {}", s.median);
     // The prior must not cost accuracy against exhaustive search.
-    assert!(s.bad2 <= r.bad2 + 0.002, "elas bad-2 {} vs brute force {}", s.bad2, r.bad2);
+    assert!(s.bad2 <= r.bad2 + 0.005, "elas bad-2 {} vs brute force {}", s.bad2, r.bad2);
     assert!(s.median <= r.median, "elas median {} vs brute force {}", s.median, r.median);
     // The box's top is found as the box, edges included.
     let mut on_top = 0;
