@@ -208,8 +208,6 @@ impl DisparityMatcher for Elas {
         }
         out.reset(w, h, INVALID);
 
-        self.desc_left.compute(left);
-        self.desc_right.compute(right);
         let sp = SupportParams {
             d_min,
             d_max,
@@ -217,11 +215,17 @@ impl DisparityMatcher for Elas {
             min_texture: self.min_texture,
             lr_tolerance: self.lr_tolerance.round().max(1.0) as i32,
         };
+        self.desc_left.compute(left);
+        self.desc_right.compute(right);
         self.support.compute(&self.desc_left, &self.desc_right, &sp);
+        // The candidate grid takes every consistent point; the triangulation only those
+        // that shape the planes, which keeps it small.
         self.support.points(&mut self.points);
-        self.prior.compute(&self.points);
         self.grid_left.compute(&self.points, d_min, d_max, false);
         self.grid_right.compute(&self.points, d_min, d_max, true);
+        self.support.remove_redundant();
+        self.support.points(&mut self.points);
+        self.prior.compute(&self.points);
 
         let left_side = Side {
             own: &self.desc_left,

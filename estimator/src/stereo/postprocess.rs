@@ -117,8 +117,8 @@ fn fill_line(row: &mut [f32], max_gap: usize) {
             if let (Some(s), Some(lv)) = (run_start, last_valid) {
                 if i - s <= max_gap {
                     let d0 = row[lv];
-                    for k in s..i {
-                        row[k] = gap_value(d0, d, (k - lv) as f32 / (i - lv) as f32);
+                    for (k, o) in row.iter_mut().enumerate().take(i).skip(s) {
+                        *o = gap_value(d0, d, (k - lv) as f32 / (i - lv) as f32);
                     }
                 }
             }
@@ -152,40 +152,36 @@ pub fn refine_subpixel(left: &GrayImage, right: &GrayImage, disp: &mut [f32], ra
         if y < radius || y + radius >= h {
             return;
         }
-        for x in radius + 1..w.saturating_sub(radius + 1) {
-            let d0 = row[x];
+        for (x, out) in row.iter_mut().enumerate().take(w.saturating_sub(radius + 1)).skip(radius + 1) {
+            let d0 = *out;
             if !d0.is_finite() {
                 continue;
             }
             let mut s = d0;
             let mut ok = true;
             for _ in 0..SUBPIXEL_STEPS {
-                // Right samples at x + i - s - 1 .. x + i - s + 2 must exist.
-                let lo = x as f32 - r as f32 - s - 1.0;
-                let hi = x as f32 + r as f32 - s + 2.0;
-                if lo < 0.0 || hi > (w - 1) as f32 {
+                // Right samples at x + i - s: one integer offset and one fraction for the
+                // whole window, since the window shares the disparity.
+                let k0 = (-s).floor();
+                let f = -s - k0;
+                let start = x as isize - r + k0 as isize - 1;
+                if start < 0 || start as usize + 2 * radius + 4 > w {
                     ok = false;
                     break;
                 }
+                let (start, n) = (start as usize, 2 * radius + 1);
                 let (mut eg, mut gg) = (0.0f32, 0.0f32);
-                for j in -r..=r {
-                    let yy = (y as isize + j) as usize;
-                    let lrow = left.row(yy);
-                    let rrow = right.row(yy);
-                    for i in -r..=r {
-                        let xl = (x as isize + i) as usize;
-                        let xr = xl as f32 - s;
-                        let x0 = xr.floor();
-                        let f = xr - x0;
-                        let x0 = x0 as usize;
-                        let rv = |k: usize| rrow[k] as f32;
-                        let rval = rv(x0) + f * (rv(x0 + 1) - rv(x0));
-                        let g0 = rv(x0 + 1) - rv(x0 - 1);
-                        let g1 = rv(x0 + 2) - rv(x0);
-                        let gr = 0.5 * (g0 + f * (g1 - g0));
-                        let gl = 0.5 * (lrow[xl + 1] as f32 - lrow[xl - 1] as f32);
-                        let g = 0.5 * (gl + gr);
-                        let e = lrow[xl] as f32 - rval;
+                for yy in y - radius..=y + radius {
+                    let ls = &left.row(yy)[x - radius - 1..x + radius + 2];
+                    let rs = &right.row(yy)[start..start + n + 3];
+                    for i in 0..n {
+                        let (l_m, l_0, l_p) = (ls[i] as f32, ls[i + 1] as f32, ls[i + 2] as f32);
+                        let (r_m, r_0, r_1, r_2) = (rs[i] as f32, rs[i + 1] as f32, rs[i + 2] as f32, rs[i + 3] as f32);
+                        let rval = r_0 + f * (r_1 - r_0);
+                        let g0 = r_1 - r_m;
+                        let gr = 0.5 * (g0 + f * ((r_2 - r_0) - g0));
+                        let g = 0.5 * (0.5 * (l_p - l_m) + gr);
+                        let e = l_0 - rval;
                         eg += e * g;
                         gg += g * g;
                     }
@@ -197,7 +193,7 @@ pub fn refine_subpixel(left: &GrayImage, right: &GrayImage, disp: &mut [f32], ra
                 s -= eg / gg;
             }
             if ok && (s - d0).abs() <= 1.0 {
-                row[x] = s;
+                *out = s;
             }
         }
     });

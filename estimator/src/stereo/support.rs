@@ -56,7 +56,7 @@ impl SupportGrid {
         SupportGrid { step, cols, rows, d: vec![NONE; cols * rows], scratch: vec![NONE; cols * rows] }
     }
 
-    /// Matches every grid node, then drops inconsistent and redundant points.
+    /// Matches every grid node and drops the points that disagree with their neighbourhood.
     pub fn compute(&mut self, left: &DescriptorImage, right: &DescriptorImage, p: &SupportParams) {
         let step = self.step;
         self.d.par_chunks_mut(self.cols).enumerate().for_each(|(gy, row)| {
@@ -65,7 +65,6 @@ impl SupportGrid {
             }
         });
         self.remove_inconsistent();
-        self.remove_redundant();
     }
 
     fn remove_inconsistent(&mut self) {
@@ -99,7 +98,9 @@ impl SupportGrid {
         std::mem::swap(&mut self.d, &mut self.scratch);
     }
 
-    fn remove_redundant(&mut self) {
+    /// Drops points that lie between two equal neighbours along a row or column: the
+    /// triangulated planes need only the ends of such runs.
+    pub fn remove_redundant(&mut self) {
         let (cols, rows) = (self.cols, self.rows);
         let d = &self.d;
         // Decided on the unthinned grid, so two points never remove each other's reason.

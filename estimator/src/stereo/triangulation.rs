@@ -131,9 +131,8 @@ fn rasterise(t: &[[f64; 3]; 3], width: usize, height: usize, out: &mut [f32], ne
             continue;
         }
         let row = &mut out[y * width..(y + 1) * width];
-        for x in x_lo as usize..=x_hi as usize {
+        for (x, o) in row.iter_mut().enumerate().take(x_hi as usize + 1).skip(x_lo as usize) {
             let d = (a * x as f64 + b * yf + c) as f32;
-            let o = &mut row[x];
             if !nearest || o.is_nan() || d > *o {
                 *o = d;
             }
