@@ -61,30 +61,36 @@ pub fn mean_filter_to_u8(image: &[f32], width: usize, blur: usize, scratch: &mut
     let r = blur / 2;
     scratch.clear();
     scratch.resize(image.len(), 0.0);
-    scratch.par_chunks_mut(width).zip(image.par_chunks(width)).for_each(|(s, row)| {
-        for (x, s) in s.iter_mut().enumerate() {
-            *s = if x >= r && x + r < width {
-                // Away from the borders: no index clamping, which lets the loop vectorise.
-                row[x - r..=x + r].iter().sum()
-            } else {
-                (0..blur).map(|dx| row[(x + dx).saturating_sub(r).min(width - 1)]).sum()
-            };
+    let band = width * CHUNK_ROWS;
+    scratch.par_chunks_mut(band).zip(image.par_chunks(band)).for_each(|(s, rows)| {
+        for (s, row) in s.chunks_mut(width).zip(rows.chunks(width)) {
+            for (x, s) in s.iter_mut().enumerate() {
+                *s = if x >= r && x + r < width {
+                    // Away from the borders: no index clamping, which lets the loop vectorise.
+                    row[x - r..=x + r].iter().sum()
+                } else {
+                    (0..blur).map(|dx| row[(x + dx).saturating_sub(r).min(width - 1)]).sum()
+                };
+            }
         }
     });
     let sums = &scratch[..];
     let scale = 1.0 / (blur * blur) as f32;
-    out.par_chunks_mut(width).enumerate().for_each(|(y, o)| {
-        let mut rows: [&[f32]; 15] = [&[]; 15];
-        for (dy, row) in rows.iter_mut().take(blur).enumerate() {
-            let yy = (y + dy).saturating_sub(r).min(height - 1);
-            *row = &sums[yy * width..(yy + 1) * width];
-        }
-        for (x, o) in o.iter_mut().enumerate() {
-            let mut sum = 0.0;
-            for row in &rows[..blur] {
-                sum += row[x];
+    out.par_chunks_mut(band).enumerate().for_each(|(chunk, o)| {
+        for (dy0, o) in o.chunks_mut(width).enumerate() {
+            let y = chunk * CHUNK_ROWS + dy0;
+            let mut rows: [&[f32]; 15] = [&[]; 15];
+            for (dy, row) in rows.iter_mut().take(blur).enumerate() {
+                let yy = (y + dy).saturating_sub(r).min(height - 1);
+                *row = &sums[yy * width..(yy + 1) * width];
             }
-            *o = round_to_u8(sum * scale);
+            for (x, o) in o.iter_mut().enumerate() {
+                let mut sum = 0.0;
+                for row in &rows[..blur] {
+                    sum += row[x];
+                }
+                *o = round_to_u8(sum * scale);
+            }
         }
     });
 }

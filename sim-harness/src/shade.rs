@@ -152,14 +152,16 @@ impl ShadingTerms {
     /// The grey image of one shot under `pattern`, clamped to 0..255 as the sensor
     /// saturates, plus the noise of image key `noise.0` at amplitude `noise.1` if given.
     pub fn shade(&self, pattern: &ProjectorImage, noise: Option<(u64, u32)>, out: &mut [f32]) {
-        let w = self.width;
-        out.par_chunks_mut(w)
-            .zip(self.base.par_chunks(w))
-            .zip(self.projector.par_chunks(w))
-            .zip(self.projector_uv.par_chunks(w))
+        let band = self.width * ROWS_PER_TASK;
+        out.par_chunks_mut(band)
+            .zip(self.base.par_chunks(band))
+            .zip(self.projector.par_chunks(band))
+            .zip(self.projector_uv.par_chunks(band))
             .enumerate()
-            .for_each(|(y, (((out, base), proj), uv))| {
-                for x in 0..out.len() {
+            .for_each(|(chunk, (((out, base), proj), uv))| {
+                let n = out.len();
+                let (base, proj, uv) = (&base[..n], &proj[..n], &uv[..n]);
+                for x in 0..n {
                     let mut g = base[x];
                     let p = proj[x];
                     if p > 0.0 {
@@ -168,7 +170,7 @@ impl ShadingTerms {
                     out[x] = g.clamp(0.0, 255.0);
                 }
                 if let Some((key, amplitude)) = noise.filter(|n| n.1 > 0) {
-                    let first = (y * w) as u64;
+                    let first = (chunk * band) as u64;
                     for (x, o) in out.iter_mut().enumerate() {
                         *o += pixel_noise(key, first + x as u64, amplitude) as f32;
                     }
@@ -183,8 +185,9 @@ impl ShadingTerms {
     }
 }
 
-/// Rows of pixels per task of parallel work.
-const ROWS_PER_TASK: usize = 8;
+/// Rows of pixels per task of parallel work: enough to pay for a task, few enough to share
+/// 480 rows between a handful of threads.
+const ROWS_PER_TASK: usize = 16;
 
 /// `other.k (R k_inv + t plane)`, split so that one triangle's homography costs a rank-one
 /// update instead of the products of rotation and intrinsic matrices.
