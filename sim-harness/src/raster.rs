@@ -24,6 +24,8 @@ pub const NO_TRIANGLE: u32 = u32::MAX;
 pub const NEAR_MM: f64 = 1.0;
 /// Rows per band of parallel work: a few dozen bands keep two to eight threads busy.
 const BAND_ROWS: usize = 16;
+/// log2 of the side of the square tiles whose occupancy `ZBuffer::lookup` checks first.
+const TILE_SHIFT: usize = 3;
 
 /// A distortion-free pinhole view (camera, projector or lamp) that triangles are drawn into.
 #[derive(Debug, Clone, PartialEq)]
@@ -145,6 +147,22 @@ pub struct ZBuffer {
     /// Per band, whether it holds anything; clean bands that stay empty are not touched,
     /// which makes shadow maps (mostly empty) cheap.
     dirty: Vec<bool>,
+    /// Per tile, whether some drawn triangle's bounds reach it: a shadow test at a pixel
+    /// of an empty tile need not touch the (large, cache-missing) per-pixel arrays.
+    occupied: Vec<bool>,
+    /// Tiles per row.
+    tiles_x: usize,
+}
+
+/// What a light's shadow map holds at a point: `ZBuffer::lookup`'s answer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MapPixel {
+    /// The point falls outside the map.
+    Outside,
+    /// Nothing is drawn there.
+    Empty,
+    /// The index of the nearest pixel, which may hold a triangle.
+    Pixel(usize),
 }
 
 impl ZBuffer {
@@ -158,6 +176,8 @@ impl ZBuffer {
             planes: Vec::new(),
             screen: Vec::new(),
             dirty: vec![true; height.div_ceil(BAND_ROWS)],
+            occupied: vec![false; (width.div_ceil(1 << TILE_SHIFT)) * height.div_ceil(1 << TILE_SHIFT)],
+            tiles_x: width.div_ceil(1 << TILE_SHIFT),
         }
     }
 
@@ -188,6 +208,16 @@ impl ZBuffer {
                 if let Some(st) = setup([s[0], s[j], s[j + 1]], plane, index as u32, self.width, self.height) {
                     self.screen.push(st);
                 }
+            }
+        }
+        self.occupied.fill(false);
+        for st in &self.screen {
+            if st.x0 > st.x1 {
+                continue;
+            }
+            for ty in st.y0 >> TILE_SHIFT..=st.y1 >> TILE_SHIFT {
+                let row = ty * self.tiles_x;
+                self.occupied[row + (st.x0 >> TILE_SHIFT)..=row + (st.x1 >> TILE_SHIFT)].fill(true);
             }
         }
         let w = self.width;
@@ -222,10 +252,27 @@ impl ZBuffer {
         1.0 / (a * x as f64 + b * y as f64 + c)
     }
 
+    /// What the buffer holds at the pixel nearest to (u, v).
+    #[inline]
+    pub fn lookup(&self, u: f64, v: f64) -> MapPixel {
+        let (x, y) = (u + 0.5, v + 0.5);
+        if !(x >= 0.0 && y >= 0.0 && x < self.width as f64 && y < self.height as f64) {
+            return MapPixel::Outside;
+        }
+        let (x, y) = (x as usize, y as usize);
+        if self.occupied[(y >> TILE_SHIFT) * self.tiles_x + (x >> TILE_SHIFT)] {
+            MapPixel::Pixel(y * self.width + x)
+        } else {
+            MapPixel::Empty
+        }
+    }
+
     /// The pixel index nearest to (u, v), `None` outside the image.
     #[inline]
     pub fn nearest(&self, u: f64, v: f64) -> Option<usize> {
-        let (x, y) = ((u + 0.5).floor(), (v + 0.5).floor());
+        // For the non-negative values let through, truncation is the floor (and cheaper,
+        // as `floor` is a library call without SSE4.1); x < width iff floor(x) < width.
+        let (x, y) = (u + 0.5, v + 0.5);
         if x >= 0.0 && y >= 0.0 && x < self.width as f64 && y < self.height as f64 {
             Some(y as usize * self.width + x as usize)
         } else {
@@ -468,6 +515,38 @@ mod tests {
                 assert!(hits > 200);
             }
         }
+    }
+
+    #[test]
+    fn lookup_agrees_with_the_pixels() {
+        let mut rng = ChaCha8Rng::seed_from_u64(6);
+        let cell = Cell::default();
+        let objects = Objects::from_cell(&cell).unwrap();
+        let scene = draw_scenario(&cell, 3, 1).scene();
+        let mut tris = Vec::new();
+        objects.triangles(&scene, &mut tris);
+        let rig = rig_for(&cell.placement, &cell.sensor);
+        let view = View::new(rig.projector.as_ref().unwrap()).unwrap();
+        let mut zb = ZBuffer::new(view.width, view.height);
+        zb.rasterize(&view, &tris, true);
+        let (mut empty, mut pixel) = (0, 0);
+        for _ in 0..20_000 {
+            let u = rng.random_range(-10.0..view.width as f64 + 10.0);
+            let v = rng.random_range(-10.0..view.height as f64 + 10.0);
+            match (zb.lookup(u, v), zb.nearest(u, v)) {
+                (MapPixel::Outside, None) => {}
+                (MapPixel::Empty, Some(i)) => {
+                    assert_eq!(zb.triangle[i], NO_TRIANGLE, "({u}, {v})");
+                    empty += 1;
+                }
+                (MapPixel::Pixel(i), Some(j)) => {
+                    assert_eq!(i, j);
+                    pixel += 1;
+                }
+                (a, b) => panic!("({u}, {v}): {a:?} vs {b:?}"),
+            }
+        }
+        assert!(empty > 1000 && pixel > 100, "{empty} {pixel}");
     }
 
     #[test]

@@ -18,7 +18,7 @@ use rayon::prelude::*;
 
 use crate::noise::pixel_noise;
 use crate::pattern::ProjectorImage;
-use crate::raster::{View, ZBuffer, NO_TRIANGLE};
+use crate::raster::{MapPixel, View, ZBuffer, NO_TRIANGLE};
 use crate::scene::{SceneTriangle, ID_TABLE};
 
 /// A point is in shadow only when the occluder is nearer to the light than this, mm.
@@ -56,8 +56,7 @@ pub struct ShadingTerms {
     pub projector: Vec<f32>,
     /// Projector coordinates (u, v) of the pixel centre.
     pub projector_uv: Vec<[f32; 2]>,
-    h_projector: Vec<Matrix3<f64>>,
-    h_lamp: Vec<Matrix3<f64>>,
+    triangles: Vec<TriangleTerms>,
 }
 
 impl ShadingTerms {
@@ -70,8 +69,7 @@ impl ShadingTerms {
             base: vec![0.0; n],
             projector: vec![0.0; n],
             projector_uv: vec![[0.0; 2]; n],
-            h_projector: Vec::new(),
-            h_lamp: Vec::new(),
+            triangles: Vec::new(),
         }
     }
 
@@ -95,47 +93,58 @@ impl ShadingTerms {
         if !(ids.width == w && ids.height == h && ids.data.len() == w * h) {
             ids.reset(w, h, ID_TABLE);
         }
-        self.h_projector.clear();
-        self.h_lamp.clear();
-        for plane in &zbuffer.planes {
-            self.h_projector.push(camera.homography_to(lights.projector, *plane));
-            if let Some((lamp, _)) = lights.lamp_shadow {
-                self.h_lamp.push(camera.homography_to(lamp, *plane));
+        let centre = camera.centre();
+        let lamp_on = lights.lamp_strength > 0.0;
+        let to_projector = Homographies::new(camera, lights.projector);
+        let to_lamp = lights.lamp_shadow.map(|(lamp, _)| Homographies::new(camera, lamp));
+        self.triangles.clear();
+        self.triangles.extend(zbuffer.planes.iter().zip(triangles).map(|(&plane, tri)| {
+            // Every point of a planar face gives the same n.(light - p), so which side the
+            // camera and the lights are on is settled once per triangle.
+            let v0 = tri.vertices[0];
+            let normal = if tri.normal.dot(&(centre - v0)) < 0.0 { -tri.normal } else { tri.normal };
+            TriangleTerms {
+                plane,
+                h_projector: to_projector.for_plane(plane),
+                h_lamp: to_lamp.as_ref().map_or([[0.0; 3]; 3], |m| m.for_plane(plane)),
+                albedo: 255.0 * tri.albedo,
+                lamp_facing: if lamp_on { normal.dot(&(lights.lamp_position - v0)) } else { 0.0 },
+                projector_facing: normal.dot(&(lights.projector.centre() - v0)),
+                id: tri.id,
             }
-        }
+        }));
         let ctx = Context {
-            rays: camera.world_ray_coefficients(),
-            centre: camera.centre(),
-            projector_centre: lights.projector.centre(),
-            zbuffer,
+            rays: camera.world_ray_coefficients().map(|r| [r.x, r.y, r.z]),
+            centre: centre.coords.into(),
+            lamp_position: lights.lamp_position.coords.into(),
+            projector_centre: lights.projector.centre().coords.into(),
+            terms: &self.triangles,
             triangles,
             lights,
-            h_projector: &self.h_projector,
-            h_lamp: &self.h_lamp,
         };
+        let band = w * ROWS_PER_TASK;
         self.base
-            .par_chunks_mut(w)
-            .zip(self.projector.par_chunks_mut(w))
-            .zip(self.projector_uv.par_chunks_mut(w))
-            .zip(depth.data.par_chunks_mut(w))
-            .zip(ids.data.par_chunks_mut(w))
+            .par_chunks_mut(band)
+            .zip(self.projector.par_chunks_mut(band))
+            .zip(self.projector_uv.par_chunks_mut(band))
+            .zip(depth.data.par_chunks_mut(band))
+            .zip(ids.data.par_chunks_mut(band))
             .enumerate()
-            .for_each(|(y, ((((base, proj), uv), depth), ids))| {
-                let tri_row = &zbuffer.triangle[y * w..(y + 1) * w];
-                for x in 0..w {
-                    let t = tri_row[x];
-                    if t == NO_TRIANGLE {
-                        base[x] = 0.0;
-                        proj[x] = 0.0;
-                        depth[x] = f32::INFINITY;
-                        ids[x] = ID_TABLE;
-                        continue;
-                    }
-                    let px = ctx.pixel(x as f64, y as f64, t as usize, &mut uv[x]);
-                    base[x] = px.base;
-                    proj[x] = px.projector;
-                    depth[x] = px.depth;
-                    ids[x] = triangles[t as usize].id;
+            .for_each(|(chunk, ((((base, proj), uv), depth), ids))| {
+                let y0 = chunk * ROWS_PER_TASK;
+                let rows = base.len() / w;
+                for r in 0..rows {
+                    let y = y0 + r;
+                    let span = r * w..(r + 1) * w;
+                    let row = Row {
+                        tri: &zbuffer.triangle[y * w..(y + 1) * w],
+                        base: &mut base[span.clone()],
+                        projector: &mut proj[span.clone()],
+                        uv: &mut uv[span.clone()],
+                        depth: &mut depth[span.clone()],
+                        ids: &mut ids[span],
+                    };
+                    ctx.row(y as f64, row);
                 }
             });
     }
@@ -143,14 +152,16 @@ impl ShadingTerms {
     /// The grey image of one shot under `pattern`, clamped to 0..255 as the sensor
     /// saturates, plus the noise of image key `noise.0` at amplitude `noise.1` if given.
     pub fn shade(&self, pattern: &ProjectorImage, noise: Option<(u64, u32)>, out: &mut [f32]) {
-        let w = self.width;
-        out.par_chunks_mut(w)
-            .zip(self.base.par_chunks(w))
-            .zip(self.projector.par_chunks(w))
-            .zip(self.projector_uv.par_chunks(w))
+        let band = self.width * ROWS_PER_TASK;
+        out.par_chunks_mut(band)
+            .zip(self.base.par_chunks(band))
+            .zip(self.projector.par_chunks(band))
+            .zip(self.projector_uv.par_chunks(band))
             .enumerate()
-            .for_each(|(y, (((out, base), proj), uv))| {
-                for x in 0..out.len() {
+            .for_each(|(chunk, (((out, base), proj), uv))| {
+                let n = out.len();
+                let (base, proj, uv) = (&base[..n], &proj[..n], &uv[..n]);
+                for x in 0..n {
                     let mut g = base[x];
                     let p = proj[x];
                     if p > 0.0 {
@@ -159,7 +170,7 @@ impl ShadingTerms {
                     out[x] = g.clamp(0.0, 255.0);
                 }
                 if let Some((key, amplitude)) = noise.filter(|n| n.1 > 0) {
-                    let first = (y * w) as u64;
+                    let first = (chunk * band) as u64;
                     for (x, o) in out.iter_mut().enumerate() {
                         *o += pixel_noise(key, first + x as u64, amplitude) as f32;
                     }
@@ -174,72 +185,149 @@ impl ShadingTerms {
     }
 }
 
-/// What `Context::pixel` finds at one pixel.
-struct PixelTerms {
-    base: f32,
-    projector: f32,
-    depth: f32,
+/// Rows of pixels per task of parallel work: enough to pay for a task, few enough to share
+/// 480 rows between a handful of threads.
+const ROWS_PER_TASK: usize = 16;
+
+/// `other.k (R k_inv + t plane)`, split so that one triangle's homography costs a rank-one
+/// update instead of the products of rotation and intrinsic matrices.
+struct Homographies {
+    /// `other.k R k_inv`.
+    rotation: Matrix3<f64>,
+    /// `other.k t`.
+    translation: Vector3<f64>,
+}
+
+impl Homographies {
+    fn new(from: &View, to: &View) -> Homographies {
+        let t = to.t_view_world * from.t_world_view;
+        let r = t.rotation.to_rotation_matrix().into_inner();
+        Homographies { rotation: to.k * r * from.k_inv, translation: to.k * t.translation.vector }
+    }
+
+    /// The rows of the homography of a surface with inverse-depth plane `plane`, as
+    /// `View::homography_to` defines it.
+    fn for_plane(&self, plane: [f64; 3]) -> [[f64; 3]; 3] {
+        let (m, t) = (&self.rotation, &self.translation);
+        std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)] + t[i] * plane[j]))
+    }
+}
+
+/// What the per-pixel work needs of one triangle, in one camera's pixel coordinates.
+#[derive(Debug, Clone, Copy, Default)]
+struct TriangleTerms {
+    /// Inverse-depth plane: 1/z = a x + b y + c.
+    plane: [f64; 3],
+    /// Rows of the homography to the projector's homogeneous pixel.
+    h_projector: [[f64; 3]; 3],
+    /// Rows of the homography to the lamp's shadow-map pixel (zeros without the map).
+    h_lamp: [[f64; 3]; 3],
+    /// 255 albedo, grey levels.
+    albedo: f64,
+    /// n.(lamp - p) with n turned towards the camera: the lamp lights the face only when
+    /// positive (0 when the lamp is off).
+    lamp_facing: f64,
+    /// n.(projector - p), likewise.
+    projector_facing: f64,
+    /// Object id.
+    id: u8,
+}
+
+/// One image row of the outputs and the z-buffer's triangles.
+struct Row<'r> {
+    tri: &'r [u32],
+    base: &'r mut [f32],
+    projector: &'r mut [f32],
+    uv: &'r mut [[f32; 2]],
+    depth: &'r mut [f32],
+    ids: &'r mut [u8],
 }
 
 /// Everything the per-pixel work reads, shared by the threads.
 struct Context<'a> {
-    rays: [Vector3<f64>; 3],
-    centre: Point3<f64>,
-    projector_centre: Point3<f64>,
-    zbuffer: &'a ZBuffer,
+    rays: [[f64; 3]; 3],
+    centre: [f64; 3],
+    lamp_position: [f64; 3],
+    projector_centre: [f64; 3],
+    terms: &'a [TriangleTerms],
     triangles: &'a [SceneTriangle],
     lights: &'a Lights<'a>,
-    h_projector: &'a [Matrix3<f64>],
-    h_lamp: &'a [Matrix3<f64>],
 }
 
 impl Context<'_> {
-    #[inline]
-    fn pixel(&self, fx: f64, fy: f64, t: usize, uv: &mut [f32; 2]) -> PixelTerms {
-        let tri = &self.triangles[t];
-        let [a, b, c] = self.zbuffer.planes[t];
-        let z = 1.0 / (a * fx + b * fy + c);
+    /// The terms of every pixel of row `fy`.
+    fn row(&self, fy: f64, row: Row<'_>) {
+        let w = row.tri.len();
+        let (base, proj, uvs, depth, ids) =
+            (&mut row.base[..w], &mut row.projector[..w], &mut row.uv[..w], &mut row.depth[..w], &mut row.ids[..w]);
         let [rx, ry, r0] = self.rays;
-        let pos = self.centre + (rx * fx + ry * fy + r0) * z;
-        let normal = if tri.normal.dot(&(self.centre - pos)) < 0.0 { -tri.normal } else { tri.normal };
+        // The unit-depth ray of pixel (x, fy) is ray_row + rx x.
+        let ray_row: [f64; 3] = std::array::from_fn(|i| ry[i] * fy + r0[i]);
         let l = self.lights;
-        let mut light = l.ambient;
-        if l.lamp_strength > 0.0 {
-            let to_lamp = l.lamp_position - pos;
-            let facing = normal.dot(&to_lamp);
-            if facing > 0.0 {
-                let visible = match l.lamp_shadow {
+        let lamp_map = l.lamp_shadow.map(|(_, map)| map);
+        let projector_on = l.projector_gain > 0.0;
+        for (x, &t) in row.tri.iter().enumerate() {
+            let Some(tt) = self.terms.get(t as usize) else {
+                base[x] = 0.0;
+                proj[x] = 0.0;
+                depth[x] = f32::INFINITY;
+                ids[x] = ID_TABLE;
+                continue;
+            };
+            let t = t as usize;
+            let fx = x as f64;
+            let [a, b, c] = tt.plane;
+            let z = 1.0 / (a * fx + b * fy + c);
+            let pos: [f64; 3] = std::array::from_fn(|i| self.centre[i] + (ray_row[i] + rx[i] * fx) * z);
+            let mut light = l.ambient;
+            if tt.lamp_facing > 0.0 {
+                let visible = match lamp_map {
                     None => true,
-                    Some((_, map)) => {
-                        let q = self.h_lamp[t] * Vector3::new(fx, fy, 1.0);
-                        let inv = 1.0 / q.z;
+                    Some(map) => {
+                        let h = &tt.h_lamp;
+                        let qz = h[2][0] * fx + h[2][1] * fy + h[2][2];
                         // Outside the lamp's map there is nothing that could shadow.
-                        q.z <= 0.0
-                            || map.nearest(q.x * inv, q.y * inv).is_none_or(|i| self.unshadowed(map, i, t, q.z * z))
+                        qz <= 0.0 || {
+                            let inv = 1.0 / qz;
+                            let u = (h[0][0] * fx + h[0][1] * fy + h[0][2]) * inv;
+                            let v = (h[1][0] * fx + h[1][1] * fy + h[1][2]) * inv;
+                            match map.lookup(u, v) {
+                                MapPixel::Outside | MapPixel::Empty => true,
+                                MapPixel::Pixel(i) => self.unshadowed(map, i, t, qz * z),
+                            }
+                        }
                     }
                 };
                 if visible {
-                    light += l.lamp_strength * facing / to_lamp.norm();
+                    light += l.lamp_strength * tt.lamp_facing / distance(&self.lamp_position, &pos);
                 }
             }
-        }
-        let albedo = 255.0 * tri.albedo;
-        let mut projector = 0.0;
-        if l.projector_gain > 0.0 {
-            let to_proj = self.projector_centre - pos;
-            let facing = normal.dot(&to_proj);
-            let q = self.h_projector[t] * Vector3::new(fx, fy, 1.0);
-            if facing > 0.0 && q.z > 0.0 {
-                let map = l.projector_shadow;
-                let inv = 1.0 / q.z;
-                let (u, v) = (q.x * inv, q.y * inv);
-                if map.nearest(u, v).is_some_and(|i| self.unshadowed(map, i, t, q.z * z)) {
-                    projector = albedo * l.projector_gain * facing / to_proj.norm();
-                    *uv = [u as f32, v as f32];
+            let mut projector = 0.0;
+            if projector_on && tt.projector_facing > 0.0 {
+                let h = &tt.h_projector;
+                let qz = h[2][0] * fx + h[2][1] * fy + h[2][2];
+                if qz > 0.0 {
+                    let map = l.projector_shadow;
+                    let inv = 1.0 / qz;
+                    let u = (h[0][0] * fx + h[0][1] * fy + h[0][2]) * inv;
+                    let v = (h[1][0] * fx + h[1][1] * fy + h[1][2]) * inv;
+                    let lit = match map.lookup(u, v) {
+                        MapPixel::Outside => false,
+                        MapPixel::Empty => true,
+                        MapPixel::Pixel(i) => self.unshadowed(map, i, t, qz * z),
+                    };
+                    if lit {
+                        projector =
+                            tt.albedo * l.projector_gain * tt.projector_facing / distance(&self.projector_centre, &pos);
+                        uvs[x] = [u as f32, v as f32];
+                    }
                 }
             }
+            base[x] = (tt.albedo * light) as f32;
+            proj[x] = projector as f32;
+            depth[x] = z as f32;
+            ids[x] = tt.id;
         }
-        PixelTerms { base: (albedo * light) as f32, projector: projector as f32, depth: z as f32 }
     }
 
     /// Whether a point of triangle `t` at depth `z_light` from a light is not hidden by
@@ -248,11 +336,21 @@ impl Context<'_> {
     #[inline]
     fn unshadowed(&self, map: &ZBuffer, i: usize, t: usize, z_light: f64) -> bool {
         let o = map.triangle[i];
-        if o == NO_TRIANGLE || o as usize == t || same_surface(&self.triangles[o as usize], &self.triangles[t]) {
+        if o == NO_TRIANGLE || o as usize == t {
             return true;
         }
-        z_light * map.inverse_depth[i] as f64 <= 1.0 + SHADOW_BIAS_MM * map.inverse_depth[i] as f64
+        let inverse_depth = map.inverse_depth[i] as f64;
+        // The plane test is the dearer one, so it runs only where the depths say shadow.
+        z_light * inverse_depth <= 1.0 + SHADOW_BIAS_MM * inverse_depth
+            || same_surface(&self.triangles[o as usize], &self.triangles[t])
     }
+}
+
+/// Euclidean distance between two points.
+#[inline]
+fn distance(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+    (dx * dx + dy * dy + dz * dz).sqrt()
 }
 
 /// Whether two triangles lie in one plane (the two halves of a box face, say).
