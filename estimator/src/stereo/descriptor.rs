@@ -1,7 +1,7 @@
-//! ELAS's 16-byte pixel descriptors: 3x3 Sobel responses (horizontal and vertical) of a
-//! rectified image, contrast-normalised, offset to 128 and clamped to u8, sampled at a fixed
-//! pattern in a 5x5 window; their SAD is the matching cost. The matcher that uses them is
-//! `elas`.
+//! ELAS-style pixel descriptors, widened to 32 bytes: 3x3 Sobel responses (horizontal and
+//! vertical) of a rectified image, contrast-normalised, offset to 128 and clamped to u8,
+//! sampled at a fixed pattern (ELAS's 5x5 plus a sparse 9x9 ring); their SAD is the
+//! matching cost. The matcher that uses them is `elas`.
 //!
 //! Contrast normalisation: the projected dots on dark items (albedo ~0.08) give Sobel
 //! responses a few times weaker than on the bright tray, which a fixed byte scale quantises
