@@ -11,7 +11,7 @@ use camplace_config::StereoParams;
 use rayon::prelude::*;
 
 use super::descriptor::{sad, texture, Descriptor, DescriptorImage, BORDER};
-use super::postprocess::{interpolate_gaps, refine_subpixel, remove_speckles, SpeckleScratch};
+use super::postprocess::{interpolate_gaps, refine_subpixel, remove_speckles, SpeckleScratch, SubpixelScratch};
 use super::support::{SupportGrid, SupportParams, SupportPoint};
 use super::triangulation::{CandidateGrid, Prior};
 use super::DisparityMatcher;
@@ -47,6 +47,7 @@ pub struct Elas {
     grid_right: CandidateGrid,
     disp_right: Vec<f32>,
     speckles: SpeckleScratch,
+    subpixel: SubpixelScratch,
 }
 
 impl Elas {
@@ -87,6 +88,7 @@ impl Elas {
             grid_right: CandidateGrid::new(width, height, cell, max_disparity_span),
             disp_right: vec![INVALID; width * height],
             speckles: SpeckleScratch::new(width * height),
+            subpixel: SubpixelScratch::new(width * height),
         }
     }
 
@@ -259,7 +261,7 @@ impl DisparityMatcher for Elas {
         });
 
         remove_speckles(&mut out.data, w, self.speckle_size, self.speckle_similarity, &mut self.speckles);
-        refine_subpixel(left, right, &mut out.data, self.subpixel_radius);
+        refine_subpixel(left, right, &mut out.data, self.subpixel_radius, &mut self.subpixel);
         interpolate_gaps(&mut out.data, w, self.gap_width);
         Ok(())
     }
