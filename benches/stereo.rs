@@ -17,7 +17,11 @@ fn render(cam: &Camera, seed: u64) -> GrayImage {
         k ^= k >> 29;
         k = k.wrapping_mul(0xBF58_476D_1CE4_E5B9);
         k ^= k >> 32;
-        if k & 1 == 1 { 190.0 } else { 50.0 }
+        if k & 1 == 1 {
+            190.0
+        } else {
+            50.0
+        }
     };
     // A seeded xorshift: the noise only has to be repeatable, not good.
     let mut state = seed.wrapping_mul(0x2545_F491_4F6C_DD1D) | 1;

@@ -41,7 +41,10 @@ impl FromStr for Method {
         match s {
             "one-shot" => Ok(Method::OneShot),
             "phase-12" => Ok(Method::Phase12),
-            _ => Err(Error::new(ErrorKind::Input, format!("unknown method \"{s}\", expected \"one-shot\" or \"phase-12\""))),
+            _ => Err(Error::new(
+                ErrorKind::Input,
+                format!("unknown method \"{s}\", expected \"one-shot\" or \"phase-12\""),
+            )),
         }
     }
 }

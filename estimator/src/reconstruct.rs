@@ -179,7 +179,10 @@ fn check_size(side: &str, shot: usize, img: &GrayImage, (width, height): (usize,
     if img.width != width || img.height != height {
         return Err(Error::new(
             ErrorKind::Input,
-            format!("{side} image {shot}: expected {width} x {height} pixels (the rig), got {} x {}", img.width, img.height),
+            format!(
+                "{side} image {shot}: expected {width} x {height} pixels (the rig), got {} x {}",
+                img.width, img.height
+            ),
         ));
     }
     Ok(())

@@ -72,7 +72,10 @@ impl Rectification {
             let k = &cam.k;
             let finite = k.iter().all(|v| v.is_finite()) && cam.dist.iter().all(|v| v.is_finite());
             if cam.width < 2 || cam.height < 2 || !finite || k[(0, 0)] <= 0.0 || k[(1, 1)] <= 0.0 {
-                return Err(Error::new(ErrorKind::Rig, format!("{name} camera: expected a size of at least 2x2 and positive focal lengths")));
+                return Err(Error::new(
+                    ErrorKind::Rig,
+                    format!("{name} camera: expected a size of at least 2x2 and positive focal lengths"),
+                ));
             }
         }
         let baseline_vec = right.centre() - left.centre();
@@ -105,9 +108,8 @@ impl Rectification {
         let r_left_rect = r_wl.inverse() * r_w_rect;
         let r_right_rect = r_wr.inverse() * r_w_rect;
 
-        let seen = seen_work_volume(left, right, &t_world_rectified, focal, baseline, work_volume).ok_or_else(|| {
-            Error::new(ErrorKind::Rig, "rig: no part of the work volume is seen by both cameras")
-        })?;
+        let seen = seen_work_volume(left, right, &t_world_rectified, focal, baseline, work_volume)
+            .ok_or_else(|| Error::new(ErrorKind::Rig, "rig: no part of the work volume is seen by both cameras"))?;
         let max_w = MAX_CANVAS_SCALE * left.width.max(right.width) as f64;
         let max_h = MAX_CANVAS_SCALE * left.height.max(right.height) as f64;
         let (x0, x1) = clamp_span(seen.x_min - CANVAS_MARGIN_PX, seen.x_max + CANVAS_MARGIN_PX, max_w);
@@ -172,7 +174,11 @@ impl Rectification {
     pub fn disparity_truth(&self, raw_left: &Camera, depth_left: &FloatImage, out: &mut FloatImage) {
         let cam = &self.camera;
         out.reset(cam.width, cam.height, f32::INFINITY);
-        if depth_left.width != raw_left.width || depth_left.height != raw_left.height || raw_left.width < 2 || raw_left.height < 2 {
+        if depth_left.width != raw_left.width
+            || depth_left.height != raw_left.height
+            || raw_left.width < 2
+            || raw_left.height < 2
+        {
             return;
         }
         let r_raw_rect = raw_left.t_world_camera.rotation.to_rotation_matrix().inverse()
@@ -353,7 +359,11 @@ fn seen_work_volume(
                 let t = t0 + (t1 - t0) * s as f64 / (COVERAGE_DEPTHS - 1) as f64;
                 let p = centre + dir * t;
                 let Some(pr) = right.project(&p) else { continue };
-                if !(pr.x >= 0.0 && pr.y >= 0.0 && pr.x <= (right.width - 1) as f64 && pr.y <= (right.height - 1) as f64) {
+                if !(pr.x >= 0.0
+                    && pr.y >= 0.0
+                    && pr.x <= (right.width - 1) as f64
+                    && pr.y <= (right.height - 1) as f64)
+                {
                     continue;
                 }
                 let q = t_world_rect.inverse_transform_point(&p);
@@ -464,7 +474,11 @@ mod tests {
             let (d_lo, d_hi) = rect.disparity_range();
             let mut n = 0;
             while n < 300 {
-                let p = Point3::new(rng.random_range(-260.0..260.0), rng.random_range(-210.0..210.0), rng.random_range(-5.0..80.0));
+                let p = Point3::new(
+                    rng.random_range(-260.0..260.0),
+                    rng.random_range(-210.0..210.0),
+                    rng.random_range(-5.0..80.0),
+                );
                 let (Some(pl), Some(pr)) = (rig.left.project(&p), rig.right.project(&p)) else { continue };
                 if !(inside(&rig.left, &pl) && inside(&rig.right, &pr)) {
                     continue;
@@ -480,7 +494,13 @@ mod tests {
                 let (u, v, _) = cam.project(&p).unwrap();
                 assert!((u - ul).abs() < 0.01 && (v - vl).abs() < 0.01);
                 // The canvas holds the point in both views and the range holds its disparity.
-                assert!(ul >= 0.0 && ur >= 0.0 && ul <= (cam.width - 1) as f64 && vl >= 0.0 && vl <= (cam.height - 1) as f64);
+                assert!(
+                    ul >= 0.0
+                        && ur >= 0.0
+                        && ul <= (cam.width - 1) as f64
+                        && vl >= 0.0
+                        && vl <= (cam.height - 1) as f64
+                );
                 assert!(d >= d_lo as f64 && d <= d_hi as f64, "disparity {d} outside {d_lo}..{d_hi}");
                 let back = rect.rectified_to_raw(true, ul, vl).unwrap();
                 assert!((back.0 - pl.x).abs() < 1e-3 && (back.1 - pl.y).abs() < 1e-3);
@@ -539,9 +559,10 @@ mod tests {
                 assert!(n > cam.width * cam.height / 2, "only {n} pixels inside");
                 assert!(sum / (n as f64) < 1.0 && worst < 6.0, "mean {} worst {worst}", sum / n as f64);
                 // Beyond the raw image the canvas is black.
-                let outside = (0..cam.height)
-                    .flat_map(|y| (0..cam.width).map(move |x| (x, y)))
-                    .filter(|&(x, y)| rect.rectified_to_raw(is_left, x as f64, y as f64).is_none_or(|(u, v)| u < -1.0 || v < -1.0 || u > raw.width as f64 || v > raw.height as f64));
+                let outside = (0..cam.height).flat_map(|y| (0..cam.width).map(move |x| (x, y))).filter(|&(x, y)| {
+                    rect.rectified_to_raw(is_left, x as f64, y as f64)
+                        .is_none_or(|(u, v)| u < -1.0 || v < -1.0 || u > raw.width as f64 || v > raw.height as f64)
+                });
                 for (x, y) in outside {
                     assert_eq!(out.get(x, y), 0);
                 }

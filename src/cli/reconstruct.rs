@@ -5,9 +5,7 @@ use anyhow::{bail, Context};
 use camplace_config::formats::{pfm, ply, png};
 use camplace_config::RigFile;
 use camplace_estimator::stereo::DisparityMatcher;
-use camplace_estimator::{
-    Elas, FloatImage, GrayImage, Method, Reconstruction, Reconstructor, RectifiedCamera, Rig,
-};
+use camplace_estimator::{Elas, FloatImage, GrayImage, Method, Reconstruction, Reconstructor, RectifiedCamera, Rig};
 use camplace_hwio::{FrameSource, Frames, RecordedSource};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -102,7 +100,8 @@ fn dataset(cell: &camplace_config::Cell, dir: &Path) -> anyhow::Result<ExitCode>
     let mut background = Frames::new(source.shots());
     let has_background = source.background(&mut background)?;
     let make = || -> anyhow::Result<Reconstructor> {
-        let mut rec = Reconstructor::new(cell, &rig, method).with_context(|| dir.join("rig.json").display().to_string())?;
+        let mut rec =
+            Reconstructor::new(cell, &rig, method).with_context(|| dir.join("rig.json").display().to_string())?;
         if has_background {
             rec.set_background(&background.left, &background.right)?;
         }
@@ -166,7 +165,8 @@ fn rectified_pair(
     pfm::write(&out.join("disparity.pfm"), disparity.width, disparity.height, &disparity.data)?;
     let f = a.focal_px.unwrap_or(1.0);
     let b = a.baseline_mm.unwrap_or(1.0);
-    let depth: Vec<f32> = disparity.data.iter().map(|&d| if d > 0.0 { (f * b) as f32 / d } else { f32::INFINITY }).collect();
+    let depth: Vec<f32> =
+        disparity.data.iter().map(|&d| if d > 0.0 { (f * b) as f32 / d } else { f32::INFINITY }).collect();
     pfm::write(&out.join("depth.pfm"), disparity.width, disparity.height, &depth)?;
     let valid = disparity.data.iter().filter(|d| d.is_finite()).count();
     println!(

@@ -34,13 +34,7 @@ impl DescriptorImage {
     /// Buffers for `width` x `height` images.
     pub fn new(width: usize, height: usize) -> Self {
         let n = width * height;
-        DescriptorImage {
-            width,
-            height,
-            data: vec![[NEUTRAL; 16]; n],
-            du: vec![NEUTRAL; n],
-            dv: vec![NEUTRAL; n],
-        }
+        DescriptorImage { width, height, data: vec![[NEUTRAL; 16]; n], du: vec![NEUTRAL; n], dv: vec![NEUTRAL; n] }
     }
 
     /// Fills the descriptors of `img` (same size as the buffers).

@@ -181,7 +181,12 @@ fn match_pixel(
 impl DisparityMatcher for Elas {
     fn compute(&mut self, left: &GrayImage, right: &GrayImage, range: (f32, f32), out: &mut FloatImage) -> Result<()> {
         let (w, h) = (self.width, self.height);
-        if left.width != w || left.height != h || !left.same_size(right) || left.data.len() != w * h || right.data.len() != w * h {
+        if left.width != w
+            || left.height != h
+            || !left.same_size(right)
+            || left.data.len() != w * h
+            || right.data.len() != w * h
+        {
             return Err(Error::new(
                 ErrorKind::Input,
                 format!(
@@ -218,11 +223,22 @@ impl DisparityMatcher for Elas {
         self.grid_left.compute(&self.points, d_min, d_max, false);
         self.grid_right.compute(&self.points, d_min, d_max, true);
 
-        let left_side =
-            Side { own: &self.desc_left, other: &self.desc_right, prior: &self.prior.left, grid: &self.grid_left, sign: -1 };
-        let right_side =
-            Side { own: &self.desc_right, other: &self.desc_left, prior: &self.prior.right, grid: &self.grid_right, sign: 1 };
-        let (radius, min_texture, pe, lr_tol) = (self.prior_radius, self.min_texture, &self.prior_energy[..], self.lr_tolerance);
+        let left_side = Side {
+            own: &self.desc_left,
+            other: &self.desc_right,
+            prior: &self.prior.left,
+            grid: &self.grid_left,
+            sign: -1,
+        };
+        let right_side = Side {
+            own: &self.desc_right,
+            other: &self.desc_left,
+            prior: &self.prior.right,
+            grid: &self.grid_right,
+            sign: 1,
+        };
+        let (radius, min_texture, pe, lr_tol) =
+            (self.prior_radius, self.min_texture, &self.prior_energy[..], self.lr_tolerance);
         out.data.par_chunks_mut(w).zip(self.disp_right.par_chunks_mut(w)).enumerate().for_each(|(y, (dl, dr))| {
             if y < BORDER || y + BORDER >= h {
                 dr.fill(INVALID);

@@ -248,20 +248,29 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(11);
         let (w, h) = (64, 16);
         // A smooth random texture sampled at x (left) and x - shift (right).
-        let freqs: Vec<(f32, f32, f32)> =
-            (0..6).map(|_| (rng.random_range(0.2..0.9), rng.random_range(0.0..6.0), rng.random_range(10.0..30.0))).collect();
+        let freqs: Vec<(f32, f32, f32)> = (0..6)
+            .map(|_| (rng.random_range(0.2..0.9), rng.random_range(0.0..6.0), rng.random_range(10.0..30.0)))
+            .collect();
         let tex = |x: f32, y: f32| {
             let v: f32 = freqs.iter().map(|&(f, p, a)| a * (f * x + p + 0.3 * f * y).sin()).sum();
             (128.0 + v).clamp(0.0, 255.0)
         };
         let shift = 7.3f32;
-        let left = GrayImage::from_vec(w, h, (0..w * h).map(|i| tex((i % w) as f32, (i / w) as f32).round() as u8).collect()).unwrap();
-        let right =
-            GrayImage::from_vec(w, h, (0..w * h).map(|i| tex((i % w) as f32 + shift, (i / w) as f32).round() as u8).collect())
+        let left =
+            GrayImage::from_vec(w, h, (0..w * h).map(|i| tex((i % w) as f32, (i / w) as f32).round() as u8).collect())
                 .unwrap();
+        let right = GrayImage::from_vec(
+            w,
+            h,
+            (0..w * h).map(|i| tex((i % w) as f32 + shift, (i / w) as f32).round() as u8).collect(),
+        )
+        .unwrap();
         let mut d = vec![7.0f32; w * h];
         refine_subpixel(&left, &right, &mut d, 2);
-        let mut errs: Vec<f32> = (4..h - 4).flat_map(|y| (14..w - 6).map(move |x| (y, x))).map(|(y, x)| (d[y * w + x] - shift).abs()).collect();
+        let mut errs: Vec<f32> = (4..h - 4)
+            .flat_map(|y| (14..w - 6).map(move |x| (y, x)))
+            .map(|(y, x)| (d[y * w + x] - shift).abs())
+            .collect();
         errs.sort_by(f32::total_cmp);
         assert!(errs[errs.len() / 2] < 0.05, "median error {}", errs[errs.len() / 2]);
     }

@@ -148,7 +148,13 @@ impl SupportGrid {
 
 /// The disparity of left pixel (u, v) by a full-range search when it is unique and passes
 /// the left-right check.
-fn support_match(left: &DescriptorImage, right: &DescriptorImage, u: usize, v: usize, p: &SupportParams) -> Option<i32> {
+fn support_match(
+    left: &DescriptorImage,
+    right: &DescriptorImage,
+    u: usize,
+    v: usize,
+    p: &SupportParams,
+) -> Option<i32> {
     let w = left.width;
     if u < BORDER || v < BORDER || u + BORDER >= w || v + BORDER >= left.height {
         return None;

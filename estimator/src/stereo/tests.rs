@@ -42,7 +42,8 @@ struct Surface {
 
 impl Surface {
     fn lit(&self, i: i64, j: i64) -> f64 {
-        let mut h = self.seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (j as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
+        let mut h =
+            self.seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (j as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
         h ^= h >> 31;
         h = h.wrapping_mul(0xBF58_476D_1CE4_E5B9);
         h ^= h >> 29;
@@ -163,7 +164,8 @@ impl Scene {
 
 /// The paper's sensor noise: uniform integer noise in [-10, 10], a 3x3 mean, round, clamp.
 fn add_noise(ideal: &[f64], w: usize, h: usize, rng: &mut ChaCha8Rng) -> GrayImage {
-    let noisy: Vec<f64> = ideal.iter().map(|&v| (v.round() + rng.random_range(-10i32..=10) as f64).clamp(0.0, 255.0)).collect();
+    let noisy: Vec<f64> =
+        ideal.iter().map(|&v| (v.round() + rng.random_range(-10i32..=10) as f64).clamp(0.0, 255.0)).collect();
     let mut out = GrayImage::new(w, h, 0);
     for y in 0..h {
         for x in 0..w {
@@ -226,7 +228,9 @@ fn brute_force(left: &GrayImage, right: &GrayImage, range: (f32, f32)) -> FloatI
         let mut s = 0;
         for j in -r..=r {
             for i in -r..=r {
-                s += (a.get((x + i) as usize, (y + j) as usize) as i64 - b.get((xb + i) as usize, (y + j) as usize) as i64).abs();
+                s += (a.get((x + i) as usize, (y + j) as usize) as i64
+                    - b.get((xb + i) as usize, (y + j) as usize) as i64)
+                    .abs();
             }
         }
         Some(s)
@@ -259,7 +263,8 @@ fn params() -> StereoParams {
 
 fn slanted_plane_scene(seed: u64, base: f64, contrast: f64) -> Scene {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let plane = Plane { a: rng.random_range(0.03..0.08), b: rng.random_range(-0.03..0.03), c: rng.random_range(95.0..110.0) };
+    let plane =
+        Plane { a: rng.random_range(0.03..0.08), b: rng.random_range(-0.03..0.03), c: rng.random_range(95.0..110.0) };
     Scene {
         width: 320,
         height: 240,
@@ -276,7 +281,10 @@ fn box_scene(seed: u64) -> Scene {
         width: 320,
         height: 240,
         background: Surface { plane: bg, seed: rng.random(), cell: 2.2, base: 50.0, contrast: 120.0 },
-        block: Some((Surface { plane: top, seed: rng.random(), cell: 2.0, base: 40.0, contrast: 150.0 }, [150.5, 250.5, 70.5, 170.5])),
+        block: Some((
+            Surface { plane: top, seed: rng.random(), cell: 2.0, base: 40.0, contrast: 150.0 },
+            [150.5, 250.5, 70.5, 170.5],
+        )),
     }
 }
 

@@ -65,18 +65,17 @@ impl Prior {
         }
         let (w, h) = (self.width as i32, self.height as i32);
         for p in points {
-            let _ = self.triangulation.insert(SupportVertex {
-                position: Point2::new(p.u as f64, p.v as f64),
-                d: p.d as f64,
-            });
+            let _ = self
+                .triangulation
+                .insert(SupportVertex { position: Point2::new(p.u as f64, p.v as f64), d: p.d as f64 });
         }
         for (cu, cv) in [(0, 0), (w - 1, 0), (0, h - 1), (w - 1, h - 1)] {
-            let near = points.iter().min_by_key(|p| (p.u - cu).pow(2) + (p.v - cv).pow(2)).expect("three or more points");
+            let near =
+                points.iter().min_by_key(|p| (p.u - cu).pow(2) + (p.v - cv).pow(2)).expect("three or more points");
             if (near.u, near.v) != (cu, cv) {
-                let _ = self.triangulation.insert(SupportVertex {
-                    position: Point2::new(cu as f64, cv as f64),
-                    d: near.d as f64,
-                });
+                let _ = self
+                    .triangulation
+                    .insert(SupportVertex { position: Point2::new(cu as f64, cv as f64), d: near.d as f64 });
             }
         }
         let (width, height) = (self.width, self.height);
