@@ -2,3 +2,4 @@
 
 mod cli;
 mod cli_errors;
+mod estimate;
