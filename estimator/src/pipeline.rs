@@ -143,9 +143,11 @@ impl Estimator {
         let k = params.k as usize;
         let heights: Vec<f32> = model.feature_points.iter().map(|p| p.z).collect();
         let matcher = FeatureMatcher::new(&model.descriptors, &heights)?;
-        let mut reconstruction = Reconstruction::default();
-        reconstruction.cloud = crate::Cloud::with_capacity(w, h);
-        reconstruction.disparity = crate::FloatImage::new(w, h, f32::INFINITY);
+        let reconstruction = Reconstruction {
+            cloud: crate::Cloud::with_capacity(w, h),
+            disparity: crate::FloatImage::new(w, h, f32::INFINITY),
+            ..Reconstruction::default()
+        };
         let stages = Stages {
             normal_estimator: NormalEstimator::new(params.normal_radius as f32, MIN_NEIGHBOURS)?,
             ecsad: Ecsad::new(params.feature_radius as f32)?,
