@@ -38,7 +38,7 @@ fn one_shot_at_the_optimum_finds_trays() {
 }
 
 #[test]
-fn scenes_without_a_tray_give_no_pose_and_no_error() {
+fn scenes_without_a_tray_give_no_error() {
     let cell = Cell::default();
     let placement = cell.placement.with_overrides(OPTIMUM).unwrap();
     let seed = 2;
