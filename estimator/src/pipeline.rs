@@ -8,7 +8,7 @@
 use std::time::Instant;
 
 use camplace_config::{Cell, EstimatorParams};
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
 use crate::normals::MIN_NEIGHBOURS;
 use crate::{
@@ -288,11 +288,41 @@ impl Stages {
         let t = Instant::now();
         let coarse = out.ransac.t_world_tray;
         let view = self.model.closest_view(&coarse, &self.sensor_position);
-        let refined = self.icp.refine(&self.cloud, &self.model, view, &self.sensor_position, &coarse, &mut out.icp)?;
+        let mut refined =
+            self.icp.refine(&self.cloud, &self.model, view, &self.sensor_position, &coarse, &mut out.icp)?;
+        // A rectangular tray is nearly symmetric under a half turn about its z axis: only a
+        // small feature (a chamfer, a tab) tells the two apart, and RANSAC's inlier count
+        // often cannot. Refining the half-turned pose too and keeping the one with more
+        // close pairs lets the whole surface, that feature included, decide.
+        let start = if refined { out.icp.t_world_tray } else { coarse };
+        let turned = start * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI);
+        let turned_view = self.model.closest_view(&turned, &self.sensor_position);
+        let mut other = IcpResult::default();
+        let other_refined =
+            self.icp.refine(&self.cloud, &self.model, turned_view, &self.sensor_position, &turned, &mut other)?;
+        if other_refined && better(&other, &out.icp, refined) {
+            out.icp = other;
+            refined = true;
+        }
         out.timings.icp_ms = ms(t);
         out.found = true;
         out.inliers = out.ransac.inliers;
         out.t_world_tray = if refined { out.icp.t_world_tray } else { coarse };
         Ok(())
+    }
+}
+
+/// Whether refinement `a` fits the scene better than `b`: more pairs within reach, then a
+/// smaller residual.
+fn better(a: &IcpResult, b: &IcpResult, b_refined: bool) -> bool {
+    if !b_refined {
+        return true;
+    }
+    // Pair counts within a hundredth of each other are a tie the residual breaks.
+    let tie = a.correspondences.abs_diff(b.correspondences) * 100 <= a.correspondences.max(b.correspondences);
+    if tie {
+        a.rms_mm < b.rms_mm
+    } else {
+        a.correspondences > b.correspondences
     }
 }
