@@ -33,8 +33,9 @@ fn one_shot_at_the_optimum_finds_trays() {
         let errors = pose_errors(&pose.t_world_tray, &scenario.t_world_tray, &symmetries, &cell.metrics);
         successes += usize::from(pose.found && errors.success);
     }
-    // Measured: 3 of 20 at seed 1 with the default settings (see the estimate docs).
-    assert!(successes >= 1, "{successes} of {n} trays found within the success limits");
+    // Measured: 4 of these 10 (7 of 50 scenes) with the default settings; the estimator is
+    // weak yet, so this guards against a broken pipeline, not for the paper's figures.
+    assert!(successes >= 2, "{successes} of {n} trays found within the success limits");
 }
 
 #[test]
