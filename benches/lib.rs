@@ -2,10 +2,19 @@
 
 mod features;
 mod phase;
+mod pipeline;
 mod pose;
 mod render;
 mod stereo;
 
 criterion::criterion_group!(phase_benches, phase::benches);
 criterion::criterion_group!(feature_benches, features::benches);
-criterion::criterion_main!(render::benches, stereo::benches, phase_benches, feature_benches, pose::benches);
+criterion::criterion_group!(pipeline_benches, pipeline::benches);
+criterion::criterion_main!(
+    render::benches,
+    stereo::benches,
+    phase_benches,
+    feature_benches,
+    pose::benches,
+    pipeline_benches
+);

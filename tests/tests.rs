@@ -2,4 +2,5 @@
 
 mod cli;
 mod cli_errors;
+mod estimate;
 mod reconstruct;

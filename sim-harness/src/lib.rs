@@ -5,6 +5,7 @@
 pub mod capture;
 mod error;
 pub mod frame_files;
+pub mod model_builder;
 pub mod noise;
 pub mod pattern;
 pub mod placement_rig;
@@ -18,6 +19,7 @@ pub mod tray;
 
 pub use capture::{background_scene, noise_key};
 pub use error::{Error, Result};
+pub use model_builder::{build_model, model_points};
 pub use render::{Frame, Method, Simulator};
 pub use scenario::{draw_scenario, Scenario};
 pub use scene::SceneSpec;

@@ -1,7 +1,9 @@
 //! The subcommands and their flags; one module per subcommand.
 
 mod cell_args;
+mod estimate;
 mod init;
+mod model;
 mod reconstruct;
 mod render;
 
@@ -25,6 +27,10 @@ enum Command {
     Render(render::Args),
     /// Depth and point clouds from stereo frames (a dataset, one pair, or a rectified pair).
     Reconstruct(reconstruct::Args),
+    /// Build the tray model at a placement in simulation.
+    Model(model::Args),
+    /// Estimate the tray's pose in a recorded dataset or one point cloud.
+    Estimate(estimate::Args),
 }
 
 /// Parses the command line and runs the subcommand.
@@ -34,5 +40,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Init(a) => init::run(a),
         Command::Render(a) => render::run(a),
         Command::Reconstruct(a) => reconstruct::run(a),
+        Command::Model(a) => model::run(a),
+        Command::Estimate(a) => estimate::run(a),
     }
 }

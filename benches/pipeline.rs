@@ -1,0 +1,34 @@
+//! Bench of the whole deployed pipeline, camera to pose: one rendered one-shot stereo frame
+//! at the paper's optimum, with the model built at that placement.
+
+use std::hint::black_box;
+
+use camplace_config::Cell;
+use camplace_estimator::{Estimator, PoseEstimate};
+use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
+use criterion::Criterion;
+
+/// Registers the pipeline bench.
+pub fn benches(c: &mut Criterion) {
+    let cell = Cell::default();
+    let placement = cell.placement.with_overrides("r=605,alpha=32,baseline=81,vergence=3.5").expect("valid placement");
+    let seed = 1;
+    let model = build_model(&cell, &placement, Method::OneShot, seed).expect("the model builds");
+    let mut sim = Simulator::new(&cell, &placement, seed).expect("the sensor builds");
+    let mut background = Frame::default();
+    sim.render(&background_scene(&cell, seed), Method::OneShot, noise_key(seed, 0, true), &mut background);
+    let mut frame = Frame::default();
+    sim.render(&draw_scenario(&cell, seed, 2).scene(), Method::OneShot, noise_key(seed, 2, false), &mut frame);
+    let mut estimator = Estimator::new(&cell, sim.rig(), model, Method::OneShot).expect("the estimator builds");
+    estimator.set_background(&background.left, &background.right).expect("the background reconstructs");
+    let mut pose = PoseEstimate::default();
+    estimator.process(&frame.left, &frame.right, &mut pose).expect("the frame is valid");
+    eprintln!("pipeline: found {}, {} inliers, stages {:?}", pose.found, pose.inliers, pose.timings);
+
+    let mut group = c.benchmark_group("pipeline");
+    group.sample_size(10);
+    group.bench_function("one_shot_frame", |b| {
+        b.iter(|| estimator.process(black_box(&frame.left), black_box(&frame.right), &mut pose).expect("valid"))
+    });
+    group.finish();
+}

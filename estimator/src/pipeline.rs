@@ -1,0 +1,328 @@
+//! The deployed pipeline (DESIGN.md §5): every stage joined, from a stereo frame (or a world
+//! cloud) to the tray's pose, with its timings. It owns the buffers of all stages; the stages
+//! themselves live in their own modules.
+//!
+//! Allocation policy: `Estimator::new` sizes every buffer for a full camera frame; a frame
+//! larger than any seen before may grow one once, after which `process` allocates nothing.
+
+use std::time::Instant;
+
+use camplace_config::{Cell, EstimatorParams};
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+
+use crate::normals::MIN_NEIGHBOURS;
+use crate::{
+    Correspondence, Descriptor, Downsampler, Ecsad, Error, ErrorKind, FeatureMatcher, GrayImage, Icp, IcpResult,
+    KeypointSelector, Method, Model, Neighbours, NormalEstimator, Ransac, RansacResult, Reconstruction, Reconstructor,
+    Result, Rig,
+};
+
+/// Time spent in each stage of the last frame, ms (zero for stages a frame skipped).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StageTimings {
+    /// Rectification of the raw shots.
+    pub rectify_ms: f64,
+    /// Disparity: one-shot stereo or 12-shot phase decoding.
+    pub disparity_ms: f64,
+    /// Disparity to world cloud with background removal.
+    pub cloud_ms: f64,
+    /// Voxel down-sampling to the surface resolution.
+    pub downsample_ms: f64,
+    /// Neighbour grid and PCA normals.
+    pub normals_ms: f64,
+    /// Key points and ECSAD descriptors.
+    pub features_ms: f64,
+    /// k-NN descriptor matching with the height filter.
+    pub matching_ms: f64,
+    /// Prerejective RANSAC.
+    pub ransac_ms: f64,
+    /// Point-to-plane ICP.
+    pub icp_ms: f64,
+    /// The whole frame.
+    pub total_ms: f64,
+}
+
+/// The pose of one frame, filled in place by [`Estimator::process`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseEstimate {
+    /// Whether a pose passed RANSAC's checks; when false the pose is meaningless.
+    pub found: bool,
+    /// Tray frame -> world frame, after ICP.
+    pub t_world_tray: Isometry3<f64>,
+    /// RANSAC inliers of the closest view's ICP cloud.
+    pub inliers: u32,
+    /// Per-stage time of this frame.
+    pub timings: StageTimings,
+    /// The coarse pose and its counts, for diagnosis.
+    pub ransac: RansacResult,
+    /// The refinement's counts, for diagnosis.
+    pub icp: IcpResult,
+    /// Points of the down-sampled scene cloud.
+    pub scene_points: u32,
+    /// Scene key points described.
+    pub keypoints: u32,
+    /// Matches that survived the height filter.
+    pub matches: u32,
+}
+
+impl Default for PoseEstimate {
+    fn default() -> Self {
+        PoseEstimate {
+            found: false,
+            t_world_tray: Isometry3::identity(),
+            inliers: 0,
+            timings: StageTimings::default(),
+            ransac: RansacResult::default(),
+            icp: IcpResult::default(),
+            scene_points: 0,
+            keypoints: 0,
+            matches: 0,
+        }
+    }
+}
+
+/// The stages after reconstruction, with their buffers; apart from the reconstructor so a
+/// frame's cloud can be borrowed from it while these run.
+struct Stages {
+    params: EstimatorParams,
+    model: Model,
+    sensor_position: Point3<f32>,
+    downsampler: Downsampler,
+    cloud: Vec<Point3<f32>>,
+    neighbours: Neighbours,
+    normal_estimator: NormalEstimator,
+    normals: Vec<Vector3<f32>>,
+    selector: KeypointSelector,
+    keypoints: Vec<u32>,
+    keypoint_points: Vec<Point3<f32>>,
+    heights: Vec<f32>,
+    ecsad: Ecsad,
+    descriptors: Vec<Descriptor>,
+    matcher: FeatureMatcher,
+    correspondences: Vec<Correspondence>,
+    ransac: Ransac,
+    icp: Icp,
+}
+
+/// The tray-pose estimator of one rig and model, with every buffer it needs.
+pub struct Estimator {
+    reconstructor: Reconstructor,
+    reconstruction: Reconstruction,
+    stages: Stages,
+}
+
+impl std::fmt::Debug for Estimator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Estimator")
+            .field("method", &self.reconstructor.method())
+            .field("features", &self.stages.model.feature_points.len())
+            .field("views", &self.stages.model.views.len())
+            .finish()
+    }
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+impl Estimator {
+    /// The estimator for `rig` and `model` with the cell's settings; allocates every buffer.
+    pub fn new(cell: &Cell, rig: &Rig, model: Model, method: Method) -> Result<Estimator> {
+        model.validate()?;
+        if model.feature_points.is_empty() {
+            return Err(Error::new(ErrorKind::Model, "model: expected at least one feature"));
+        }
+        let params = cell.estimator.clone();
+        let reconstructor = Reconstructor::new(cell, rig, method)?;
+        let cam = &reconstructor.rectification().camera;
+        let (w, h) = (cam.width, cam.height);
+        let sensor_position = Point3::from(cam.t_world_rectified.translation.vector.cast::<f32>());
+        let pixels = w * h;
+        // Key points are at most one per key-point voxel of the SRes cloud: a generous share.
+        let keypoints = (pixels / 16).max(1024);
+        let k = params.k as usize;
+        let heights: Vec<f32> = model.feature_points.iter().map(|p| p.z).collect();
+        let matcher = FeatureMatcher::new(&model.descriptors, &heights)?;
+        let reconstruction = Reconstruction {
+            cloud: crate::Cloud::with_capacity(w, h),
+            disparity: crate::FloatImage::new(w, h, f32::INFINITY),
+            ..Reconstruction::default()
+        };
+        let stages = Stages {
+            normal_estimator: NormalEstimator::new(params.normal_radius as f32, MIN_NEIGHBOURS)?,
+            ecsad: Ecsad::new(params.feature_radius as f32)?,
+            ransac: Ransac::new(&params, &model)?,
+            icp: Icp::new(&params, &model)?,
+            matcher,
+            sensor_position,
+            downsampler: Downsampler::with_capacity(pixels),
+            cloud: Vec::with_capacity(pixels),
+            neighbours: Neighbours::with_capacity(pixels),
+            normals: Vec::with_capacity(pixels),
+            selector: KeypointSelector::new(),
+            keypoints: Vec::with_capacity(keypoints),
+            keypoint_points: Vec::with_capacity(keypoints),
+            heights: Vec::with_capacity(keypoints),
+            descriptors: Vec::with_capacity(keypoints),
+            correspondences: Vec::with_capacity(keypoints * k),
+            params,
+            model,
+        };
+        Ok(Estimator { reconstructor, reconstruction, stages })
+    }
+
+    /// Captures the background (the cell without tray) used to clean every later frame.
+    pub fn set_background(&mut self, left: &[GrayImage], right: &[GrayImage]) -> Result<()> {
+        self.reconstructor.set_background(left, right)
+    }
+
+    /// Estimates the tray's pose from one stereo frame (one or twelve shots per side).
+    /// A frame without a recognisable tray gives `out.found = false`, not an error.
+    pub fn process(&mut self, left: &[GrayImage], right: &[GrayImage], out: &mut PoseEstimate) -> Result<()> {
+        let start = Instant::now();
+        self.reconstructor.process(left, right, &mut self.reconstruction)?;
+        let r = self.reconstruction.timings;
+        self.stages.run(&self.reconstruction.cloud.points, out)?;
+        out.timings.rectify_ms = r.rectify_ms;
+        out.timings.disparity_ms = r.disparity_ms;
+        out.timings.cloud_ms = r.cloud_ms;
+        out.timings.total_ms = ms(start);
+        Ok(())
+    }
+
+    /// Estimates the tray's pose from a world cloud (mm) seen from the rig's sensor.
+    pub fn process_cloud(&mut self, points: &[Point3<f32>], out: &mut PoseEstimate) -> Result<()> {
+        let start = Instant::now();
+        self.stages.run(points, out)?;
+        out.timings.total_ms = ms(start);
+        Ok(())
+    }
+
+    /// The model it matches against.
+    pub fn model(&self) -> &Model {
+        &self.stages.model
+    }
+
+    /// The sensor position used to orient normals and pick views (the rectified left
+    /// camera's centre), world mm.
+    pub fn sensor_position(&self) -> Point3<f32> {
+        self.stages.sensor_position
+    }
+
+    /// The reconstruction of the last stereo frame (disparity, world cloud).
+    pub fn reconstruction(&self) -> &Reconstruction {
+        &self.reconstruction
+    }
+
+    /// The last frame's down-sampled scene cloud, world mm.
+    pub fn scene_cloud(&self) -> &[Point3<f32>] {
+        &self.stages.cloud
+    }
+
+    /// The last frame's scene key points, world mm (indexed by `Correspondence::scene`).
+    pub fn scene_keypoints(&self) -> &[Point3<f32>] {
+        &self.stages.keypoint_points
+    }
+
+    /// The last frame's feature matches after the height filter.
+    pub fn correspondences(&self) -> &[Correspondence] {
+        &self.stages.correspondences
+    }
+}
+
+impl Stages {
+    fn run(&mut self, points: &[Point3<f32>], out: &mut PoseEstimate) -> Result<()> {
+        let p = &self.params;
+        *out = PoseEstimate::default();
+        self.keypoints.clear();
+        self.keypoint_points.clear();
+        self.correspondences.clear();
+
+        let t = Instant::now();
+        self.downsampler.downsample(points, p.surface_resolution as f32, &mut self.cloud)?;
+        out.timings.downsample_ms = ms(t);
+        out.scene_points = self.cloud.len() as u32;
+
+        let t = Instant::now();
+        self.neighbours.build(&self.cloud, p.normal_radius as f32)?;
+        self.normal_estimator.compute(&self.cloud, &self.neighbours, &self.sensor_position, &mut self.normals);
+        out.timings.normals_ms = ms(t);
+
+        let t = Instant::now();
+        self.selector.select(&self.cloud, &self.normals, p.keypoint_spacing as f32, &mut self.keypoints)?;
+        self.neighbours.build(&self.cloud, p.feature_radius as f32 / 2.0)?;
+        self.ecsad.compute(&self.cloud, &self.normals, &self.neighbours, &self.keypoints, &mut self.descriptors)?;
+        self.keypoint_points.extend(self.keypoints.iter().map(|&i| self.cloud[i as usize]));
+        self.heights.clear();
+        // The table is z = 0 in the world and the tray's bottom is z = 0 in its frame, so
+        // world z and tray-frame z are both heights above the table.
+        self.heights.extend(self.keypoint_points.iter().map(|q| q.z));
+        out.timings.features_ms = ms(t);
+        out.keypoints = self.keypoints.len() as u32;
+
+        let t = Instant::now();
+        self.matcher.match_into(
+            &self.descriptors,
+            &self.heights,
+            p.k as usize,
+            p.height_band as f32,
+            &mut self.correspondences,
+        )?;
+        out.timings.matching_ms = ms(t);
+        out.matches = self.correspondences.len() as u32;
+
+        let t = Instant::now();
+        let found = self.ransac.estimate(
+            &self.cloud,
+            &self.keypoint_points,
+            &self.correspondences,
+            &self.model,
+            &self.sensor_position,
+            &mut out.ransac,
+        )?;
+        out.timings.ransac_ms = ms(t);
+        if !found {
+            return Ok(());
+        }
+
+        let t = Instant::now();
+        let coarse = out.ransac.t_world_tray;
+        let view = self.model.closest_view(&coarse, &self.sensor_position);
+        let mut refined =
+            self.icp.refine(&self.cloud, &self.model, view, &self.sensor_position, &coarse, &mut out.icp)?;
+        // A rectangular tray is nearly symmetric under a half turn about its z axis: only a
+        // small feature (a chamfer, a tab) tells the two apart, and RANSAC's inlier count
+        // often cannot. Refining the half-turned pose too and keeping the one with more
+        // close pairs lets the whole surface, that feature included, decide.
+        let start = if refined { out.icp.t_world_tray } else { coarse };
+        let turned = start * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI);
+        let turned_view = self.model.closest_view(&turned, &self.sensor_position);
+        let mut other = IcpResult::default();
+        let other_refined =
+            self.icp.refine(&self.cloud, &self.model, turned_view, &self.sensor_position, &turned, &mut other)?;
+        if other_refined && better(&other, &out.icp, refined) {
+            out.icp = other;
+            refined = true;
+        }
+        out.timings.icp_ms = ms(t);
+        out.found = true;
+        out.inliers = out.ransac.inliers;
+        out.t_world_tray = if refined { out.icp.t_world_tray } else { coarse };
+        Ok(())
+    }
+}
+
+/// Whether refinement `a` fits the scene better than `b`: more pairs within reach, then a
+/// smaller residual.
+fn better(a: &IcpResult, b: &IcpResult, b_refined: bool) -> bool {
+    if !b_refined {
+        return true;
+    }
+    // Pair counts within a hundredth of each other are a tie the residual breaks.
+    let tie = a.correspondences.abs_diff(b.correspondences) * 100 <= a.correspondences.max(b.correspondences);
+    if tie {
+        a.rms_mm < b.rms_mm
+    } else {
+        a.correspondences > b.correspondences
+    }
+}

@@ -1,0 +1,199 @@
+//! Builds the tray model the estimator loads, after the paper §3: the tray alone, turned
+//! about z in 60° steps, each turn captured full and then with the item closest to the
+//! sensor removed until empty, every capture rendered and reconstructed by the very sensor
+//! and estimator stages of the placement. The file format is the estimator's.
+
+use camplace_config::{Cell, Placement};
+use camplace_estimator::normals::MIN_NEIGHBOURS;
+use camplace_estimator::{
+    Descriptor, Downsampler, Ecsad, KeypointSelector, Method, Model, ModelView, Neighbours, NormalEstimator,
+    Reconstruction, Reconstructor,
+};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use rayon::prelude::*;
+
+use crate::capture::noise_key;
+use crate::render::{Frame, Simulator};
+use crate::scene::SceneSpec;
+use crate::{Error, Result};
+
+/// Turns of the tray about z, 360° / VIEWPOINTS apart.
+pub const VIEWPOINTS: usize = 6;
+
+/// Margin around the tray and its items kept in a capture, mm (the sensor's depth noise and
+/// a voxel's reach).
+const CROP_MARGIN_MM: f32 = 4.0;
+
+/// Noise keys of model captures sit far from a study's scenario indices.
+const MODEL_NOISE_OFFSET: u64 = 1 << 40;
+
+/// One capture's contribution: its features and its down-sampled cloud, tray frame.
+struct Capture {
+    points: Vec<Point3<f32>>,
+    normals: Vec<Vector3<f32>>,
+    descriptors: Vec<Descriptor>,
+    cloud: Vec<Point3<f32>>,
+}
+
+/// The tray model of `cell`'s tray seen by the sensor at `placement` with `method`; `seed`
+/// draws the one-shot pattern and the camera noise.
+pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64) -> Result<Model> {
+    let probe = Simulator::new(cell, placement, seed)?;
+    let slots = probe.objects().tray.slots.len();
+    let reconstructor = Reconstructor::new(cell, probe.rig(), method)?;
+    let sensor_world = reconstructor.rectification().camera.t_world_rectified.translation.vector;
+    let sensor_world = Point3::from(sensor_world);
+    let light = &cell.lighting;
+    let mid = |[lo, hi]: [f64; 2]| 0.5 * (lo + hi);
+    // A plain, even light: the model should hold the tray's shape, not one scene's shadows.
+    let base = SceneSpec {
+        t_world_tray: Isometry3::identity(),
+        filled: Vec::new(),
+        table: false,
+        tray: true,
+        ambient: mid(light.ambient),
+        lamp_strength: mid(light.lamp_strength),
+        lamp_position: Point3::new(0.0, 0.0, light.lamp_distance),
+    };
+    let poses: Vec<Isometry3<f64>> = (0..VIEWPOINTS)
+        .map(|v| {
+            let yaw = (v as f64 * 360.0 / VIEWPOINTS as f64).to_radians();
+            Isometry3::from_parts(Translation3::identity(), UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw))
+        })
+        .collect();
+    // Per viewpoint, the slots in the order their items are taken out: closest to the sensor first.
+    let removal: Vec<Vec<usize>> = poses
+        .iter()
+        .map(|pose| {
+            let mut order: Vec<(usize, f64)> = (0..slots)
+                .filter_map(|n| probe.objects().tray.slot_pose(n).map(|s| (n, s)))
+                .map(|(n, s)| (n, ((pose * s).translation.vector - sensor_world.coords).norm()))
+                .collect();
+            order.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+            order.into_iter().map(|(n, _)| n).collect()
+        })
+        .collect();
+    let states = slots + 1;
+    let params = &cell.estimator;
+    // Without a table the stereo matcher may still fill the empty background with surfaces
+    // interpolated across gaps; only what lies on the tray and its items belongs to the model.
+    let (lo, hi) = tray_bounds(probe.objects(), slots, CROP_MARGIN_MM);
+    let captures: Vec<Capture> = (0..VIEWPOINTS * states)
+        .into_par_iter()
+        .map_init(
+            || {
+                let sim = Simulator::new(cell, placement, seed);
+                let rec = Reconstructor::new(cell, probe.rig(), method);
+                (sim, rec, Frame::default(), Reconstruction::default())
+            },
+            |(sim, rec, frame, reconstruction), index| -> Result<Capture> {
+                let sim = sim.as_mut().map_err(|e| Error::Other(e.to_string()))?;
+                let rec = rec.as_mut().map_err(|e| Error::Other(e.to_string()))?;
+                let (v, state) = (index / states, index % states);
+                let mut filled: Vec<usize> = removal[v][state..].to_vec();
+                filled.sort_unstable();
+                let scene = SceneSpec { t_world_tray: poses[v], filled, ..base.clone() };
+                sim.render(&scene, method, noise_key(seed, MODEL_NOISE_OFFSET + index as u64, false), frame);
+                rec.process(&frame.left, &frame.right, reconstruction)?;
+                let to_tray = poses[v].inverse().cast::<f32>();
+                let raw: Vec<Point3<f32>> = reconstruction
+                    .cloud
+                    .points
+                    .iter()
+                    .map(|p| to_tray * p)
+                    .filter(|q| (0..3).all(|a| q[a] >= lo[a] && q[a] <= hi[a]))
+                    .collect();
+                let eye = (poses[v].inverse() * sensor_world).cast::<f32>();
+                describe(params, &raw, &eye)
+            },
+        )
+        .collect::<Result<_>>()?;
+
+    let mut model = Model {
+        surface_resolution: params.surface_resolution as f32,
+        symmetries_deg: cell.tray.symmetries.iter().map(|&s| s as f32).collect(),
+        ..Model::default()
+    };
+    for c in &captures {
+        model.feature_points.extend_from_slice(&c.points);
+        model.feature_normals.extend_from_slice(&c.normals);
+        model.descriptors.extend_from_slice(&c.descriptors);
+    }
+    let sres = params.surface_resolution as f32;
+    let normal_estimator = NormalEstimator::new(params.normal_radius as f32, MIN_NEIGHBOURS)?;
+    model.views = poses
+        .par_iter()
+        .enumerate()
+        .map(|(v, pose)| -> Result<ModelView> {
+            let merged: Vec<Point3<f32>> =
+                captures[v * states..(v + 1) * states].iter().flat_map(|c| c.cloud.iter().copied()).collect();
+            let mut points = Vec::new();
+            Downsampler::new().downsample(&merged, sres, &mut points)?;
+            let eye = (pose.inverse() * sensor_world).cast::<f32>();
+            let mut grid = Neighbours::new();
+            grid.build(&points, params.normal_radius as f32)?;
+            let mut normals = Vec::new();
+            normal_estimator.compute(&points, &grid, &eye, &mut normals);
+            // ICP planes need a normal: points where none could be fitted are left out.
+            let (points, normals): (Vec<_>, Vec<_>) =
+                points.into_iter().zip(normals).filter(|(_, n)| camplace_estimator::normals::is_valid(n)).unzip();
+            Ok(ModelView { view_direction: eye.coords.normalize(), points, normals })
+        })
+        .collect::<Result<_>>()?;
+    model.validate()?;
+    if model.feature_points.is_empty() {
+        return Err(Error::Other(
+            "model: the sensor saw no tray features at this placement (is the tray in view?)".to_string(),
+        ));
+    }
+    Ok(model)
+}
+
+/// Bounding box, tray frame, of the tray with every slot filled, grown by `margin` mm.
+fn tray_bounds(objects: &crate::scene::Objects, slots: usize, margin: f32) -> (Point3<f32>, Point3<f32>) {
+    let spec = SceneSpec {
+        t_world_tray: Isometry3::identity(),
+        filled: (0..slots).collect(),
+        table: false,
+        tray: true,
+        ambient: 0.0,
+        lamp_strength: 0.0,
+        lamp_position: Point3::origin(),
+    };
+    let mut triangles = Vec::new();
+    objects.triangles(&spec, &mut triangles);
+    let mut lo = Point3::from(Vector3::repeat(f32::INFINITY));
+    let mut hi = Point3::from(Vector3::repeat(f32::NEG_INFINITY));
+    for v in triangles.iter().flat_map(|t| t.vertices) {
+        let v = v.cast::<f32>();
+        lo = lo.inf(&v);
+        hi = hi.sup(&v);
+    }
+    (lo - Vector3::repeat(margin), hi + Vector3::repeat(margin))
+}
+
+/// Down-samples one tray-frame capture and describes its key points.
+fn describe(params: &camplace_config::EstimatorParams, raw: &[Point3<f32>], eye: &Point3<f32>) -> Result<Capture> {
+    let mut cloud = Vec::new();
+    Downsampler::new().downsample(raw, params.surface_resolution as f32, &mut cloud)?;
+    let mut grid = Neighbours::new();
+    grid.build(&cloud, params.normal_radius as f32)?;
+    let mut normals = Vec::new();
+    NormalEstimator::new(params.normal_radius as f32, MIN_NEIGHBOURS)?.compute(&cloud, &grid, eye, &mut normals);
+    let mut keypoints = Vec::new();
+    KeypointSelector::new().select(&cloud, &normals, params.keypoint_spacing as f32, &mut keypoints)?;
+    grid.build(&cloud, params.feature_radius as f32 / 2.0)?;
+    let mut descriptors = Vec::new();
+    Ecsad::new(params.feature_radius as f32)?.compute(&cloud, &normals, &grid, &keypoints, &mut descriptors)?;
+    Ok(Capture {
+        points: keypoints.iter().map(|&i| cloud[i as usize]).collect(),
+        normals: keypoints.iter().map(|&i| normals[i as usize]).collect(),
+        descriptors,
+        cloud,
+    })
+}
+
+/// Every ICP point of the model, tray frame (what `model.ply` shows).
+pub fn model_points(model: &Model) -> Vec<[f32; 3]> {
+    model.views.iter().flat_map(|v| v.points.iter().map(|p| [p.x, p.y, p.z])).collect()
+}

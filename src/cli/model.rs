@@ -1,0 +1,49 @@
+//! `camplace model`: builds the tray model at a placement in simulation and writes it (and,
+//! on request, its ICP points as a PLY cloud).
+
+use anyhow::Context;
+use camplace_config::formats::{ply, write_atomic};
+use camplace_sim::{build_model, model_points, Method};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use super::cell_args::CellArgs;
+
+/// Flags of `camplace model`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    cell: CellArgs,
+    /// one-shot (random dots) or phase-12 (12 phase-shift fringes).
+    #[arg(long, default_value = "one-shot")]
+    method: Method,
+    /// Seed of the projected pattern and the camera noise (default: the cell's scenarios.seed).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// The model file to write.
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+    /// Also write every ICP point of the model (tray frame) as a PLY cloud.
+    #[arg(long, value_name = "FILE")]
+    ply: Option<PathBuf>,
+}
+
+/// Runs `camplace model`.
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let (cell, placement) = a.cell.load()?;
+    let seed = a.seed.unwrap_or(cell.scenarios.seed);
+    let model = build_model(&cell, &placement, a.method, seed)?;
+    write_atomic(&a.out, &model.to_bytes())?;
+    if let Some(path) = &a.ply {
+        ply::write_cloud(path, &model_points(&model), None).with_context(|| path.display().to_string())?;
+    }
+    let points: usize = model.views.iter().map(|v| v.points.len()).sum();
+    println!(
+        "model at {placement} ({}): {} features, {} views, {points} ICP points; wrote {}",
+        a.method,
+        model.feature_points.len(),
+        model.views.len(),
+        a.out.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}

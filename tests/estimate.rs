@@ -1,0 +1,81 @@
+//! End to end: the model built in simulation, scenes rendered with the study's scenarios, the
+//! estimator's poses scored against the truth; and frames without a tray, and a bad model
+//! file through the CLI.
+
+use camplace_config::Cell;
+use camplace_estimator::metrics::pose_errors;
+use camplace_estimator::{Estimator, PoseEstimate};
+use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
+
+use crate::cli::{camplace, stderr};
+
+const OPTIMUM: &str = "r=605,alpha=32,baseline=81,vergence=3.5";
+
+#[test]
+fn one_shot_at_the_optimum_finds_trays() {
+    let cell = Cell::default();
+    let placement = cell.placement.with_overrides(OPTIMUM).unwrap();
+    let seed = 1;
+    let model = build_model(&cell, &placement, Method::OneShot, seed).unwrap();
+    let symmetries = model.symmetries_deg.clone();
+    let mut sim = Simulator::new(&cell, &placement, seed).unwrap();
+    let mut frame = Frame::default();
+    sim.render(&background_scene(&cell, seed), Method::OneShot, noise_key(seed, 0, true), &mut frame);
+    let mut estimator = Estimator::new(&cell, sim.rig(), model, Method::OneShot).unwrap();
+    estimator.set_background(&frame.left, &frame.right).unwrap();
+    let mut pose = PoseEstimate::default();
+    let n = 10;
+    let mut successes = 0;
+    for i in 0..n {
+        let scenario = draw_scenario(&cell, seed, i);
+        sim.render(&scenario.scene(), Method::OneShot, noise_key(seed, i, false), &mut frame);
+        estimator.process(&frame.left, &frame.right, &mut pose).unwrap();
+        let errors = pose_errors(&pose.t_world_tray, &scenario.t_world_tray, &symmetries, &cell.metrics);
+        successes += usize::from(pose.found && errors.success);
+    }
+    // Measured: 4 of these 10 (7 of 50 scenes) with the default settings; the estimator is
+    // weak yet, so this guards against a broken pipeline, not for the paper's figures.
+    assert!(successes >= 2, "{successes} of {n} trays found within the success limits");
+}
+
+#[test]
+fn scenes_without_a_tray_give_no_error() {
+    let cell = Cell::default();
+    let placement = cell.placement.with_overrides(OPTIMUM).unwrap();
+    let seed = 2;
+    let model = build_model(&cell, &placement, Method::OneShot, seed).unwrap();
+    let mut sim = Simulator::new(&cell, &placement, seed).unwrap();
+    let mut frame = Frame::default();
+    let background = background_scene(&cell, seed);
+    sim.render(&background, Method::OneShot, noise_key(seed, 0, true), &mut frame);
+    let mut estimator = Estimator::new(&cell, sim.rig(), model, Method::OneShot).unwrap();
+    estimator.set_background(&frame.left, &frame.right).unwrap();
+    let mut pose = PoseEstimate::default();
+    // The background itself, freshly captured. Background removal leaves much of the table
+    // in a new capture, and a table patch can pass RANSAC's inlier share of a view (the
+    // tray's base plate is flat too), so a wrong pose is possible here; an error is not.
+    sim.render(&background, Method::OneShot, noise_key(seed, 1, true), &mut frame);
+    estimator.process(&frame.left, &frame.right, &mut pose).unwrap();
+    assert!(pose.t_world_tray.to_homogeneous().iter().all(|v| v.is_finite()), "{pose:?}");
+    // Without a background, the bare table is all the estimator sees.
+    let mut bare = Estimator::new(&cell, sim.rig(), estimator.model().clone(), Method::OneShot).unwrap();
+    bare.process(&frame.left, &frame.right, &mut pose).unwrap();
+    assert!(pose.t_world_tray.to_homogeneous().iter().all(|v| v.is_finite()), "{pose:?}");
+}
+
+#[test]
+fn a_corrupt_model_file_is_a_one_line_error() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.ply"), b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n").unwrap();
+    let mut bytes = b"CPLMODEL".to_vec();
+    bytes.extend_from_slice(&[1, 0, 0, 0, 255, 0, 0, 0, 0, 0, 0, 0, 1, 2, 3]);
+    std::fs::write(dir.path().join("tray.model"), &bytes).unwrap();
+    std::fs::write(dir.path().join("other.model"), b"not a model at all").unwrap();
+    for name in ["tray.model", "other.model", "missing.model"] {
+        let o = camplace(dir.path(), &["estimate", "--cloud", "scene.ply", "--model", name]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+        assert!(err.contains(name), "{name} missing from: {err}");
+    }
+}
