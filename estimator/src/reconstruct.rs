@@ -42,17 +42,12 @@ pub struct Reconstructor {
     decoder: Decoder,
     builder: CloudBuilder,
     background: Option<Background>,
-    reconstruction: ReconstructionSettings,
+    reconstruction: camplace_config::ReconstructionParams,
     raw_left: (usize, usize),
     raw_right: (usize, usize),
     rect_left: Vec<GrayImage>,
     rect_right: Vec<GrayImage>,
     scratch: FloatImage,
-}
-
-#[derive(Clone)]
-struct ReconstructionSettings {
-    params: camplace_config::ReconstructionParams,
 }
 
 impl Reconstructor {
@@ -77,7 +72,7 @@ impl Reconstructor {
             builder: CloudBuilder::new(cam, &cell.work_volume, &cell.reconstruction),
             decoder,
             background: None,
-            reconstruction: ReconstructionSettings { params: cell.reconstruction.clone() },
+            reconstruction: cell.reconstruction.clone(),
             raw_left: (rig.left.width, rig.left.height),
             raw_right: (rig.right.width, rig.right.height),
             rect_left: vec![GrayImage::new(w, h, 0); shots],
@@ -112,9 +107,8 @@ impl Reconstructor {
     pub fn set_background(&mut self, left: &[GrayImage], right: &[GrayImage]) -> Result<()> {
         let mut disparity = std::mem::take(&mut self.scratch);
         let result = self.disparity(left, right, &mut disparity, &mut ReconstructTimings::default());
-        let background = result.and_then(|_| {
-            Background::from_disparity(&self.rectification.camera, &disparity, &self.reconstruction.params)
-        });
+        let background = result
+            .and_then(|_| Background::from_disparity(&self.rectification.camera, &disparity, &self.reconstruction));
         self.scratch = disparity;
         self.background = Some(background?);
         Ok(())
