@@ -287,7 +287,8 @@ impl Stages {
 
         let t = Instant::now();
         let coarse = out.ransac.t_world_tray;
-        let view = self.model.closest_view(&coarse, &self.sensor_position);
+        // RANSAC scored the hypothesis against the view closest to the sensor under it.
+        let view = out.ransac.view;
         let mut refined =
             self.icp.refine(&self.cloud, &self.model, view, &self.sensor_position, &coarse, &mut out.icp)?;
         // A rectangular tray is nearly symmetric under a half turn about its z axis: only a

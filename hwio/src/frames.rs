@@ -63,7 +63,4 @@ pub trait FrameSource {
     fn shots(&self) -> usize;
 }
 
-/// The folder name of frame `index` (`7` -> `"0007"`).
-pub fn frame_name(index: u64) -> String {
-    format!("{index:04}")
-}
+pub use camplace_config::formats::dataset::frame_name;

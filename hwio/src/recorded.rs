@@ -160,14 +160,7 @@ impl FrameSource for RecordedSource {
     }
 }
 
-/// The file name of `side`'s shot `shot` in a recording of `shots` shots.
-pub fn image_name(side: &str, shot: usize, shots: usize) -> String {
-    if shots == 1 {
-        format!("{side}.png")
-    } else {
-        format!("{side}_{shot:02}.png")
-    }
-}
+pub use camplace_config::formats::dataset::image_name;
 
 /// One shot when `left.png` is there, else as many as consecutive `left_NN.png` from 00.
 fn detect_shots(dir: &Path) -> Result<usize> {

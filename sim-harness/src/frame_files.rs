@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use camplace_config::formats::dataset::{frame_name, image_name};
 use camplace_config::formats::{pfm, png};
 use camplace_config::{LightingTruth, Placement, TruthFile};
 use camplace_estimator::camera::isometry_to_rows;
@@ -13,26 +14,12 @@ use crate::render::{Frame, Method};
 use crate::scenario::Scenario;
 use crate::Result;
 
-/// Name of a frame folder inside `frames/`.
-pub fn frame_dir_name(index: u64) -> String {
-    format!("{index:04}")
-}
-
-/// Names of the camera images of one side: `left.png` or `left_00.png` ... `left_11.png`.
-pub fn image_names(side: &str, shots: usize) -> Vec<String> {
-    if shots == 1 {
-        vec![format!("{side}.png")]
-    } else {
-        (0..shots).map(|i| format!("{side}_{i:02}.png")).collect()
-    }
-}
-
 /// Writes the camera images of a frame (and nothing else) into `dir`.
 pub fn write_images(dir: &Path, frame: &Frame) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| camplace_config::Error::io(dir, &e))?;
     for (side, images) in [("left", &frame.left), ("right", &frame.right)] {
-        for (name, img) in image_names(side, images.len()).iter().zip(images.iter()) {
-            write_gray(&dir.join(name), img)?;
+        for (shot, img) in images.iter().enumerate() {
+            write_gray(&dir.join(image_name(side, shot, images.len())), img)?;
         }
     }
     Ok(())
@@ -101,7 +88,7 @@ impl DatasetLayout {
     }
     /// `frames/NNNN/`.
     pub fn frame(&self, index: u64) -> PathBuf {
-        self.root.join("frames").join(frame_dir_name(index))
+        self.root.join("frames").join(frame_name(index))
     }
 }
 
