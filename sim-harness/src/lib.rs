@@ -15,6 +15,7 @@ pub mod scenario;
 pub mod scene;
 pub mod search;
 pub mod shade;
+pub mod study;
 pub mod tray;
 
 pub use capture::{background_scene, noise_key};

@@ -4,12 +4,11 @@
 use anyhow::{bail, Context};
 use camplace_config::formats::{ply, write_atomic};
 use camplace_config::{RigFile, TruthFile};
-use camplace_estimator::camera::{isometry_from_rows, isometry_to_rows};
-use camplace_estimator::metrics::{correct_matches, pose_errors};
-use camplace_estimator::{Estimator, Method, Model, PoseEstimate, Rig, StageTimings};
+use camplace_estimator::camera::isometry_from_rows;
+use camplace_estimator::{Estimator, Method, Model, PoseEstimate, Rig};
 use camplace_hwio::{FrameSource, Frames, RecordedSource};
+use camplace_sim::study::{score, FrameRecord, Summary};
 use nalgebra::Point3;
-use serde_json::{json, Map, Value};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -51,7 +50,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let mut estimator = Estimator::new(&cell, &rig, model, Method::OneShot)?;
     let mut pose = PoseEstimate::default();
     estimator.process_cloud(&points, &mut pose).with_context(|| path.display().to_string())?;
-    println!("{}", Value::Object(pose_line(&pose)));
+    println!("{}", FrameRecord::new(path.display().to_string(), &pose).to_line());
     Ok(ExitCode::SUCCESS)
 }
 
@@ -71,86 +70,28 @@ fn dataset(cell: &camplace_config::Cell, model: Model, dir: &Path) -> anyhow::Re
         estimator.set_background(&frames.left, &frames.right).context("background")?;
     }
     let mut lines = String::new();
+    let mut records = Vec::with_capacity(source.frame_dirs().len());
     let mut pose = PoseEstimate::default();
-    let (mut scored, mut successes) = (0usize, 0usize);
-    let mut frame_ms = Vec::with_capacity(source.frame_dirs().len());
     for i in 0..source.frame_dirs().len() {
         let info = source.read_into(i, &mut frames)?;
         estimator.process(&frames.left, &frames.right, &mut pose).with_context(|| format!("frame {}", info.name))?;
-        frame_ms.push(pose.timings.total_ms);
-        let mut line = Map::new();
-        line.insert("frame".into(), json!(info.name));
-        line.extend(pose_line(&pose));
+        let mut record = FrameRecord::new(info.name.clone(), &pose);
         if let Some(path) = source.truth_path(i) {
             let truth = TruthFile::load(&path)?;
-            let t = isometry_from_rows(&truth.t_world_tray);
             let symmetries: Vec<f32> = truth.symmetries.iter().map(|&s| s as f32).collect();
-            let errors = pose_errors(&pose.t_world_tray, &t, &symmetries, &cell.metrics);
-            let success = pose.found && errors.success;
-            let correct = correct_matches(
-                estimator.scene_keypoints(),
-                &estimator.model().feature_points,
-                estimator.correspondences(),
-                &t,
-                &symmetries,
-                cell.metrics.correct_match,
-            );
-            line.insert("position_error_mm".into(), json!(errors.position_mm));
-            line.insert("rotation_error_deg".into(), json!(errors.rotation_deg));
-            line.insert("correct_matches".into(), json!(correct));
-            line.insert("success".into(), json!(success));
-            scored += 1;
-            successes += usize::from(success);
+            let t = isometry_from_rows(&truth.t_world_tray);
+            record.score = Some(score(&pose, &estimator, &t, &symmetries, &cell.metrics));
         }
-        lines.push_str(&Value::Object(line).to_string());
+        lines.push_str(&record.to_line());
         lines.push('\n');
+        records.push(record);
+    }
+    if records.is_empty() {
+        bail!("{}: the dataset has no frames", dir.display());
     }
     let out = dir.join("poses.jsonl");
     write_atomic(&out, lines.as_bytes())?;
-    let n = frame_ms.len();
-    if n == 0 {
-        bail!("{}: the dataset has no frames", dir.display());
-    }
-    frame_ms.sort_by(f64::total_cmp);
-    let rate = if scored > 0 { format!("{:.1} %", 100.0 * successes as f64 / scored as f64) } else { "n/a".into() };
-    println!(
-        "{n} frames ({method}), success {rate} ({successes} of {scored} with truth), median {:.1} ms per frame; wrote {}",
-        frame_ms[n / 2],
-        out.display()
-    );
+    let summary = Summary::from_records(&records);
+    println!("{} frames ({method}): {}; wrote {}", records.len(), summary.line(), out.display());
     Ok(ExitCode::SUCCESS)
-}
-
-/// The fields every pose line carries.
-fn pose_line(pose: &PoseEstimate) -> Map<String, Value> {
-    let StageTimings {
-        rectify_ms,
-        disparity_ms,
-        cloud_ms,
-        downsample_ms,
-        normals_ms,
-        features_ms,
-        matching_ms,
-        ransac_ms,
-        icp_ms,
-        total_ms,
-    } = pose.timings;
-    let mut m = Map::new();
-    m.insert("T_world_tray".into(), json!(isometry_to_rows(&pose.t_world_tray)));
-    m.insert("found".into(), json!(pose.found));
-    m.insert("inliers".into(), json!(pose.inliers));
-    m.insert("scene_points".into(), json!(pose.scene_points));
-    m.insert("keypoints".into(), json!(pose.keypoints));
-    m.insert("matches".into(), json!(pose.matches));
-    m.insert("icp_iterations".into(), json!(pose.icp.iterations));
-    m.insert(
-        "timings_ms".into(),
-        json!({
-            "rectify": rectify_ms, "disparity": disparity_ms, "cloud": cloud_ms,
-            "downsample": downsample_ms, "normals": normals_ms, "features": features_ms,
-            "matching": matching_ms, "ransac": ransac_ms, "icp": icp_ms,
-        }),
-    );
-    m.insert("ms".into(), json!(total_ms));
-    m
 }

@@ -1,0 +1,13 @@
+//! The placement study's common ground: what one frame's result is ([`FrameRecord`]), how it
+//! is scored against the truth ([`score`]), how results of many scenes are summed up
+//! ([`Summary`], with a Wilson interval), and how one placement's scenes are run
+//! ([`Evaluator`]). `estimate`, `replay`, `run` and `evaluate` all write and read these, so a
+//! rendered dataset replayed gives exactly the numbers its evaluation gave.
+
+mod evaluate;
+mod record;
+mod summary;
+
+pub use evaluate::Evaluator;
+pub use record::{score, FrameRecord, Score, Timings};
+pub use summary::{median, wilson_interval, Summary};

@@ -1,0 +1,178 @@
+//! One frame's result as a JSON line: the pose, the counts of each stage, the stage timings
+//! and, where the truth is known, the paper's metrics.
+
+use camplace_config::Metrics;
+use camplace_estimator::camera::isometry_to_rows;
+use camplace_estimator::metrics::{correct_matches, pose_errors};
+use camplace_estimator::{Estimator, PoseEstimate, StageTimings};
+use nalgebra::Isometry3;
+use serde::{Deserialize, Serialize};
+
+/// Time spent in each stage of one frame, ms.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Timings {
+    /// Rectification of the raw shots.
+    pub rectify: f64,
+    /// One-shot stereo or 12-shot phase decoding.
+    pub disparity: f64,
+    /// Disparity to world cloud with background removal.
+    pub cloud: f64,
+    /// Voxel down-sampling.
+    pub downsample: f64,
+    /// Normals.
+    pub normals: f64,
+    /// Key points and descriptors.
+    pub features: f64,
+    /// Descriptor matching.
+    pub matching: f64,
+    /// Prerejective RANSAC.
+    pub ransac: f64,
+    /// ICP.
+    pub icp: f64,
+}
+
+impl From<&StageTimings> for Timings {
+    fn from(t: &StageTimings) -> Self {
+        Timings {
+            rectify: t.rectify_ms,
+            disparity: t.disparity_ms,
+            cloud: t.cloud_ms,
+            downsample: t.downsample_ms,
+            normals: t.normals_ms,
+            features: t.features_ms,
+            matching: t.matching_ms,
+            ransac: t.ransac_ms,
+            icp: t.icp_ms,
+        }
+    }
+}
+
+impl Timings {
+    /// The stages by name, in pipeline order.
+    pub fn named(&self) -> [(&'static str, f64); 9] {
+        [
+            ("rectify", self.rectify),
+            ("disparity", self.disparity),
+            ("cloud", self.cloud),
+            ("downsample", self.downsample),
+            ("normals", self.normals),
+            ("features", self.features),
+            ("matching", self.matching),
+            ("ransac", self.ransac),
+            ("icp", self.icp),
+        ]
+    }
+}
+
+/// A pose scored against the truth with the paper's metrics.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Score {
+    /// Distance between the estimated and true tray origins, mm.
+    pub position_error_mm: f64,
+    /// Symmetry-aware geodesic rotation error, deg.
+    pub rotation_error_deg: f64,
+    /// Matches whose model feature lies within the correct-match distance of its scene key
+    /// point under the true pose.
+    pub correct_matches: u32,
+    /// A pose was found, and it is within the success limits.
+    pub success: bool,
+}
+
+/// Scores the estimator's last frame against `truth` (`T_world_tray`) with the tray's
+/// symmetries (turns about tray z, deg).
+pub fn score(
+    pose: &PoseEstimate,
+    estimator: &Estimator,
+    truth: &Isometry3<f64>,
+    symmetries_deg: &[f32],
+    metrics: &Metrics,
+) -> Score {
+    let errors = pose_errors(&pose.t_world_tray, truth, symmetries_deg, metrics);
+    let correct = correct_matches(
+        estimator.scene_keypoints(),
+        &estimator.model().feature_points,
+        estimator.correspondences(),
+        truth,
+        symmetries_deg,
+        metrics.correct_match,
+    );
+    Score {
+        position_error_mm: errors.position_mm,
+        rotation_error_deg: errors.rotation_deg,
+        correct_matches: correct,
+        success: pose.found && errors.success,
+    }
+}
+
+/// One frame's line in `poses.jsonl` and `results.jsonl`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FrameRecord {
+    /// The frame's folder name in a dataset, or the scenario index in a study.
+    pub frame: String,
+    /// Tray frame -> world frame, row-major 4x4 (meaningless when not `found`).
+    #[serde(rename = "T_world_tray")]
+    pub t_world_tray: [[f64; 4]; 4],
+    /// Whether a pose passed RANSAC's checks.
+    pub found: bool,
+    /// RANSAC inliers of the closest view.
+    pub inliers: u32,
+    /// Points of the down-sampled scene cloud.
+    pub scene_points: u32,
+    /// Scene key points described.
+    pub keypoints: u32,
+    /// Matches after the height filter.
+    pub matches: u32,
+    /// ICP iterations run.
+    pub icp_iterations: u32,
+    /// Per-stage time, ms.
+    pub timings_ms: Timings,
+    /// The whole frame, ms.
+    pub ms: f64,
+    /// The metrics, where the truth is known.
+    #[serde(flatten, default, skip_serializing_if = "Option::is_none")]
+    pub score: Option<Score>,
+}
+
+impl FrameRecord {
+    /// The record of `pose` for the frame called `frame`, without a score.
+    pub fn new(frame: impl Into<String>, pose: &PoseEstimate) -> Self {
+        FrameRecord {
+            frame: frame.into(),
+            t_world_tray: isometry_to_rows(&pose.t_world_tray),
+            found: pose.found,
+            inliers: pose.inliers,
+            scene_points: pose.scene_points,
+            keypoints: pose.keypoints,
+            matches: pose.matches,
+            icp_iterations: pose.icp.iterations,
+            timings_ms: Timings::from(&pose.timings),
+            ms: pose.timings.total_ms,
+            score: None,
+        }
+    }
+
+    /// The record as one JSON line (without the newline).
+    pub fn to_line(&self) -> String {
+        serde_json::to_string(self).expect("a frame record is plain data")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_record_survives_its_json_line_with_and_without_a_score() {
+        let mut pose = PoseEstimate { found: true, inliers: 12, ..Default::default() };
+        pose.timings.ransac_ms = 3.5;
+        let mut r = FrameRecord::new("0007", &pose);
+        let back: FrameRecord = serde_json::from_str(&r.to_line()).unwrap();
+        assert_eq!(back, r);
+        assert!(!r.to_line().contains("success"));
+        r.score = Some(Score { position_error_mm: 1.5, rotation_error_deg: 0.25, correct_matches: 40, success: true });
+        let line = r.to_line();
+        assert!(line.contains("\"success\":true") && line.contains("\"T_world_tray\""), "{line}");
+        let back: FrameRecord = serde_json::from_str(&line).unwrap();
+        assert_eq!(back, r);
+    }
+}

@@ -1,0 +1,170 @@
+//! Many frames summed up: the success rate with its Wilson 95 % interval, mean and median
+//! errors, mean correct matches and the median time of each stage.
+
+use serde::{Deserialize, Serialize};
+
+use super::record::{FrameRecord, Timings};
+
+/// z of a two-sided 95 % normal interval.
+const Z95: f64 = 1.959_963_984_540_054;
+
+/// The summary of a set of frames (`summary.json`, and the end of `replay`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    /// Frames summed up.
+    pub frames: usize,
+    /// Frames with a truth to score against.
+    pub scored: usize,
+    /// Scored frames whose pose was found within the success limits.
+    pub successes: usize,
+    /// `successes / scored` (0 when nothing is scored).
+    pub success_rate: f64,
+    /// Wilson score interval of the success rate at 95 %: [low, high].
+    pub success_interval: [f64; 2],
+    /// Frames where a pose was found.
+    pub found: usize,
+    /// Mean and median position error over the scored frames where a pose was found, mm.
+    pub mean_position_error_mm: Option<f64>,
+    pub median_position_error_mm: Option<f64>,
+    /// Mean and median rotation error over the scored frames where a pose was found, deg.
+    pub mean_rotation_error_deg: Option<f64>,
+    pub median_rotation_error_deg: Option<f64>,
+    /// Mean correct feature matches per scored frame.
+    pub mean_correct_matches: Option<f64>,
+    /// Median time of each stage over all frames, ms.
+    pub median_timings_ms: Timings,
+    /// Median whole-frame time, ms.
+    pub median_ms: f64,
+}
+
+impl Summary {
+    /// Sums up `records` (their order does not matter).
+    pub fn from_records(records: &[FrameRecord]) -> Summary {
+        let scored: Vec<_> = records.iter().filter_map(|r| r.score.map(|s| (r.found, s))).collect();
+        let successes = scored.iter().filter(|(_, s)| s.success).count();
+        let found_errors: Vec<_> = scored.iter().filter(|(found, _)| *found).map(|(_, s)| *s).collect();
+        let positions: Vec<f64> = found_errors.iter().map(|s| s.position_error_mm).collect();
+        let rotations: Vec<f64> = found_errors.iter().map(|s| s.rotation_error_deg).collect();
+        let correct: Vec<f64> = scored.iter().map(|(_, s)| s.correct_matches as f64).collect();
+        let stage =
+            |pick: fn(&Timings) -> f64| median(&records.iter().map(|r| pick(&r.timings_ms)).collect::<Vec<_>>());
+        let median_timings_ms = Timings {
+            rectify: stage(|t| t.rectify).unwrap_or(0.0),
+            disparity: stage(|t| t.disparity).unwrap_or(0.0),
+            cloud: stage(|t| t.cloud).unwrap_or(0.0),
+            downsample: stage(|t| t.downsample).unwrap_or(0.0),
+            normals: stage(|t| t.normals).unwrap_or(0.0),
+            features: stage(|t| t.features).unwrap_or(0.0),
+            matching: stage(|t| t.matching).unwrap_or(0.0),
+            ransac: stage(|t| t.ransac).unwrap_or(0.0),
+            icp: stage(|t| t.icp).unwrap_or(0.0),
+        };
+        Summary {
+            frames: records.len(),
+            scored: scored.len(),
+            successes,
+            success_rate: if scored.is_empty() { 0.0 } else { successes as f64 / scored.len() as f64 },
+            success_interval: wilson_interval(successes, scored.len()),
+            found: records.iter().filter(|r| r.found).count(),
+            mean_position_error_mm: mean(&positions),
+            median_position_error_mm: median(&positions),
+            mean_rotation_error_deg: mean(&rotations),
+            median_rotation_error_deg: median(&rotations),
+            mean_correct_matches: mean(&correct),
+            median_timings_ms,
+            median_ms: median(&records.iter().map(|r| r.ms).collect::<Vec<_>>()).unwrap_or(0.0),
+        }
+    }
+
+    /// One line for a terminal: rate, interval, errors and time.
+    pub fn line(&self) -> String {
+        let opt = |v: Option<f64>, unit: &str| v.map_or("n/a".to_string(), |v| format!("{v:.2} {unit}"));
+        if self.scored == 0 {
+            return format!(
+                "{} frames, {} with a pose, none with a truth; median {:.1} ms per frame",
+                self.frames, self.found, self.median_ms
+            );
+        }
+        format!(
+            "success {:.1} % ({} of {}, 95 % interval {:.1}–{:.1} %), median errors {} / {}, \
+             mean correct matches {:.1}, median {:.1} ms per frame",
+            100.0 * self.success_rate,
+            self.successes,
+            self.scored,
+            100.0 * self.success_interval[0],
+            100.0 * self.success_interval[1],
+            opt(self.median_position_error_mm, "mm"),
+            opt(self.median_rotation_error_deg, "deg"),
+            self.mean_correct_matches.unwrap_or(0.0),
+            self.median_ms
+        )
+    }
+}
+
+/// Wilson score interval at 95 % of `successes` out of `n` trials ([0, 1] when `n` is 0).
+pub fn wilson_interval(successes: usize, n: usize) -> [f64; 2] {
+    if n == 0 {
+        return [0.0, 1.0];
+    }
+    let (k, n) = (successes as f64, n as f64);
+    let p = k / n;
+    let z2 = Z95 * Z95;
+    let centre = (p + z2 / (2.0 * n)) / (1.0 + z2 / n);
+    let half = Z95 / (1.0 + z2 / n) * (p * (1.0 - p) / n + z2 / (4.0 * n * n)).sqrt();
+    [(centre - half).max(0.0), (centre + half).min(1.0)]
+}
+
+/// Median of `values` (mean of the middle two for an even count); `None` when empty.
+pub fn median(values: &[f64]) -> Option<f64> {
+    if values.is_empty() {
+        return None;
+    }
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let m = v.len() / 2;
+    Some(if v.len() % 2 == 1 { v[m] } else { 0.5 * (v[m - 1] + v[m]) })
+}
+
+fn mean(values: &[f64]) -> Option<f64> {
+    (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::record::Score;
+    use super::*;
+    use camplace_estimator::PoseEstimate;
+
+    #[test]
+    fn wilson_matches_published_values() {
+        // Newcombe (1998), Statistics in Medicine 17, table I: 81/263 -> 0.2553-0.3662,
+        // 15/148 -> 0.0624-0.1605, 0/20 -> 0-0.1611.
+        let close = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).abs() < 1e-4 && (a[1] - b[1]).abs() < 1e-4;
+        assert!(close(wilson_interval(81, 263), [0.2553, 0.3662]), "{:?}", wilson_interval(81, 263));
+        assert!(close(wilson_interval(15, 148), [0.0624, 0.1605]), "{:?}", wilson_interval(15, 148));
+        assert!(close(wilson_interval(0, 20), [0.0, 0.1611]), "{:?}", wilson_interval(0, 20));
+        assert_eq!(wilson_interval(0, 0), [0.0, 1.0]);
+    }
+
+    #[test]
+    fn summary_counts_errors_of_found_poses_only() {
+        let record = |found: bool, pos: f64, success: bool, ms: f64| {
+            let pose = PoseEstimate { found, ..Default::default() };
+            let mut r = FrameRecord::new("x", &pose);
+            r.ms = ms;
+            r.score =
+                Some(Score { position_error_mm: pos, rotation_error_deg: pos / 10.0, correct_matches: 4, success });
+            r
+        };
+        let records = [record(true, 1.0, true, 10.0), record(true, 5.0, false, 30.0), record(false, 99.0, false, 20.0)];
+        let s = Summary::from_records(&records);
+        assert_eq!((s.frames, s.scored, s.successes, s.found), (3, 3, 1, 2));
+        assert!((s.success_rate - 1.0 / 3.0).abs() < 1e-12);
+        assert_eq!(s.mean_position_error_mm, Some(3.0));
+        assert_eq!(s.median_position_error_mm, Some(3.0));
+        assert_eq!(s.mean_correct_matches, Some(4.0));
+        assert_eq!(s.median_ms, 20.0);
+        let reversed: Vec<_> = records.iter().rev().cloned().collect();
+        assert_eq!(Summary::from_records(&reversed), s);
+    }
+}
