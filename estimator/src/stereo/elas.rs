@@ -11,7 +11,8 @@ use camplace_config::StereoParams;
 use rayon::prelude::*;
 
 use super::descriptor::{sad, texture, Descriptor, DescriptorImage, BORDER};
-use super::postprocess::{interpolate_gaps, refine_subpixel, remove_speckles, SpeckleScratch, SubpixelScratch};
+use super::postprocess::{interpolate_gaps, remove_speckles, SpeckleScratch};
+use super::subpixel::{refine_subpixel, SubpixelScratch};
 use super::support::{SupportGrid, SupportParams, SupportPoint};
 use super::triangulation::{CandidateGrid, Prior};
 use super::DisparityMatcher;
