@@ -115,11 +115,9 @@ fn cloud_to_pose_allocates_nothing_in_steady_state() {
     assert!(found > 0, "no frame found the tray, so ICP never ran");
 }
 
-/// Fails today: the one-shot matcher's Delaunay prior (spade's `Triangulation::insert`, in
-/// `locate_when_all_vertices_on_line`) allocates while its first support points lie on one
-/// line, which they do, row by row. Every later stage is allocation-free (the test above).
+/// The whole frame, rectification and one-shot matching included: no allocation at all
+/// once warmed up.
 #[test]
-#[ignore = "the one-shot Delaunay prior (spade) allocates per frame"]
 fn stereo_frame_to_pose_allocates_nothing_in_steady_state() {
     let (mut estimator, frames) = warmed_up();
     let mut pose = PoseEstimate::default();
