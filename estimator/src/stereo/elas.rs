@@ -147,6 +147,10 @@ fn match_pixel(
             if d > d_hi {
                 break;
             }
+            // The band around the prior below tries these anyway.
+            if (d - mu_i).abs() <= radius {
+                continue;
+            }
             let e = sad(own, &other[at(d)]) + p(d);
             if e < best_e {
                 best_e = e;

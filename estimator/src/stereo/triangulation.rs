@@ -198,20 +198,40 @@ impl Prior {
             }
         }
         let (width, height) = (self.width, self.height);
+        if cols < 2 || rows < 2 {
+            return;
+        }
+        // Left view: each pixel interpolates the triangle of its grid square directly.
+        for y in 0..height {
+            let gy = (y / self.step).min(rows - 2);
+            let (y0, y1) = (self.at(gy, height), self.at(gy + 1, height));
+            let ty = (y - y0) as f32 / (y1 - y0) as f32;
+            let (top, bottom) = (&self.node[gy * cols..(gy + 1) * cols], &self.node[(gy + 1) * cols..(gy + 2) * cols]);
+            let out = &mut self.left[y * width..(y + 1) * width];
+            for (x, o) in out.iter_mut().enumerate() {
+                let gx = (x / self.step).min(cols - 2);
+                let (x0, x1) = ((gx * self.step).min(width - 1), ((gx + 1) * self.step).min(width - 1));
+                let tx = (x - x0) as f32 / (x1 - x0) as f32;
+                let (d00, d10, d01, d11) = (top[gx], top[gx + 1], bottom[gx], bottom[gx + 1]);
+                // The square's two triangles share the diagonal (x0, y0)-(x1, y1).
+                *o = if tx >= ty {
+                    d00 + tx * (d10 - d00) + ty * (d11 - d10)
+                } else {
+                    d00 + ty * (d01 - d00) + tx * (d11 - d01)
+                };
+            }
+        }
+        // Right view: the same triangles with their corners moved by their disparities.
         for gy in 0..rows.saturating_sub(1) {
             let (y0, y1) = (self.at(gy, height) as f64, self.at(gy + 1, height) as f64);
             for gx in 0..cols.saturating_sub(1) {
                 let (x0, x1) = (self.at(gx, width) as f64, self.at(gx + 1, width) as f64);
                 let d = |i: usize, j: usize| self.node[(gy + j) * cols + gx + i] as f64;
                 let (d00, d10, d01, d11) = (d(0, 0), d(1, 0), d(0, 1), d(1, 1));
-                // The square's two triangles share the diagonal (x0, y0)-(x1, y1).
                 for t in [[[x0, y0, d00], [x1, y0, d10], [x1, y1, d11]], [[x0, y0, d00], [x1, y1, d11], [x0, y1, d01]]]
                 {
-                    rasterise(&t, width, height, &mut self.left, false);
-                    // The same surface seen from the right: vertex columns move by their
-                    // disparity.
                     let moved = t.map(|[x, y, d]| [x - d, y, d]);
-                    rasterise(&moved, width, height, &mut self.right, true);
+                    rasterise_nearest(&moved, width, height, &mut self.right);
                 }
             }
         }
@@ -219,9 +239,9 @@ impl Prior {
 }
 
 /// Writes the plane through the triangle's three (u, v, d) corners into the pixels it
-/// covers. With `nearest`, a pixel already holding a larger disparity keeps it (triangles
-/// moved into the right view may overlap where the nearer surface hides the farther).
-fn rasterise(t: &[[f64; 3]; 3], width: usize, height: usize, out: &mut [f32], nearest: bool) {
+/// covers, where no larger disparity is already written: triangles moved into the right
+/// view overlap where the nearer surface hides the farther.
+fn rasterise_nearest(t: &[[f64; 3]; 3], width: usize, height: usize, out: &mut [f32]) {
     let e1 = [t[1][0] - t[0][0], t[1][1] - t[0][1], t[1][2] - t[0][2]];
     let e2 = [t[2][0] - t[0][0], t[2][1] - t[0][1], t[2][2] - t[0][2]];
     let nz = e1[0] * e2[1] - e1[1] * e2[0];
@@ -261,7 +281,7 @@ fn rasterise(t: &[[f64; 3]; 3], width: usize, height: usize, out: &mut [f32], ne
         let row = &mut out[y * width..(y + 1) * width];
         for (x, o) in row.iter_mut().enumerate().take(x_hi as usize + 1).skip(x_lo as usize) {
             let d = (a * x as f64 + b * yf + c) as f32;
-            if !nearest || o.is_nan() || d > *o {
+            if o.is_nan() || d > *o {
                 *o = d;
             }
         }
