@@ -3,15 +3,15 @@
 //! candidate grid, dense matching of both images near the prior, a left-right check, then
 //! speckle removal, sub-pixel refinement and small-gap interpolation.
 //!
-//! Allocation: every buffer is sized in [`Elas::new`]; `compute` reuses them. The
-//! triangulation (spade) is cleared, not rebuilt, and keeps its storage, so it allocates
-//! only if a frame has more support points than any before it.
+//! Allocation: every buffer is sized in [`Elas::new`]; `compute` reuses them and never
+//! allocates (the triangulation is structured by the support grid, see `triangulation`).
 
 use camplace_config::StereoParams;
 use rayon::prelude::*;
 
 use super::descriptor::{sad, texture, Descriptor, DescriptorImage, BORDER};
-use super::postprocess::{interpolate_gaps, refine_subpixel, remove_speckles, SpeckleScratch, SubpixelScratch};
+use super::postprocess::{interpolate_gaps, remove_speckles, SpeckleScratch};
+use super::subpixel::{refine_subpixel, SubpixelScratch};
 use super::support::{SupportGrid, SupportParams, SupportPoint};
 use super::triangulation::{CandidateGrid, Prior};
 use super::DisparityMatcher;
@@ -83,7 +83,7 @@ impl Elas {
             desc_right: DescriptorImage::new(width, height),
             support,
             points: Vec::with_capacity(max_points),
-            prior: Prior::new(width, height, max_points),
+            prior: Prior::new(width, height, step),
             grid_left: CandidateGrid::new(width, height, cell, max_disparity_span),
             grid_right: CandidateGrid::new(width, height, cell, max_disparity_span),
             disp_right: vec![INVALID; width * height],
@@ -146,6 +146,10 @@ fn match_pixel(
             let d = d as i32;
             if d > d_hi {
                 break;
+            }
+            // The band around the prior below tries these anyway.
+            if (d - mu_i).abs() <= radius {
+                continue;
             }
             let e = sad(own, &other[at(d)]) + p(d);
             if e < best_e {
@@ -220,14 +224,10 @@ impl DisparityMatcher for Elas {
         self.desc_left.compute(left);
         self.desc_right.compute(right);
         self.support.compute(&self.desc_left, &self.desc_right, &sp);
-        // The candidate grid takes every consistent point; the triangulation only those
-        // that shape the planes, which keeps it small.
         self.support.points(&mut self.points);
         self.grid_left.compute(&self.points, d_min, d_max, false);
         self.grid_right.compute(&self.points, d_min, d_max, true);
-        self.support.remove_redundant();
-        self.support.points(&mut self.points);
-        self.prior.compute(&self.points);
+        self.prior.compute(&self.support);
 
         let left_side = Side {
             own: &self.desc_left,

@@ -4,6 +4,7 @@
 mod descriptor;
 pub mod elas;
 mod postprocess;
+mod subpixel;
 pub mod support;
 mod triangulation;
 

@@ -1,15 +1,10 @@
-//! What follows dense matching on a disparity image (+inf = invalid): speckle removal,
-//! sub-pixel refinement on the rectified intensities, and small-gap interpolation.
+//! What follows dense matching on a disparity image (+inf = invalid): speckle removal and
+//! small-gap interpolation. Sub-pixel refinement is `subpixel`.
 
 use rayon::prelude::*;
 
-use crate::image::GrayImage;
-
 /// Disparities differing by more than this (px) across a gap are an edge, not a surface.
 const GAP_SURFACE_PX: f32 = 1.0;
-/// Gauss-Newton steps of the sub-pixel refinement (the second removes the bias of the first
-/// on curved cost).
-const SUBPIXEL_STEPS: usize = 2;
 
 /// Scratch of the connected-component pass, sized once.
 #[derive(Debug, Clone)]
@@ -139,112 +134,9 @@ fn gap_value(d0: f32, d1: f32, t: f32) -> f32 {
     }
 }
 
-/// Float copies of a rectified pair and their horizontal gradients, sized once: the
-/// refinement reads every pixel ~2 (2 r + 1)^2 times, so converting and differencing once
-/// per frame halves its arithmetic.
-#[derive(Debug, Clone)]
-pub struct SubpixelScratch {
-    left: Vec<f32>,
-    left_grad: Vec<f32>,
-    right: Vec<f32>,
-    right_grad: Vec<f32>,
-}
-
-impl SubpixelScratch {
-    /// Buffers for images of `n` pixels.
-    pub fn new(n: usize) -> Self {
-        SubpixelScratch { left: vec![0.0; n], left_grad: vec![0.0; n], right: vec![0.0; n], right_grad: vec![0.0; n] }
-    }
-}
-
-/// Intensities as f32 and half the central difference along the row (0 at the row ends).
-fn float_planes(img: &GrayImage, value: &mut Vec<f32>, grad: &mut Vec<f32>) {
-    let (w, n) = (img.width, img.width * img.height);
-    value.resize(n, 0.0);
-    grad.resize(n, 0.0);
-    if w == 0 {
-        return;
-    }
-    value.par_chunks_mut(w).zip(grad.par_chunks_mut(w)).enumerate().for_each(|(y, (v, g))| {
-        let src = img.row(y);
-        for (o, &p) in v.iter_mut().zip(src) {
-            *o = p as f32;
-        }
-        g.fill(0.0);
-        for x in 1..w.saturating_sub(1) {
-            g[x] = 0.5 * (src[x + 1] as f32 - src[x - 1] as f32);
-        }
-    });
-}
-
-/// Refines integer disparities to sub-pixel ones by Gauss-Newton on the sum of squared
-/// intensity differences over a (2 `radius` + 1)^2 window: the right image is sampled
-/// linearly at x - d and the gradient is the mean of both images' central differences.
-/// Unlike a parabola through three SAD costs this has no pull towards integers. Pixels whose
-/// window leaves the image, that lack gradient, or whose step exceeds one pixel keep their
-/// integer disparity.
-pub fn refine_subpixel(left: &GrayImage, right: &GrayImage, disp: &mut [f32], radius: usize, s: &mut SubpixelScratch) {
-    let (w, h) = (left.width, left.height);
-    float_planes(left, &mut s.left, &mut s.left_grad);
-    float_planes(right, &mut s.right, &mut s.right_grad);
-    let (lf, lg, rf, rg) = (&s.left[..], &s.left_grad[..], &s.right[..], &s.right_grad[..]);
-    let r = radius as isize;
-    let n = 2 * radius + 1;
-    disp.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        if y < radius || y + radius >= h {
-            return;
-        }
-        for (x, out) in row.iter_mut().enumerate().take(w.saturating_sub(radius + 1)).skip(radius + 1) {
-            let d0 = *out;
-            if !d0.is_finite() {
-                continue;
-            }
-            let mut s = d0;
-            let mut ok = true;
-            for _ in 0..SUBPIXEL_STEPS {
-                // Right samples at x + i - s: one integer offset and one fraction for the
-                // whole window, since the window shares the disparity.
-                let k0 = (-s).floor();
-                let f = -s - k0;
-                // Columns c - 1 ..= c + 2 of the right image must exist for every c.
-                let start = x as isize - r + k0 as isize - 1;
-                if start < 0 || start as usize + n + 3 > w {
-                    ok = false;
-                    break;
-                }
-                let c0 = start as usize + 1;
-                let (mut eg, mut gg) = (0.0f32, 0.0f32);
-                for yy in y - radius..=y + radius {
-                    let o = yy * w;
-                    let (ls, lgs) = (&lf[o + x - radius..o + x + radius + 1], &lg[o + x - radius..o + x + radius + 1]);
-                    let (rs, rgs) = (&rf[o + c0..o + c0 + n + 1], &rg[o + c0..o + c0 + n + 1]);
-                    for i in 0..n {
-                        let rval = rs[i] + f * (rs[i + 1] - rs[i]);
-                        let gr = rgs[i] + f * (rgs[i + 1] - rgs[i]);
-                        let g = 0.5 * (lgs[i] + gr);
-                        let e = ls[i] - rval;
-                        eg += e * g;
-                        gg += g * g;
-                    }
-                }
-                if gg < 1e-3 {
-                    ok = false;
-                    break;
-                }
-                s -= eg / gg;
-            }
-            if ok && (s - d0).abs() <= 1.0 {
-                *out = s;
-            }
-        }
-    });
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::{RngExt, SeedableRng};
-    use rand_chacha::ChaCha8Rng;
 
     #[test]
     fn small_speckles_go_large_regions_stay() {
@@ -278,37 +170,5 @@ mod tests {
         assert!((d[w + 2] - 10.2).abs() < 1e-5 && (d[w + 3] - 10.4).abs() < 1e-5);
         assert_eq!(&d[w + 6..w + 9], &[20.0; 3]);
         assert!(d[w].is_infinite() && d[w + 10].is_infinite());
-    }
-
-    #[test]
-    fn subpixel_recovers_a_fractional_shift() {
-        let mut rng = ChaCha8Rng::seed_from_u64(11);
-        let (w, h) = (64, 16);
-        // A smooth random texture sampled at x (left) and x - shift (right).
-        let freqs: Vec<(f32, f32, f32)> = (0..6)
-            .map(|_| (rng.random_range(0.2..0.9), rng.random_range(0.0..6.0), rng.random_range(10.0..30.0)))
-            .collect();
-        let tex = |x: f32, y: f32| {
-            let v: f32 = freqs.iter().map(|&(f, p, a)| a * (f * x + p + 0.3 * f * y).sin()).sum();
-            (128.0 + v).clamp(0.0, 255.0)
-        };
-        let shift = 7.3f32;
-        let left =
-            GrayImage::from_vec(w, h, (0..w * h).map(|i| tex((i % w) as f32, (i / w) as f32).round() as u8).collect())
-                .unwrap();
-        let right = GrayImage::from_vec(
-            w,
-            h,
-            (0..w * h).map(|i| tex((i % w) as f32 + shift, (i / w) as f32).round() as u8).collect(),
-        )
-        .unwrap();
-        let mut d = vec![7.0f32; w * h];
-        refine_subpixel(&left, &right, &mut d, 2, &mut SubpixelScratch::new(0));
-        let mut errs: Vec<f32> = (4..h - 4)
-            .flat_map(|y| (14..w - 6).map(move |x| (y, x)))
-            .map(|(y, x)| (d[y * w + x] - shift).abs())
-            .collect();
-        errs.sort_by(f32::total_cmp);
-        assert!(errs[errs.len() / 2] < 0.05, "median error {}", errs[errs.len() / 2]);
     }
 }

@@ -1,7 +1,6 @@
 //! ELAS support points: robust sparse matches on a regular grid (full-range search, a
 //! uniqueness ratio, a left-right check), then removal of points that disagree with their
-//! neighbourhood or that a line of equal neighbours makes redundant. They seed the
-//! triangulated prior in `triangulation`.
+//! neighbourhood. They seed the triangulated prior in `triangulation`.
 
 use rayon::prelude::*;
 
@@ -14,10 +13,6 @@ const CONSISTENT_NEIGHBOURS: usize = 5;
 /// ... in a window of this many grid steps either side.
 const CONSISTENCY_WINDOW: usize = 5;
 const INCONSISTENCY_PX: i32 = 5;
-/// A point between two equal neighbours (within this, px) along a row or column ...
-const REDUNDANT_PX: i32 = 1;
-/// ... no more than this many grid steps away adds nothing to the prior.
-const REDUNDANT_STEPS: usize = 5;
 
 /// One support point: pixel (u, v) of the left image and its integer disparity.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -91,41 +86,6 @@ impl SupportGrid {
                 }
                 // `agree` counts the point itself.
                 if agree <= CONSISTENT_NEIGHBOURS {
-                    *o = NONE;
-                }
-            }
-        });
-        std::mem::swap(&mut self.d, &mut self.scratch);
-    }
-
-    /// Drops points that lie between two equal neighbours along a row or column: the
-    /// triangulated planes need only the ends of such runs.
-    pub fn remove_redundant(&mut self) {
-        let (cols, rows) = (self.cols, self.rows);
-        let d = &self.d;
-        // Decided on the unthinned grid, so two points never remove each other's reason.
-        let redundant = |gx: usize, gy: usize, di: i32, dx: isize, dy: isize| -> bool {
-            let side = |sign: isize| {
-                for k in 1..=REDUNDANT_STEPS as isize {
-                    let x = gx as isize + sign * k * dx;
-                    let y = gy as isize + sign * k * dy;
-                    if x < 0 || y < 0 || x >= cols as isize || y >= rows as isize {
-                        return false;
-                    }
-                    let dj = d[y as usize * cols + x as usize];
-                    if dj != NONE {
-                        return (dj as i32 - di).abs() <= REDUNDANT_PX;
-                    }
-                }
-                false
-            };
-            side(-1) && side(1)
-        };
-        self.scratch.par_chunks_mut(cols).enumerate().for_each(|(gy, out)| {
-            for (gx, o) in out.iter_mut().enumerate() {
-                let di = d[gy * cols + gx];
-                *o = di;
-                if di != NONE && (redundant(gx, gy, di as i32, 1, 0) || redundant(gx, gy, di as i32, 0, 1)) {
                     *o = NONE;
                 }
             }

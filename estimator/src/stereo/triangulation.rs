@@ -1,99 +1,247 @@
-//! The ELAS prior: a Delaunay triangulation of the support points (spade) rasterised into a
-//! piecewise-planar disparity per pixel, for the left image and, through the same triangles
-//! moved by their disparities, for the right one; plus the candidate grid: the support
-//! disparities (+-1) found in and around each grid cell.
+//! The ELAS prior: a triangulation of the support points rasterised into a piecewise-planar
+//! disparity per pixel, for the left image and, through the same triangles moved by their
+//! disparities, for the right one; plus the candidate grid: the support disparities (+-1)
+//! found in and around each grid cell.
+//!
+//! The triangulation is structured by the support grid instead of Delaunay: every grid
+//! square is split into two triangles along its main diagonal. Nodes without a support
+//! point are filled first, by linear interpolation between the nearest support points along
+//! the row or the column, whichever pair is closer together (a Delaunay triangulation
+//! would join those two across the hole too), or from the nearest one where a hole reaches
+//! the border. On a plane this reproduces the plane exactly; it needs no point location,
+//! no flips and no storage beyond the grid, so it never allocates.
 
-use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation};
+use super::support::{SupportGrid, SupportPoint, NONE};
 
-use super::support::SupportPoint;
-
-/// A support point as a triangulation vertex.
-#[derive(Debug, Clone, Copy)]
-pub struct SupportVertex {
-    position: Point2<f64>,
-    d: f64,
-}
-
-impl HasPosition for SupportVertex {
-    type Scalar = f64;
-
-    fn position(&self) -> Point2<f64> {
-        self.position
-    }
-}
-
-/// The triangulation and the per-pixel plane priors it gives (NaN where no triangle).
+/// The filled support grid and the per-pixel plane priors it gives (NaN where no triangle).
 #[derive(Debug)]
 pub struct Prior {
     width: usize,
     height: usize,
-    triangulation: DelaunayTriangulation<SupportVertex>,
+    /// Nodes per row and column of the filled grid: the support grid plus a last row and
+    /// column on the image border when the grid stops short of it.
+    cols: usize,
+    rows: usize,
+    step: usize,
+    /// Disparity per filled-grid node (NaN while unknown).
+    node: Vec<f32>,
+    /// Per node, the nearest support rows above and below and columns left and right
+    /// (`u16::MAX` for none).
+    up: Vec<u16>,
+    down: Vec<u16>,
+    left_of: Vec<u16>,
+    right_of: Vec<u16>,
     /// Prior disparity per left pixel.
     pub left: Vec<f32>,
     /// Prior disparity per right pixel.
     pub right: Vec<f32>,
 }
 
+const NO_NODE: u16 = u16::MAX;
+
 impl Prior {
-    /// Buffers for `width` x `height` images and up to `max_points` support points.
-    pub fn new(width: usize, height: usize, max_points: usize) -> Self {
-        let mut triangulation = DelaunayTriangulation::new();
-        // Warm the triangulation's storage so later frames reuse it.
-        for i in 0..max_points.min(width * height) {
-            let (u, v) = (i % width, i / width);
-            let _ = triangulation.insert(SupportVertex { position: Point2::new(u as f64, v as f64), d: 0.0 });
-        }
-        triangulation.clear();
+    /// Buffers for `width` x `height` images and support points every `step` px.
+    pub fn new(width: usize, height: usize, step: usize) -> Self {
+        let step = step.max(1);
+        let cols = width.div_ceil(step) + usize::from((width.max(1) - 1) % step != 0);
+        let rows = height.div_ceil(step) + usize::from((height.max(1) - 1) % step != 0);
+        let n = cols * rows;
         Prior {
             width,
             height,
-            triangulation,
+            cols,
+            rows,
+            step,
+            node: vec![f32::NAN; n],
+            up: vec![NO_NODE; n],
+            down: vec![NO_NODE; n],
+            left_of: vec![NO_NODE; n],
+            right_of: vec![NO_NODE; n],
             left: vec![f32::NAN; width * height],
             right: vec![f32::NAN; width * height],
         }
     }
 
-    /// Triangulates `points` (left pixels) and rasterises both priors. The four image
-    /// corners join with the disparity of their nearest support point so the planes cover
-    /// the whole image.
-    pub fn compute(&mut self, points: &[SupportPoint]) {
+    /// Pixel column (row) of filled-grid column (row) `i`.
+    #[inline]
+    fn at(&self, i: usize, size: usize) -> usize {
+        (i * self.step).min(size - 1)
+    }
+
+    /// Fills the grid from `support` (same size and step as at construction) and
+    /// rasterises both priors. Fewer than three support points give no prior.
+    pub fn compute(&mut self, support: &SupportGrid) {
         self.left.fill(f32::NAN);
         self.right.fill(f32::NAN);
-        self.triangulation.clear();
-        if points.len() < 3 {
+        debug_assert_eq!(support.step, self.step);
+        let (cols, rows) = (self.cols, self.rows);
+        let valid = support.d.iter().filter(|&&d| d != NONE).count();
+        if valid < 3 || self.width == 0 || self.height == 0 {
             return;
         }
-        let (w, h) = (self.width as i32, self.height as i32);
-        for p in points {
-            let _ = self
-                .triangulation
-                .insert(SupportVertex { position: Point2::new(p.u as f64, p.v as f64), d: p.d as f64 });
+        // Border nodes beyond the support grid copy their inner neighbour's support point.
+        let source = |gx: usize, gy: usize| -> i16 {
+            let (sx, sy) = (gx.min(support.cols - 1), gy.min(support.rows - 1));
+            support.d[sy * support.cols + sx]
+        };
+        for gy in 0..rows {
+            for gx in 0..cols {
+                let d = source(gx, gy);
+                self.node[gy * cols + gx] = if d == NONE { f32::NAN } else { d as f32 };
+            }
         }
-        for (cu, cv) in [(0, 0), (w - 1, 0), (0, h - 1), (w - 1, h - 1)] {
-            let near =
-                points.iter().min_by_key(|p| (p.u - cu).pow(2) + (p.v - cv).pow(2)).expect("three or more points");
-            if (near.u, near.v) != (cu, cv) {
-                let _ = self
-                    .triangulation
-                    .insert(SupportVertex { position: Point2::new(cu as f64, cv as f64), d: near.d as f64 });
+        // Nearest support nodes along rows and columns, both ways.
+        for gy in 0..rows {
+            let mut last = NO_NODE;
+            for gx in 0..cols {
+                let i = gy * cols + gx;
+                if self.node[i].is_finite() {
+                    last = gx as u16;
+                }
+                self.left_of[i] = last;
+            }
+            last = NO_NODE;
+            for gx in (0..cols).rev() {
+                let i = gy * cols + gx;
+                if self.node[i].is_finite() {
+                    last = gx as u16;
+                }
+                self.right_of[i] = last;
+            }
+        }
+        for gx in 0..cols {
+            let mut last = NO_NODE;
+            for gy in 0..rows {
+                let i = gy * cols + gx;
+                if self.node[i].is_finite() {
+                    last = gy as u16;
+                }
+                self.up[i] = last;
+            }
+            last = NO_NODE;
+            for gy in (0..rows).rev() {
+                let i = gy * cols + gx;
+                if self.node[i].is_finite() {
+                    last = gy as u16;
+                }
+                self.down[i] = last;
+            }
+        }
+        // Fill: the closer bracketing pair, else the nearest single support point along a
+        // row or column; nodes with none of those wait for the spreading pass below.
+        for gy in 0..rows {
+            for gx in 0..cols {
+                let i = gy * cols + gx;
+                if self.node[i].is_finite() {
+                    continue;
+                }
+                let (l, r, u, dn) = (self.left_of[i], self.right_of[i], self.up[i], self.down[i]);
+                let span = |a: u16, b: u16| if a != NO_NODE && b != NO_NODE { (b - a) as usize } else { usize::MAX };
+                let (row_span, col_span) = (span(l, r), span(u, dn));
+                let v = if row_span != usize::MAX && row_span <= col_span {
+                    let (a, b) = (self.node[gy * cols + l as usize], self.node[gy * cols + r as usize]);
+                    a + (b - a) * (gx - l as usize) as f32 / row_span as f32
+                } else if col_span != usize::MAX {
+                    let (a, b) = (self.node[u as usize * cols + gx], self.node[dn as usize * cols + gx]);
+                    a + (b - a) * (gy - u as usize) as f32 / col_span as f32
+                } else {
+                    // Nearest of the (at most two) one-sided neighbours.
+                    let mut best = (usize::MAX, f32::NAN);
+                    for (k, horizontal) in [(l, true), (r, true), (u, false), (dn, false)] {
+                        if k == NO_NODE {
+                            continue;
+                        }
+                        let (dist, j) = if horizontal {
+                            (gx.abs_diff(k as usize), gy * cols + k as usize)
+                        } else {
+                            (gy.abs_diff(k as usize), k as usize * cols + gx)
+                        };
+                        if dist < best.0 {
+                            best = (dist, self.node[j]);
+                        }
+                    }
+                    best.1
+                };
+                // Interpolants read only support nodes, which this pass never writes, so
+                // filling in place does not depend on the order.
+                self.node[i] = v;
+            }
+        }
+        // Nodes whose row and column both lack support: copy the nearest filled node of the
+        // same column, then of the same row (every row or column with any support is full).
+        for gx in 0..cols {
+            let filled = (0..rows).find(|&gy| self.node[gy * cols + gx].is_finite());
+            if let Some(first) = filled {
+                let mut last = self.node[first * cols + gx];
+                for gy in 0..rows {
+                    let i = gy * cols + gx;
+                    if self.node[i].is_finite() {
+                        last = self.node[i];
+                    } else {
+                        self.node[i] = last;
+                    }
+                }
+            }
+        }
+        for gy in 0..rows {
+            let filled = (0..cols).find(|&gx| self.node[gy * cols + gx].is_finite());
+            if let Some(first) = filled {
+                let mut last = self.node[gy * cols + first];
+                for gx in 0..cols {
+                    let i = gy * cols + gx;
+                    if self.node[i].is_finite() {
+                        last = self.node[i];
+                    } else {
+                        self.node[i] = last;
+                    }
+                }
             }
         }
         let (width, height) = (self.width, self.height);
-        for face in self.triangulation.inner_faces() {
-            let vs = face.vertices().map(|v| *v.data());
-            let left = vs.map(|v| [v.position.x, v.position.y, v.d]);
-            rasterise(&left, width, height, &mut self.left, false);
-            // The same surface seen from the right: vertex columns move by their disparity.
-            let right = vs.map(|v| [v.position.x - v.d, v.position.y, v.d]);
-            rasterise(&right, width, height, &mut self.right, true);
+        if cols < 2 || rows < 2 {
+            return;
+        }
+        // Left view: each pixel interpolates the triangle of its grid square directly.
+        for y in 0..height {
+            let gy = (y / self.step).min(rows - 2);
+            let (y0, y1) = (self.at(gy, height), self.at(gy + 1, height));
+            let ty = (y - y0) as f32 / (y1 - y0) as f32;
+            let (top, bottom) = (&self.node[gy * cols..(gy + 1) * cols], &self.node[(gy + 1) * cols..(gy + 2) * cols]);
+            let out = &mut self.left[y * width..(y + 1) * width];
+            for (x, o) in out.iter_mut().enumerate() {
+                let gx = (x / self.step).min(cols - 2);
+                let (x0, x1) = ((gx * self.step).min(width - 1), ((gx + 1) * self.step).min(width - 1));
+                let tx = (x - x0) as f32 / (x1 - x0) as f32;
+                let (d00, d10, d01, d11) = (top[gx], top[gx + 1], bottom[gx], bottom[gx + 1]);
+                // The square's two triangles share the diagonal (x0, y0)-(x1, y1).
+                *o = if tx >= ty {
+                    d00 + tx * (d10 - d00) + ty * (d11 - d10)
+                } else {
+                    d00 + ty * (d01 - d00) + tx * (d11 - d01)
+                };
+            }
+        }
+        // Right view: the same triangles with their corners moved by their disparities.
+        for gy in 0..rows.saturating_sub(1) {
+            let (y0, y1) = (self.at(gy, height) as f64, self.at(gy + 1, height) as f64);
+            for gx in 0..cols.saturating_sub(1) {
+                let (x0, x1) = (self.at(gx, width) as f64, self.at(gx + 1, width) as f64);
+                let d = |i: usize, j: usize| self.node[(gy + j) * cols + gx + i] as f64;
+                let (d00, d10, d01, d11) = (d(0, 0), d(1, 0), d(0, 1), d(1, 1));
+                for t in [[[x0, y0, d00], [x1, y0, d10], [x1, y1, d11]], [[x0, y0, d00], [x1, y1, d11], [x0, y1, d01]]]
+                {
+                    let moved = t.map(|[x, y, d]| [x - d, y, d]);
+                    rasterise_nearest(&moved, width, height, &mut self.right);
+                }
+            }
         }
     }
 }
 
 /// Writes the plane through the triangle's three (u, v, d) corners into the pixels it
-/// covers. With `nearest`, a pixel already holding a larger disparity keeps it (triangles
-/// moved into the right view may overlap where the nearer surface hides the farther).
-fn rasterise(t: &[[f64; 3]; 3], width: usize, height: usize, out: &mut [f32], nearest: bool) {
+/// covers, where no larger disparity is already written: triangles moved into the right
+/// view overlap where the nearer surface hides the farther.
+fn rasterise_nearest(t: &[[f64; 3]; 3], width: usize, height: usize, out: &mut [f32]) {
     let e1 = [t[1][0] - t[0][0], t[1][1] - t[0][1], t[1][2] - t[0][2]];
     let e2 = [t[2][0] - t[0][0], t[2][1] - t[0][1], t[2][2] - t[0][2]];
     let nz = e1[0] * e2[1] - e1[1] * e2[0];
@@ -133,7 +281,7 @@ fn rasterise(t: &[[f64; 3]; 3], width: usize, height: usize, out: &mut [f32], ne
         let row = &mut out[y * width..(y + 1) * width];
         for (x, o) in row.iter_mut().enumerate().take(x_hi as usize + 1).skip(x_lo as usize) {
             let d = (a * x as f64 + b * yf + c) as f32;
-            if !nearest || o.is_nan() || d > *o {
+            if o.is_nan() || d > *o {
                 *o = d;
             }
         }
@@ -223,5 +371,94 @@ impl CandidateGrid {
     pub fn at(&self, x: usize, y: usize) -> &[u16] {
         let c = (y / self.cell).min(self.rows - 1) * self.cols + (x / self.cell).min(self.cols - 1);
         &self.lists[c * self.slot..c * self.slot + self.counts[c] as usize]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// A support grid holding the integer disparity plane `d(u, v)` at every node that
+    /// `keep` lets through.
+    fn grid_of(
+        w: usize,
+        h: usize,
+        step: usize,
+        d: impl Fn(f64, f64) -> f64,
+        keep: impl Fn(usize, usize) -> bool,
+    ) -> SupportGrid {
+        let mut g = SupportGrid::new(w, h, step);
+        for gy in 0..g.rows {
+            for gx in 0..g.cols {
+                g.d[gy * g.cols + gx] =
+                    if keep(gx, gy) { d((gx * step) as f64, (gy * step) as f64) as i16 } else { NONE };
+            }
+        }
+        g
+    }
+
+    #[test]
+    fn a_plane_with_holes_comes_back_exactly_in_both_views() {
+        // Disparity 40 + 0.2 u + 0.2 v is an integer on every node of a 5 px grid; holes
+        // (single nodes and a block) lie inside, so every filled node is interpolated.
+        let (w, h, step) = (101, 61, 5);
+        let plane = |u: f64, v: f64| 40.0 + 0.2 * u + 0.2 * v;
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        let holes: Vec<bool> = (0..21 * 13).map(|_| rng.random_range(0..4) == 0).collect();
+        let keep = |gx: usize, gy: usize| {
+            let border = gx == 0 || gy == 0 || gx == 20 || gy == 12;
+            let block = (6..12).contains(&gx) && (4..9).contains(&gy);
+            border || (!block && !holes[gy * 21 + gx])
+        };
+        let g = grid_of(w, h, step, plane, keep);
+        let mut prior = Prior::new(w, h, step);
+        prior.compute(&g);
+        for y in 0..h {
+            for x in 0..w {
+                let expect = plane(x as f64, y as f64);
+                let got = prior.left[y * w + x] as f64;
+                assert!((got - expect).abs() < 1e-3, "left ({x}, {y}): {got} vs {expect}");
+            }
+        }
+        // Right pixel xr sees the left column x with x - d(x, y) = xr.
+        let mut checked = 0;
+        for y in 0..h {
+            for xr in 0..w {
+                let x = (xr as f64 + 40.0 + 0.2 * y as f64) / 0.8;
+                if x > (w - 1) as f64 {
+                    continue;
+                }
+                let got = prior.right[y * w + xr] as f64;
+                if x >= 0.0 {
+                    assert!((got - plane(x, y as f64)).abs() < 1e-3, "right ({xr}, {y}): {got}");
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > w * h / 4);
+    }
+
+    #[test]
+    fn the_nearer_surface_wins_in_the_right_view_and_sparse_grids_still_cover() {
+        // A box 20 px nearer than its background on the left half: in the right view the
+        // moved box covers background, which must not show through.
+        let (w, h, step) = (120, 40, 5);
+        let d = |u: f64, _v: f64| if u < 60.0 { 50.0 } else { 30.0 };
+        let g = grid_of(w, h, step, d, |_, _| true);
+        let mut prior = Prior::new(w, h, step);
+        prior.compute(&g);
+        // Right column 5 sees the box (left column 55, disparity 50) and the background
+        // (left column 35 is box territory, so only the box).
+        assert!((prior.right[20 * w + 5] - 50.0).abs() < 1e-4, "{}", prior.right[20 * w + 5]);
+        // Three support points in one corner cover the whole image.
+        let g = grid_of(w, h, step, |_, _| 33.0, |gx, gy| gx + gy <= 1);
+        prior.compute(&g);
+        assert!(prior.left.iter().all(|&p| (p - 33.0).abs() < 1e-4));
+        // Two are not enough for a plane.
+        let g = grid_of(w, h, step, |_, _| 33.0, |gx, gy| gx + gy == 0 || (gx, gy) == (3, 3));
+        prior.compute(&g);
+        assert!(prior.left.iter().all(|p| p.is_nan()));
     }
 }
