@@ -4,3 +4,4 @@ mod cli;
 mod cli_errors;
 mod estimate;
 mod reconstruct;
+mod study;
