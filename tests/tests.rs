@@ -5,3 +5,4 @@ mod cli_errors;
 mod estimate;
 mod reconstruct;
 mod reconstruct_errors;
+mod study;

@@ -11,6 +11,7 @@ pub mod pattern;
 pub mod placement_rig;
 pub mod raster;
 pub mod render;
+pub mod report;
 pub mod scenario;
 pub mod scene;
 pub mod search;

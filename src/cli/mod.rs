@@ -1,11 +1,18 @@
 //! The subcommands and their flags; one module per subcommand.
 
+mod accept;
 mod cell_args;
 mod estimate;
+mod evaluate;
 mod init;
+mod merge;
 mod model;
+mod optimize;
 mod reconstruct;
 mod render;
+mod run_args;
+mod study;
+mod sweep;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -31,16 +38,44 @@ enum Command {
     Model(model::Args),
     /// Estimate the tray's pose in a recorded dataset or one point cloud.
     Estimate(estimate::Args),
+    /// The placement study: both trays x both methods, sweep then search, and report.html.
+    Study(study::Args),
+    /// One placement over N scenarios into a study folder (resumable, shardable).
+    Evaluate(evaluate::Args),
+    /// A grid over two placement parameters with heat maps (resumable, shardable).
+    Sweep(sweep::Args),
+    /// RBF surrogate search over placement parameters, or over a standard test function.
+    Optimize(optimize::Args),
+    /// Acceptance test of a placement: exit 0 when the success rate's lower bound reaches the minimum, else 1.
+    Accept(accept::Args),
+    /// Join the folders of shards into one and compute the summaries again.
+    Merge(merge::Args),
 }
 
 /// Parses the command line and runs the subcommand.
 pub fn run() -> anyhow::Result<ExitCode> {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        // --help and --version print as clap shows them.
+        Err(e) if !e.use_stderr() => e.exit(),
+        // A bad flag: one line, exit code 2 like every other bad input.
+        Err(e) => {
+            let text = e.to_string();
+            let first = text.lines().next().unwrap_or("bad arguments").trim_start_matches("error: ");
+            anyhow::bail!("{first}");
+        }
+    };
     match cli.command {
         Command::Init(a) => init::run(a),
         Command::Render(a) => render::run(a),
         Command::Reconstruct(a) => reconstruct::run(a),
         Command::Model(a) => model::run(a),
         Command::Estimate(a) => estimate::run(a),
+        Command::Study(a) => study::run(a),
+        Command::Evaluate(a) => evaluate::run(a),
+        Command::Sweep(a) => sweep::run(a),
+        Command::Optimize(a) => optimize::run(a),
+        Command::Accept(a) => accept::run(a),
+        Command::Merge(a) => merge::run(a),
     }
 }

@@ -2,10 +2,19 @@
 //! is scored against the truth ([`score`]), how results of many scenes are summed up
 //! ([`Summary`], with a Wilson interval), and how one placement's scenes are run
 //! ([`Evaluator`]). `estimate`, `replay`, `run` and `evaluate` all write and read these, so a
-//! rendered dataset replayed gives exactly the numbers its evaluation gave.
+//! rendered dataset replayed gives exactly the numbers its evaluation gave. On top: the
+//! results file, the scene runner, shards, the sweep's grid, the search and the comparisons
+//! the report states.
 
 mod evaluate;
+pub mod findings;
+pub mod grid;
+pub mod optimize;
 mod record;
+pub mod results;
+pub mod run;
+pub mod settings;
+pub mod shard;
 mod summary;
 
 pub use evaluate::Evaluator;

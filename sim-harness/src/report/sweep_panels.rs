@@ -1,0 +1,85 @@
+//! A sweep's outputs from its results: `summary.csv` and `summary.json` (one row per grid
+//! placement) and, once every cell is complete, the four panels of the paper's Figure 5
+//! (success rate, correct matches, position error, rotation error) with the best cell
+//! ringed.
+
+use std::path::Path;
+
+use camplace_config::Placement;
+
+use super::heatmap::HeatMap;
+use super::plot::save_plot;
+use super::table::{write_summary_csv, write_summary_json, SummaryRow};
+use crate::render::Method;
+use crate::study::grid::Grid;
+use crate::study::results::ResultsStore;
+use crate::study::Summary;
+use crate::Result;
+
+/// What a sweep measured.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepResult {
+    /// One row per grid placement, x fastest.
+    pub rows: Vec<SummaryRow>,
+    /// Whether every cell has all its scenes.
+    pub complete: bool,
+    /// The cell of the highest success rate (first on ties), among cells with scenes.
+    pub best: Option<usize>,
+}
+
+/// Sums up the grid's cells from `store` and writes the summaries and (when complete) the
+/// panels into `dir`.
+pub fn write_sweep_outputs(
+    dir: &Path,
+    grid: &Grid,
+    placements: &[Placement],
+    store: &ResultsStore,
+    method: Method,
+    seed: u64,
+    scenarios: u64,
+) -> Result<SweepResult> {
+    let rows: Vec<SummaryRow> = placements
+        .iter()
+        .map(|p| SummaryRow {
+            placement: p.to_string(),
+            method: method.to_string(),
+            seed,
+            summary: Summary::from_records(&store.records(p, method, seed, scenarios)),
+        })
+        .collect();
+    let complete = rows.iter().all(|r| r.summary.frames as u64 == scenarios);
+    let mut best: Option<usize> = None;
+    for (i, r) in rows.iter().enumerate() {
+        if r.summary.scored > 0 && best.is_none_or(|b| r.summary.success_rate > rows[b].summary.success_rate) {
+            best = Some(i);
+        }
+    }
+    write_summary_csv(&dir.join("summary.csv"), &rows)?;
+    write_summary_json(&dir.join("summary.json"), &rows)?;
+    if complete {
+        let unit = |name: &str| match name {
+            "r" | "baseline" => format!("{name}, mm"),
+            _ => format!("{name}, deg"),
+        };
+        let panel = |title: &str, decimals: usize, pick: &dyn Fn(&Summary) -> Option<f64>| HeatMap {
+            title: format!("{title} ({method})"),
+            x_label: unit(&grid.x.name),
+            y_label: unit(&grid.y.name),
+            xs: grid.x.values(),
+            ys: grid.y.values(),
+            values: rows.iter().map(|r| pick(&r.summary)).collect(),
+            best,
+            decimals,
+        };
+        let panels = [
+            ("success_rate", panel("success rate, %", 0, &|s| Some(100.0 * s.success_rate))),
+            ("correct_matches", panel("mean correct matches", 0, &|s| s.mean_correct_matches)),
+            ("position_error", panel("mean position error, mm", 1, &|s| s.mean_position_error_mm)),
+            ("rotation_error", panel("mean rotation error, deg", 1, &|s| s.mean_rotation_error_deg)),
+        ];
+        for (name, p) in &panels {
+            save_plot(p, dir, name)?;
+        }
+    }
+    Ok(SweepResult { rows, complete, best })
+}

@@ -1,0 +1,180 @@
+//! Running scenes: for each placement of a plan, the model (built, or read from the
+//! folder's model cache), then one [`Worker`](super::Worker) per rayon thread pulling the
+//! placement's unfinished scenario indices; each finished scene goes to the results file at
+//! once. Which thread ran a scene never changes its result.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+use camplace_config::formats::write_atomic;
+use camplace_config::{Cell, Placement};
+use camplace_estimator::Model;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use super::evaluate::Evaluator;
+use super::results::{ResultLine, ResultsStore, SceneKey};
+use super::shard::Shard;
+use crate::model_builder::build_model;
+use crate::render::Method;
+use crate::{Error, Result};
+
+/// Scenes of one placement to run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlacementJob {
+    /// Where the rig sits.
+    pub placement: Placement,
+    /// The seed the scenarios are drawn with.
+    pub seed: u64,
+    /// Scenario indices.
+    pub scenarios: Vec<u64>,
+}
+
+/// Shard `shard`'s part of scenarios `0..count` of `seed` at every placement: the pairs are
+/// numbered placement by placement and cut into contiguous parts.
+pub fn shard_jobs(placements: &[Placement], seed: u64, count: u64, shard: Shard) -> Vec<PlacementJob> {
+    let range = shard.range(placements.len() * count as usize);
+    let mut jobs: Vec<PlacementJob> = Vec::new();
+    for pair in range {
+        let (p, s) = (pair / count as usize, (pair % count as usize) as u64);
+        match jobs.last_mut() {
+            Some(job) if job.placement == placements[p] => job.scenarios.push(s),
+            _ => jobs.push(PlacementJob { placement: placements[p], seed, scenarios: vec![s] }),
+        }
+    }
+    jobs
+}
+
+/// Runs scenes of one cell and method into a results store.
+#[derive(Debug)]
+pub struct SceneRunner<'a> {
+    cell: &'a Cell,
+    method: Method,
+    store: &'a ResultsStore,
+    model_cache: Option<PathBuf>,
+    show_progress: bool,
+}
+
+impl<'a> SceneRunner<'a> {
+    /// A runner writing to `store`.
+    pub fn new(cell: &'a Cell, method: Method, store: &'a ResultsStore) -> SceneRunner<'a> {
+        SceneRunner { cell, method, store, model_cache: None, show_progress: true }
+    }
+
+    /// Keeps built models in `dir` and reads them from there, so a resumed run of one
+    /// placement does not build its model again (a model is tens of MB: worth it for
+    /// `evaluate`, not for a sweep's every cell).
+    pub fn with_model_cache(mut self, dir: &Path) -> Self {
+        self.model_cache = Some(dir.to_path_buf());
+        self
+    }
+
+    /// Whether to draw a progress bar (on a terminal only, in any case).
+    pub fn with_progress(mut self, show: bool) -> Self {
+        self.show_progress = show;
+        self
+    }
+
+    /// Scenes of `jobs` that are not in the store yet.
+    pub fn pending(&self, jobs: &[PlacementJob]) -> usize {
+        jobs.iter()
+            .map(|j| {
+                j.scenarios
+                    .iter()
+                    .filter(|&&i| !self.store.contains(&SceneKey::new(&j.placement, self.method, j.seed, i)))
+                    .count()
+            })
+            .sum()
+    }
+
+    /// Runs every unfinished scene of `jobs`, `label` heading the progress bar.
+    pub fn run(&self, jobs: &[PlacementJob], label: &str) -> Result<()> {
+        let total = self.pending(jobs);
+        if total == 0 {
+            return Ok(());
+        }
+        let bar = if self.show_progress { ProgressBar::new(total as u64) } else { ProgressBar::hidden() };
+        bar.set_style(
+            ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} scenes, {elapsed} elapsed, ETA {eta} {msg}")
+                .expect("a valid template")
+                .progress_chars("=> "),
+        );
+        bar.set_prefix(label.to_string());
+        for job in jobs {
+            self.run_job(job, &bar)?;
+        }
+        bar.finish_and_clear();
+        Ok(())
+    }
+
+    fn run_job(&self, job: &PlacementJob, bar: &ProgressBar) -> Result<()> {
+        let todo: Vec<u64> = job
+            .scenarios
+            .iter()
+            .copied()
+            .filter(|&i| !self.store.contains(&SceneKey::new(&job.placement, self.method, job.seed, i)))
+            .collect();
+        if todo.is_empty() {
+            return Ok(());
+        }
+        bar.set_message(format!("{} (model)", job.placement));
+        let model = self.model(&job.placement, job.seed)?;
+        let evaluator = Evaluator::with_model(self.cell, &job.placement, self.method, job.seed, model);
+        bar.set_message(job.placement.to_string());
+        let next = AtomicUsize::new(0);
+        let failed = AtomicBool::new(false);
+        let first_error: Mutex<Option<Error>> = Mutex::new(None);
+        let threads = rayon::current_num_threads().min(todo.len()).max(1);
+        let work = || -> Result<()> {
+            let mut worker = evaluator.worker()?;
+            loop {
+                if failed.load(Ordering::Relaxed) {
+                    return Ok(());
+                }
+                let n = next.fetch_add(1, Ordering::Relaxed);
+                let Some(&index) = todo.get(n) else { return Ok(()) };
+                let record = worker.scene(index)?;
+                self.store.add(ResultLine {
+                    placement: job.placement.to_string(),
+                    method: self.method.to_string(),
+                    seed: job.seed,
+                    scenario: index,
+                    record,
+                })?;
+                bar.inc(1);
+            }
+        };
+        rayon::scope(|s| {
+            for _ in 0..threads {
+                s.spawn(|_| {
+                    if let Err(e) = work() {
+                        failed.store(true, Ordering::Relaxed);
+                        first_error.lock().expect("error slot").get_or_insert(e);
+                    }
+                });
+            }
+        });
+        match first_error.into_inner().expect("error slot") {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+
+    fn model(&self, placement: &Placement, seed: u64) -> Result<Model> {
+        let Some(dir) = &self.model_cache else { return build_model(self.cell, placement, self.method, seed) };
+        let name: String = format!("{}-seed{seed}-{placement}.model", self.method)
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() || "-.=".contains(c) { c } else { '_' })
+            .collect();
+        let path = dir.join(name);
+        if let Ok(bytes) = std::fs::read(&path) {
+            if let Ok(model) = Model::from_bytes(&bytes) {
+                return Ok(model);
+            }
+        }
+        let model = build_model(self.cell, placement, self.method, seed)?;
+        std::fs::create_dir_all(dir).map_err(|e| Error::Other(format!("{}: cannot create: {e}", dir.display())))?;
+        write_atomic(&path, &model.to_bytes())?;
+        Ok(model)
+    }
+}

@@ -1,0 +1,69 @@
+//! `camplace accept`: the acceptance test of one placement. It passes when the lower
+//! Wilson bound of the success rate reaches the required rate: exit 0 on pass, 1 on fail.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::bail;
+use camplace_sim::study::results::ResultsStore;
+use camplace_sim::study::run::{shard_jobs, SceneRunner};
+use camplace_sim::study::shard::Shard;
+use camplace_sim::study::Summary;
+use camplace_sim::Method;
+
+use super::cell_args::CellArgs;
+use super::run_args::{check_scenarios, open_folder};
+
+/// Flags of `camplace accept`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    cell: CellArgs,
+    /// one-shot (random dots) or phase-12 (12 phase-shift fringes).
+    #[arg(long, default_value = "one-shot")]
+    method: Method,
+    /// Study seed (default: the cell's scenarios.seed).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Required success rate, 0..1: the lower end of the 95 % interval must reach it.
+    #[arg(long)]
+    min_success: f64,
+    /// Scenarios 0..N-1 of the seed.
+    #[arg(long, default_value_t = 250)]
+    scenarios: u64,
+    /// Keep the results in this study folder (resumable); in memory only when not given.
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+/// Runs `camplace accept`.
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    if !(0.0..=1.0).contains(&a.min_success) {
+        bail!("--min-success: expected a rate between 0 and 1 (e.g. 0.95), got {}", a.min_success);
+    }
+    let (cell, placement) = a.cell.load()?;
+    let seed = a.seed.unwrap_or(cell.scenarios.seed);
+    let scenarios = check_scenarios(a.scenarios)?;
+    let store = match &a.out {
+        Some(dir) => open_folder(dir, &cell, a.method, seed)?,
+        None => ResultsStore::in_memory(),
+    };
+    let jobs = shard_jobs(&[placement], seed, scenarios, Shard::WHOLE);
+    let mut runner = SceneRunner::new(&cell, a.method, &store);
+    if let Some(dir) = &a.out {
+        runner = runner.with_model_cache(&dir.join("models"));
+    }
+    runner.run(&jobs, "accept")?;
+    let s = Summary::from_records(&store.records(&placement, a.method, seed, scenarios));
+    let low = s.success_interval[0];
+    let pass = low >= a.min_success;
+    println!("{placement} ({}, seed {seed}): {}", a.method, s.line());
+    println!(
+        "{}: lower 95 % bound {:.1} % {} the required {:.1} %",
+        if pass { "PASS" } else { "FAIL" },
+        100.0 * low,
+        if pass { "reaches" } else { "is below" },
+        100.0 * a.min_success
+    );
+    Ok(if pass { ExitCode::SUCCESS } else { ExitCode::from(1) })
+}

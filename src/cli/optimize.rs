@@ -1,0 +1,164 @@
+//! `camplace optimize`: the RBF surrogate search over placement parameters into a study
+//! folder (evaluations found in its results.jsonl are reused, so a re-run resumes), with a
+//! convergence plot like the paper's Figure 7; or, with `--test-function`, the same search
+//! on a standard function, printing one JSON line.
+//!
+//! Shards: each step of the search depends on the ones before, so optimize runs in one
+//! process and refuses `--shard`; shard the sweep instead (its scenes are independent).
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{bail, Context};
+use camplace_config::formats::write_atomic;
+use camplace_config::{Cell, Placement};
+use camplace_sim::report::convergence::{Convergence, Curve};
+use camplace_sim::report::save_plot;
+use camplace_sim::report::table::{write_summary_csv, SummaryRow};
+use camplace_sim::search::test_functions::{run_test_function, test_function};
+use camplace_sim::study::optimize::{search_placement, SearchOutcome, SearchParameter, SearchPlan};
+use camplace_sim::study::results::ResultsStore;
+use camplace_sim::study::run::{PlacementJob, SceneRunner};
+use camplace_sim::study::Summary;
+use camplace_sim::Method;
+
+use super::cell_args::CellArgs;
+use super::run_args::{check_scenarios, open_folder, RunArgs};
+use super::sweep::load_sweep;
+
+/// Flags of `camplace optimize`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    cell: CellArgs,
+    #[command(flatten)]
+    run: RunArgs,
+    /// Parameters searched, comma separated, each optionally with its box (baseline=40:200).
+    #[arg(long, default_value = "r,alpha,baseline,vergence", value_delimiter = ',', value_parser = parse_param)]
+    params: Vec<SearchParameter>,
+    /// Evaluations the search may spend (default 100; 300 with --test-function).
+    #[arg(long)]
+    budget: Option<usize>,
+    /// Scenarios per evaluation.
+    #[arg(long, default_value_t = 250)]
+    scenarios: u64,
+    /// Candidates evaluated again on fresh scenarios (the next seed).
+    #[arg(long, default_value_t = 3)]
+    top: usize,
+    /// Search a standard function instead: branin, goldstein-price, hartmann3 or hartmann6.
+    #[arg(long, value_name = "NAME")]
+    test_function: Option<String>,
+    /// Study folder.
+    #[arg(long, required_unless_present = "test_function")]
+    out: Option<PathBuf>,
+}
+
+fn parse_param(s: &str) -> Result<SearchParameter, String> {
+    s.parse()
+}
+
+/// Runs `camplace optimize`.
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    if let Some(name) = &a.test_function {
+        let key = name.replace('-', "_");
+        if test_function(&key).is_none() {
+            bail!("--test-function: expected branin, goldstein-price, hartmann3 or hartmann6, got \"{name}\"");
+        }
+        let seed = a.run.seed.unwrap_or(1);
+        let run = run_test_function(&key, seed, a.budget.unwrap_or(300));
+        let line = serde_json::json!({
+            "function": name,
+            "seed": seed,
+            "evaluations_to_within_1pct": run.evaluations_to_within_1pct,
+            "best_value": run.best_value,
+        });
+        println!("{line}");
+        return Ok(ExitCode::SUCCESS);
+    }
+    if a.run.shard.is_some() || a.run.shards.is_some() {
+        bail!("--shard: optimize runs in one process (each step depends on the last); shard the sweep, merge, then optimize");
+    }
+    let out = a.out.as_ref().context("--out: expected a study folder")?;
+    let (cell, base) = a.cell.load()?;
+    let seed = a.run.seed(&cell);
+    let mut names: Vec<&str> = a.params.iter().map(|p| p.name.as_str()).collect();
+    names.sort_unstable();
+    if names.windows(2).any(|w| w[0] == w[1]) {
+        bail!("--params: expected each parameter once");
+    }
+    let plan = SearchPlan {
+        parameters: a.params.clone(),
+        budget: a.budget.unwrap_or(100).max(1),
+        scenarios: check_scenarios(a.scenarios)?,
+        optimizer_seed: seed,
+        top: a.top.max(1),
+        recheck_scenarios: a.scenarios,
+    };
+    let outcome = optimize(out, &cell, &base, a.run.method, seed, &plan, "optimize")?;
+    let best = outcome.best();
+    println!(
+        "best of {} evaluations, re-evaluated on fresh scenarios: {}: {}; wrote {}",
+        outcome.history.len(),
+        best.placement,
+        best.summary.line(),
+        out.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Runs the search into `dir`: optimize.json, optimize.csv and the convergence plot.
+pub fn optimize(
+    dir: &Path,
+    cell: &Cell,
+    base: &Placement,
+    method: Method,
+    seed: u64,
+    plan: &SearchPlan,
+    label: &str,
+) -> anyhow::Result<SearchOutcome> {
+    let store = open_folder(dir, cell, method, seed)?;
+    let runner = SceneRunner::new(cell, method, &store);
+    let mut step = 0;
+    let outcome = search_placement(base, plan, seed, |p, s, n| {
+        step += 1;
+        let job = PlacementJob { placement: *p, seed: s, scenarios: (0..n).collect() };
+        runner.run(&[job], &format!("{label} {step}/{}", plan.budget))?;
+        Ok(Summary::from_records(&store.records(p, method, s, n)))
+    })?;
+    let text = serde_json::to_string_pretty(&(plan, &outcome)).expect("plain data");
+    write_atomic(&dir.join("optimize.json"), text.as_bytes())?;
+    let rows: Vec<SummaryRow> = outcome
+        .history
+        .iter()
+        .map(|e| SummaryRow {
+            placement: e.placement.clone(),
+            method: method.to_string(),
+            seed,
+            summary: e.summary.clone(),
+        })
+        .collect();
+    write_summary_csv(&dir.join("optimize.csv"), &rows)?;
+    let curve = Curve {
+        label: format!("{method}"),
+        rates: outcome.history.iter().map(|e| e.summary.success_rate).collect(),
+        sweep_best: sweep_best(dir, &store, method, seed)?,
+    };
+    let plot = Convergence { title: format!("search over {} parameters", plan.parameters.len()), curves: vec![curve] };
+    save_plot(&plot, dir, "convergence")?;
+    Ok(outcome)
+}
+
+/// The best success rate of the sweep held in `dir`, if one is there and complete.
+pub fn sweep_best(dir: &Path, store: &ResultsStore, method: Method, seed: u64) -> anyhow::Result<Option<f64>> {
+    let Some((grid, n, base)) = load_sweep(dir)? else { return Ok(None) };
+    let mut best: Option<f64> = None;
+    for p in grid.placements(&base)? {
+        let records = store.records(&p, method, seed, n);
+        if records.len() as u64 != n {
+            return Ok(None);
+        }
+        let rate = Summary::from_records(&records).success_rate;
+        best = Some(best.map_or(rate, |b: f64| b.max(rate)));
+    }
+    Ok(best)
+}
