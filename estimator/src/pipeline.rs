@@ -2,6 +2,13 @@
 //! cloud) to the tray's pose, with its timings. It owns the buffers of all stages; the stages
 //! themselves live in their own modules.
 //!
+//! After reconstruction: down-sampling to SRes, PCA normals, key points every
+//! `keypoint_spacing`, ECSAD descriptors, key points without relief dropped, k-NN matching
+//! with the height band, prerejective RANSAC (2- or 3-match samples), point-to-plane ICP on
+//! the closest view, and last the half-turn check: the tray is nearly symmetric under a half
+//! turn, so the turned pose is scored too and the one whose whole tray explains more of the
+//! scene is kept.
+//!
 //! Allocation policy: `Estimator::new` sizes every buffer for a full camera frame; a frame
 //! larger than any seen before may grow one once, after which `process` allocates nothing.
 
