@@ -24,7 +24,7 @@ fn one_shot_at_the_optimum_finds_trays() {
     let mut estimator = Estimator::new(&cell, sim.rig(), model, Method::OneShot).unwrap();
     estimator.set_background(&frame.left, &frame.right).unwrap();
     let mut pose = PoseEstimate::default();
-    let n = 10;
+    let n = 50;
     let mut successes = 0;
     for i in 0..n {
         let scenario = draw_scenario(&cell, seed, i);
@@ -33,9 +33,9 @@ fn one_shot_at_the_optimum_finds_trays() {
         let errors = pose_errors(&pose.t_world_tray, &scenario.t_world_tray, &symmetries, &cell.metrics);
         successes += usize::from(pose.found && errors.success);
     }
-    // Measured: 4 of these 10 (7 of 50 scenes) with the default settings; the estimator is
-    // weak yet, so this guards against a broken pipeline, not for the paper's figures.
-    assert!(successes >= 2, "{successes} of {n} trays found within the success limits");
+    // Measured: 49 of these 50 with the default settings (the one miss is 3.3 mm off);
+    // the acceptance figure is 90 %.
+    assert!(successes >= 46, "{successes} of {n} trays found within the success limits");
 }
 
 #[test]

@@ -182,10 +182,15 @@ pub struct EstimatorParams {
     /// Radius of the neighbourhood a normal is fitted to, mm.
     pub normal_radius: f64,
     pub keypoint_spacing: f64,
+    /// Key points whose descriptor deviates less than this from a plane's (RMS, deg) are
+    /// not matched: flat surface looks alike everywhere.
+    pub min_relief: f64,
     pub feature_radius: f64,
     pub k: u32,
     pub height_band: f64,
     pub ransac_iterations: u32,
+    /// Matches per RANSAC sample: 3 (a free pose) or 2 (a tray resting on the table).
+    pub ransac_sample: u32,
     pub edge_similarity: f64,
     pub table_height: f64,
     pub table_tilt: f64,
@@ -384,6 +389,12 @@ impl Cell {
             ));
         }
         pos("estimator.keypoint_spacing", e.keypoint_spacing)?;
+        if !(e.min_relief.is_finite() && (0.0..90.0).contains(&e.min_relief)) {
+            return Err(Error::value(
+                "estimator.min_relief",
+                format!("expected an angle from 0 to below 90 deg, got {}", e.min_relief),
+            ));
+        }
         pos("estimator.feature_radius", e.feature_radius)?;
         if e.k == 0 || e.k > 64 {
             return Err(Error::value("estimator.k", format!("expected 1 to 64 nearest neighbours, got {}", e.k)));
@@ -391,6 +402,12 @@ impl Cell {
         pos("estimator.height_band", e.height_band)?;
         if e.ransac_iterations == 0 {
             return Err(Error::value("estimator.ransac_iterations", "expected at least 1 iteration"));
+        }
+        if !(2..=3).contains(&e.ransac_sample) {
+            return Err(Error::value(
+                "estimator.ransac_sample",
+                format!("expected 2 or 3 matches per sample, got {}", e.ransac_sample),
+            ));
         }
         unit("estimator.edge_similarity", e.edge_similarity)?;
         pos("estimator.table_height", e.table_height)?;

@@ -42,6 +42,14 @@ pub const ECSAD_DIM: usize = 30;
 /// One ECSAD descriptor: per bin, the normal-to-centroid angle in radians (0 to pi).
 pub type Descriptor = [f32; ECSAD_DIM];
 
+/// Relief of a descriptor: the RMS deviation of its angles from a plane's (pi/2), deg.
+/// Near 0 on flat surface, tens of degrees at edges, steps and corners; a cheap measure of
+/// how distinctive a key point can be.
+pub fn relief_deg(descriptor: &Descriptor) -> f32 {
+    let sum: f32 = descriptor.iter().map(|v| (v - FRAC_PI_2).powi(2)).sum();
+    (sum / ECSAD_DIM as f32).sqrt().to_degrees()
+}
+
 /// Number of concentric rings of the polar grid.
 pub const RINGS: usize = 4;
 

@@ -69,6 +69,9 @@ pub struct Icp {
     distances: Vec<f32>,
     /// Each view's bounding box, tray frame.
     bounds: Vec<(Point3<f32>, Point3<f32>)>,
+    /// Every view's points merged at the surface resolution, tray frame, and their grid.
+    whole_points: Vec<Point3<f32>>,
+    whole: NearestGrid,
 }
 
 impl std::fmt::Debug for Icp {
@@ -99,8 +102,14 @@ impl Icp {
             }
             bounds.push((lo, hi));
         }
+        let all: Vec<Point3<f32>> = model.views.iter().flat_map(|v| v.points.iter().copied()).collect();
+        let mut whole_points = Vec::new();
+        crate::Downsampler::new().downsample(&all, model.surface_resolution, &mut whole_points)?;
+        let whole = NearestGrid::new(&whole_points, model.surface_resolution, params.inlier_distance as f32);
         let capacity = 1 << 15;
         Ok(Icp {
+            whole_points,
+            whole,
             iterations: params.icp_iterations,
             max_distance: params.icp_max_distance as f32,
             trim: params.icp_trim as f32,
@@ -212,6 +221,24 @@ impl Icp {
             }
         }
         Ok(true)
+    }
+}
+
+impl Icp {
+    /// Scene points (world frame) that the whole tray, posed at `t_world_tray`, explains:
+    /// a point of any view lies within `reach` mm (up to the lookup grid's half cell). All
+    /// views together describe the tray from every side, so two hypotheses are judged
+    /// against the same surface, and only the parts where they differ change the count.
+    pub fn explained(&self, scene_points: &[Point3<f32>], t_world_tray: &Isometry3<f64>, reach: f32) -> u32 {
+        let pose = t_world_tray.inverse().cast::<f32>();
+        let reach2 = reach * reach;
+        let mut count = 0;
+        for p in scene_points {
+            let q = pose * p;
+            let Some(item) = self.whole.lookup(&q) else { continue };
+            count += u32::from((q - self.whole_points[item as usize]).norm_squared() <= reach2);
+        }
+        count
     }
 }
 

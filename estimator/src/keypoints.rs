@@ -1,10 +1,12 @@
 //! Feature key points: a sparser subset of the SRes cloud (one per coarse voxel of side
-//! `keypoint_spacing`, the cloud point nearest the centroid of that voxel's points). Key
+//! `keypoint_spacing`, the cloud point nearest the centroid of that voxel's points), and,
+//! once described, only those whose descriptor shows relief (see [`keep_distinctive`]). Key
 //! points are indices into the cloud, which stays the feature support.
 
 use nalgebra::{Point3, Vector3};
 
 use crate::downsample::{check_voxel_size, voxel_key, VoxelTable};
+use crate::ecsad::{relief_deg, Descriptor};
 use crate::normals::is_valid;
 use crate::{Error, ErrorKind, Result};
 
@@ -86,6 +88,24 @@ impl KeypointSelector {
         }
         Ok(())
     }
+}
+
+/// Keeps, in order and in place, the key points whose descriptor's relief reaches
+/// `min_relief_deg` ([`relief_deg`]), with their descriptors. Flat surface (the tray's floor,
+/// an item's top) gives near-identical descriptors everywhere, so its matches are right by
+/// chance only and crowd out the few that fix the pose.
+pub fn keep_distinctive(keypoints: &mut Vec<u32>, descriptors: &mut Vec<Descriptor>, min_relief_deg: f32) {
+    debug_assert_eq!(keypoints.len(), descriptors.len());
+    let mut kept = 0;
+    for i in 0..keypoints.len().min(descriptors.len()) {
+        if relief_deg(&descriptors[i]) >= min_relief_deg {
+            keypoints[kept] = keypoints[i];
+            descriptors[kept] = descriptors[i];
+            kept += 1;
+        }
+    }
+    keypoints.truncate(kept);
+    descriptors.truncate(kept);
 }
 
 #[cfg(test)]

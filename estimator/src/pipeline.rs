@@ -2,6 +2,13 @@
 //! cloud) to the tray's pose, with its timings. It owns the buffers of all stages; the stages
 //! themselves live in their own modules.
 //!
+//! After reconstruction: down-sampling to SRes, PCA normals, key points every
+//! `keypoint_spacing`, ECSAD descriptors, key points without relief dropped, k-NN matching
+//! with the height band, prerejective RANSAC (2- or 3-match samples), point-to-plane ICP on
+//! the closest view, and last the half-turn check: the tray is nearly symmetric under a half
+//! turn, so the turned pose is scored too and the one whose whole tray explains more of the
+//! scene is kept.
+//!
 //! Allocation policy: `Estimator::new` sizes every buffer for a full camera frame; a frame
 //! larger than any seen before may grow one once, after which `process` allocates nothing.
 
@@ -10,6 +17,7 @@ use std::time::Instant;
 use camplace_config::{Cell, EstimatorParams};
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
+use crate::keypoints::keep_distinctive;
 use crate::normals::MIN_NEIGHBOURS;
 use crate::{
     Correspondence, Descriptor, Downsampler, Ecsad, Error, ErrorKind, FeatureMatcher, GrayImage, Icp, IcpResult,
@@ -252,6 +260,7 @@ impl Stages {
         self.selector.select(&self.cloud, &self.normals, p.keypoint_spacing as f32, &mut self.keypoints)?;
         self.neighbours.build(&self.cloud, p.feature_radius as f32 / 2.0)?;
         self.ecsad.compute(&self.cloud, &self.normals, &self.neighbours, &self.keypoints, &mut self.descriptors)?;
+        keep_distinctive(&mut self.keypoints, &mut self.descriptors, p.min_relief as f32);
         self.keypoint_points.extend(self.keypoints.iter().map(|&i| self.cloud[i as usize]));
         self.heights.clear();
         // The table is z = 0 in the world and the tray's bottom is z = 0 in its frame, so
@@ -293,37 +302,29 @@ impl Stages {
             self.icp.refine(&self.cloud, &self.model, view, &self.sensor_position, &coarse, &mut out.icp)?;
         // A rectangular tray is nearly symmetric under a half turn about its z axis: only a
         // small feature (a chamfer, a tab) tells the two apart, and RANSAC's inlier count
-        // often cannot. Refining the half-turned pose too and keeping the one with more
-        // close pairs lets the whole surface, that feature included, decide.
-        let start = if refined { out.icp.t_world_tray } else { coarse };
-        let turned = start * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI);
-        let turned_view = self.model.closest_view(&turned, &self.sensor_position);
-        let mut other = IcpResult::default();
-        let other_refined =
-            self.icp.refine(&self.cloud, &self.model, turned_view, &self.sensor_position, &turned, &mut other)?;
-        if other_refined && better(&other, &out.icp, refined) {
-            out.icp = other;
-            refined = true;
+        // often cannot. So the half-turned pose is tried too: it places the symmetric body
+        // where this one does, and the one under which the whole tray explains more scene
+        // points within the inlier distance has that feature where the scene shows it. A
+        // half-turned winner is refined again (a tray need not be exactly symmetric) and
+        // kept only if it still explains more.
+        let reach = p.inlier_distance as f32;
+        let pose = if refined { out.icp.t_world_tray } else { coarse };
+        let ours = self.icp.explained(&self.cloud, &pose, reach);
+        let turned = pose * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI);
+        if self.icp.explained(&self.cloud, &turned, reach) > ours {
+            let turned_view = self.model.closest_view(&turned, &self.sensor_position);
+            let mut other = IcpResult::default();
+            let other_refined =
+                self.icp.refine(&self.cloud, &self.model, turned_view, &self.sensor_position, &turned, &mut other)?;
+            if other_refined && self.icp.explained(&self.cloud, &other.t_world_tray, reach) > ours {
+                out.icp = other;
+                refined = true;
+            }
         }
         out.timings.icp_ms = ms(t);
         out.found = true;
         out.inliers = out.ransac.inliers;
         out.t_world_tray = if refined { out.icp.t_world_tray } else { coarse };
         Ok(())
-    }
-}
-
-/// Whether refinement `a` fits the scene better than `b`: more pairs within reach, then a
-/// smaller residual.
-fn better(a: &IcpResult, b: &IcpResult, b_refined: bool) -> bool {
-    if !b_refined {
-        return true;
-    }
-    // Pair counts within a hundredth of each other are a tie the residual breaks.
-    let tie = a.correspondences.abs_diff(b.correspondences) * 100 <= a.correspondences.max(b.correspondences);
-    if tie {
-        a.rms_mm < b.rms_mm
-    } else {
-        a.correspondences > b.correspondences
     }
 }
