@@ -1,5 +1,6 @@
 //! Bench of the whole deployed pipeline, camera to pose: one rendered one-shot stereo frame
-//! at the paper's optimum, with the model built at that placement.
+//! at the paper's optimum, with the model built at that placement; and the pose stages alone
+//! (down-sampling, normals, features, matching, RANSAC, ICP) on that frame's world cloud.
 
 use std::hint::black_box;
 
@@ -29,6 +30,10 @@ pub fn benches(c: &mut Criterion) {
     group.sample_size(10);
     group.bench_function("one_shot_frame", |b| {
         b.iter(|| estimator.process(black_box(&frame.left), black_box(&frame.right), &mut pose).expect("valid"))
+    });
+    let cloud = estimator.reconstruction().cloud.points.clone();
+    group.bench_function("pose_from_cloud", |b| {
+        b.iter(|| estimator.process_cloud(black_box(&cloud), &mut pose).expect("valid"))
     });
     group.finish();
 }
