@@ -1,11 +1,16 @@
 //! The subcommands and their flags; one module per subcommand.
 
 mod cell_args;
+mod devices;
 mod estimate;
 mod init;
 mod model;
+mod project;
 mod reconstruct;
+mod recording;
 mod render;
+mod replay;
+mod run;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -31,6 +36,14 @@ enum Command {
     Model(model::Args),
     /// Estimate the tray's pose in a recorded dataset or one point cloud.
     Estimate(estimate::Args),
+    /// Estimate every frame of a recorded dataset; with truth, the evaluation's summary.
+    Replay(replay::Args),
+    /// The deployed loop: frames from cameras or a recording, one pose per frame, latency.
+    Run(run::Args),
+    /// List the cameras of this machine.
+    Devices(devices::Args),
+    /// Show the projector's pattern full screen (and capture each one in step).
+    Project(project::Args),
 }
 
 /// Parses the command line and runs the subcommand.
@@ -42,5 +55,9 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Reconstruct(a) => reconstruct::run(a),
         Command::Model(a) => model::run(a),
         Command::Estimate(a) => estimate::run(a),
+        Command::Replay(a) => replay::run(a),
+        Command::Run(a) => run::run(a),
+        Command::Devices(a) => devices::run(a),
+        Command::Project(a) => project::run(a),
     }
 }
