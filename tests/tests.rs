@@ -2,5 +2,6 @@
 
 mod cli;
 mod cli_errors;
+mod deploy;
 mod estimate;
 mod reconstruct;
