@@ -174,3 +174,65 @@ fn project_without_the_display_feature_says_how_to_build_it() {
     let o = camplace(dir.path(), &["project", "--method", "phase-12"]);
     assert_one_line_error(&o, &["`display`", "--features display"]);
 }
+
+/// `project --source dir:` under a virtual X server: the pattern is shown, then the source
+/// read, and the frame lands in the dataset as the next frame folder with the source's
+/// images. Skips (saying why) without Xvfb.
+#[cfg(feature = "display")]
+#[test]
+fn project_captures_a_frame_in_step_under_xvfb() {
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+
+    let Some(n) = (300..400).find(|n| {
+        !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
+    }) else {
+        return;
+    };
+    let display = format!(":{n}");
+    let Ok(mut xvfb) = Command::new("Xvfb")
+        .args([display.as_str(), "-screen", "0", "1280x800x24", "-nolisten", "tcp"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+    else {
+        println!("skipped: Xvfb is not installed");
+        return;
+    };
+    let start = Instant::now();
+    while !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && start.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let f = fixture();
+    let out = tempfile::tempdir().unwrap();
+    let rec = out.path().join("rec");
+    let data = f.root.join("data");
+    let run = || {
+        Command::new(env!("CARGO_BIN_EXE_camplace"))
+            .args(["project", "--method", "one-shot", "--settle-ms", "50", "--skip", "0"])
+            .arg("--source")
+            .arg(format!("dir:{}", data.display()))
+            .arg("--out")
+            .arg(&rec)
+            .arg("--rig")
+            .arg(data.join("rig.json"))
+            .env("DISPLAY", &display)
+            .output()
+            .unwrap()
+    };
+    let (first, second) = (run(), run());
+    let _ = xvfb.kill();
+    let _ = xvfb.wait();
+    for o in [&first, &second] {
+        assert!(o.status.success(), "{}", stderr(o));
+    }
+    // Each call reads the recording from its start and adds the next frame folder.
+    for frame in ["0000", "0001"] {
+        for side in ["left.png", "right.png"] {
+            let want = camplace_config::formats::png::read_gray(&data.join("frames/0000").join(side)).unwrap();
+            let got = camplace_config::formats::png::read_gray(&rec.join("frames").join(frame).join(side)).unwrap();
+            assert_eq!((got.width, got.height, got.data), (want.width, want.height, want.data), "{frame}/{side}");
+        }
+    }
+    assert_eq!(read(&rec.join("rig.json")), read(&data.join("rig.json")));
+}
