@@ -203,10 +203,12 @@ fn project_captures_a_frame_in_step_under_xvfb() {
     while !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && start.elapsed() < Duration::from_secs(10) {
         std::thread::sleep(Duration::from_millis(20));
     }
-    let f = fixture();
+    // A dataset of its own: the model of the shared fixture is not needed here.
     let out = tempfile::tempdir().unwrap();
+    let o = camplace(out.path(), &["render", "--dataset", "--count", "1", "--placement", OPTIMUM, "--out", "data"]);
+    assert!(o.status.success(), "{}", stderr(&o));
     let rec = out.path().join("rec");
-    let data = f.root.join("data");
+    let data = out.path().join("data");
     let run = || {
         Command::new(env!("CARGO_BIN_EXE_camplace"))
             .args(["project", "--method", "one-shot", "--settle-ms", "50", "--skip", "0"])
