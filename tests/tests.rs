@@ -2,6 +2,7 @@
 
 mod cli;
 mod cli_errors;
+mod deploy;
 mod estimate;
 mod reconstruct;
 mod reconstruct_errors;

@@ -1,6 +1,8 @@
 //! The live capture thread: reads a `FrameSource` into a fixed pool of frame buffers and
 //! hands them over a bounded channel. When the consumer (the estimator) falls behind, the
-//! oldest waiting frame is dropped and counted, so the newest frame is never late.
+//! oldest waiting frame is dropped and counted, so the newest frame is never late
+//! ([`WhenBehind::DropOldest`], what a camera needs); a recording replayed frame by frame
+//! may instead wait for the consumer ([`WhenBehind::Wait`]).
 //! Buffers come back through `recycle`; none is allocated after the pool is filled.
 //! A buffer is taken before the source says the stream has ended, so a consumer that is
 //! behind at the end also loses the oldest waiting frame then.
@@ -8,13 +10,35 @@
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
+use std::time::Instant;
 
 use crossbeam_channel::{bounded, Receiver, Sender, TryRecvError};
 
 use crate::frames::{FrameInfo, FrameSource, Frames};
 use crate::{Error, ErrorKind, Result};
 
-type Filled = Result<(FrameInfo, Frames)>;
+/// One frame as the capture thread handed it over.
+#[derive(Debug)]
+pub struct Captured {
+    /// What the source said about it.
+    pub info: FrameInfo,
+    /// Its images (give them back with [`Capture::recycle`]).
+    pub frames: Frames,
+    /// When the source had filled it: the start of the frame's capture-to-pose latency.
+    pub at: Instant,
+}
+
+/// What the capture thread does when every buffer waits for the consumer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum WhenBehind {
+    /// Reuse the oldest waiting frame's buffer and count the frame as dropped.
+    #[default]
+    DropOldest,
+    /// Wait until the consumer gives a buffer back: no frame is lost.
+    Wait,
+}
+
+type Filled = Result<Captured>;
 
 /// A source read on its own thread into recycled buffers.
 pub struct Capture {
@@ -27,8 +51,17 @@ pub struct Capture {
 
 impl Capture {
     /// Starts reading `source` on a new thread with `buffers` frame buffers (at least 2:
-    /// one being filled, one with the consumer).
-    pub fn spawn(mut source: Box<dyn FrameSource + Send>, buffers: usize) -> Result<Capture> {
+    /// one being filled, one with the consumer), dropping the oldest frame when behind.
+    pub fn spawn(source: Box<dyn FrameSource + Send>, buffers: usize) -> Result<Capture> {
+        Self::spawn_with(source, buffers, WhenBehind::DropOldest)
+    }
+
+    /// As [`Capture::spawn`], doing `when_behind` when every buffer waits for the consumer.
+    pub fn spawn_with(
+        mut source: Box<dyn FrameSource + Send>,
+        buffers: usize,
+        when_behind: WhenBehind,
+    ) -> Result<Capture> {
         let buffers = buffers.max(2);
         let (full_tx, full_rx) = bounded::<Filled>(buffers);
         let (free_tx, free_rx) = bounded::<Frames>(buffers);
@@ -48,10 +81,14 @@ impl Capture {
                     let mut frames = match free_rx.try_recv() {
                         Ok(f) => f,
                         Err(TryRecvError::Disconnected) => return,
+                        Err(TryRecvError::Empty) if when_behind == WhenBehind::Wait => match free_rx.recv() {
+                            Ok(f) => f,
+                            Err(_) => return,
+                        },
                         Err(TryRecvError::Empty) => match oldest.try_recv() {
-                            Ok(Ok((_, f))) => {
+                            Ok(Ok(c)) => {
                                 count.fetch_add(1, Ordering::Relaxed);
-                                f
+                                c.frames
                             }
                             Ok(Err(_)) => return,
                             Err(_) => match free_rx.recv() {
@@ -62,7 +99,7 @@ impl Capture {
                     };
                     match source.next(&mut frames) {
                         Ok(Some(info)) => {
-                            if full_tx.send(Ok((info, frames))).is_err() {
+                            if full_tx.send(Ok(Captured { info, frames, at: Instant::now() })).is_err() {
                                 return;
                             }
                         }
@@ -79,7 +116,7 @@ impl Capture {
     }
 
     /// The next frame, waiting for it; `Ok(None)` once the source has ended.
-    pub fn recv(&self) -> Result<Option<(FrameInfo, Frames)>> {
+    pub fn recv(&self) -> Result<Option<Captured>> {
         match self.full.recv() {
             Ok(r) => r.map(Some),
             Err(_) => Ok(None),
@@ -146,11 +183,14 @@ mod tests {
     }
 
     fn run(total: u64, capture_ms: u64, process_ms: u64) -> (Vec<u64>, u64) {
-        let capture =
-            Capture::spawn(Box::new(Counter { next: 0, total, delay_ms: capture_ms, ended: Arc::default() }), 3)
-                .unwrap();
+        run_with(total, capture_ms, process_ms, WhenBehind::DropOldest)
+    }
+
+    fn run_with(total: u64, capture_ms: u64, process_ms: u64, when_behind: WhenBehind) -> (Vec<u64>, u64) {
+        let source = Counter { next: 0, total, delay_ms: capture_ms, ended: Arc::default() };
+        let capture = Capture::spawn_with(Box::new(source), 3, when_behind).unwrap();
         let mut seen = Vec::new();
-        while let Some((info, frames)) = capture.recv().unwrap() {
+        while let Some(Captured { info, frames, .. }) = capture.recv().unwrap() {
             assert_eq!(frames.shots(), 2);
             let want = GrayImage::new(8, 4, info.index as u8);
             assert!(frames.left.iter().chain(&frames.right).all(|i| *i == want), "frame {} mixed up", info.index);
@@ -177,6 +217,13 @@ mod tests {
     }
 
     #[test]
+    fn waiting_for_a_slow_consumer_loses_nothing() {
+        let (seen, dropped) = run_with(20, 0, 3, WhenBehind::Wait);
+        assert_eq!(seen, (0..20).collect::<Vec<_>>());
+        assert_eq!(dropped, 0);
+    }
+
+    #[test]
     fn a_consumer_that_reads_after_the_end_gets_the_newest_frames() {
         let ended = Arc::new(AtomicBool::new(false));
         let source = Counter { next: 0, total: 40, delay_ms: 0, ended: ended.clone() };
@@ -185,7 +232,7 @@ mod tests {
             std::thread::yield_now();
         }
         let mut seen = Vec::new();
-        while let Some((info, frames)) = capture.recv().unwrap() {
+        while let Some(Captured { info, frames, .. }) = capture.recv().unwrap() {
             seen.push(info.index);
             capture.recycle(frames);
         }
@@ -199,8 +246,13 @@ mod tests {
         let capture =
             Capture::spawn(Box::new(Counter { next: 0, total: u64::MAX, delay_ms: 1, ended: Arc::default() }), 2)
                 .unwrap();
-        let (info, _) = capture.recv().unwrap().unwrap();
-        assert_eq!(info.index, 0);
+        // Frames may be dropped before the first receive (the source outruns a busy test
+        // machine), but what arrives arrives in order.
+        let first = capture.recv().unwrap().unwrap();
+        capture.recycle(first.frames);
+        let first = first.info.index;
+        let second = capture.recv().unwrap().unwrap().info.index;
+        assert!(second > first, "{first} then {second}");
         drop(capture); // joins; a hang here fails the test run
     }
 }

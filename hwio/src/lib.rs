@@ -10,18 +10,20 @@ pub mod devices;
 pub mod display;
 mod error;
 pub mod frames;
+pub mod paced;
 pub mod pixels;
 pub mod recorded;
 pub mod spec;
 #[cfg(feature = "v4l")]
 pub mod v4l2;
 
-pub use capture::Capture;
+pub use capture::{Capture, Captured, WhenBehind};
 pub use devices::{list_devices, DeviceList};
 #[cfg(feature = "display")]
 pub use display::show_patterns;
 pub use error::{Error, ErrorKind, Result};
 pub use frames::{FrameInfo, FrameSource, Frames};
+pub use paced::Paced;
 pub use pixels::{InterleavedOrder, PixelFormat};
 pub use recorded::RecordedSource;
 pub use spec::{open_source, parse_source, SourceSpec};

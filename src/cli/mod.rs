@@ -2,14 +2,19 @@
 
 mod accept;
 mod cell_args;
+mod devices;
 mod estimate;
 mod evaluate;
 mod init;
 mod merge;
 mod model;
 mod optimize;
+mod project;
 mod reconstruct;
+mod recording;
 mod render;
+mod replay;
+mod run;
 mod run_args;
 mod study;
 mod sweep;
@@ -50,6 +55,14 @@ enum Command {
     Accept(accept::Args),
     /// Join the folders of shards into one and compute the summaries again.
     Merge(merge::Args),
+    /// Estimate every frame of a recorded dataset; with truth, the evaluation's summary.
+    Replay(replay::Args),
+    /// The deployed loop: frames from cameras or a recording, one pose per frame, latency.
+    Run(run::Args),
+    /// List the cameras of this machine.
+    Devices(devices::Args),
+    /// Show the projector's pattern full screen (and capture each one in step).
+    Project(project::Args),
 }
 
 /// Parses the command line and runs the subcommand.
@@ -77,5 +90,9 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Optimize(a) => optimize::run(a),
         Command::Accept(a) => accept::run(a),
         Command::Merge(a) => merge::run(a),
+        Command::Replay(a) => replay::run(a),
+        Command::Run(a) => run::run(a),
+        Command::Devices(a) => devices::run(a),
+        Command::Project(a) => project::run(a),
     }
 }

@@ -5,6 +5,7 @@
 
 use camplace_config::formats::dataset::frame_name;
 use camplace_config::{Cell, Placement};
+use camplace_estimator::camera::{isometry_from_rows, isometry_to_rows};
 use camplace_estimator::{Estimator, Model, PoseEstimate};
 
 use super::record::{score, FrameRecord};
@@ -90,7 +91,10 @@ impl Worker {
         self.estimator.process(&self.frame.left, &self.frame.right, &mut self.pose)?;
         let mut record = FrameRecord::new(frame_name(index), &self.pose);
         let symmetries = self.estimator.model().symmetries_deg.clone();
-        record.score = Some(score(&self.pose, &self.estimator, &scenario.t_world_tray, &symmetries, &cell.metrics));
+        // The truth as a dataset's truth.json carries it (a 4x4 matrix, not a quaternion),
+        // so replaying the rendered dataset scores to the last bit alike.
+        let truth = isometry_from_rows(&isometry_to_rows(&scenario.t_world_tray));
+        record.score = Some(score(&self.pose, &self.estimator, &truth, &symmetries, &cell.metrics));
         Ok(record)
     }
 }

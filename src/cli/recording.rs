@@ -1,0 +1,96 @@
+//! A recorded dataset through the estimator, shared by `estimate --dataset`, `replay` and
+//! `run --source dir:`: the estimator set up from the dataset's rig and background, each
+//! frame's record scored against its `truth.json`, and `poses.jsonl` written.
+
+use anyhow::{bail, Context};
+use camplace_config::formats::write_atomic;
+use camplace_config::{Cell, TruthFile};
+use camplace_estimator::camera::isometry_from_rows;
+use camplace_estimator::{Estimator, Method, Model, PoseEstimate, Rig};
+use camplace_hwio::{FrameSource, Frames, RecordedSource};
+use camplace_sim::study::{score, FrameRecord};
+use std::path::{Path, PathBuf};
+
+/// Reads a model file.
+pub fn load_model(path: &Path) -> anyhow::Result<Model> {
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read the model", path.display()))?;
+    Model::from_bytes(&bytes).with_context(|| format!("{}: not a usable model file", path.display()))
+}
+
+/// The method a source of `shots` images per side was captured with.
+pub fn method_for(shots: usize) -> Method {
+    if shots == 1 {
+        Method::OneShot
+    } else {
+        Method::Phase12
+    }
+}
+
+/// The estimator for `rig` (read from `rig_path`, named in errors) with the background of
+/// `background` when it has one.
+pub fn estimator_for(
+    cell: &Cell,
+    model: Model,
+    rig: &Rig,
+    rig_path: &Path,
+    method: Method,
+    background: Option<&Frames>,
+) -> anyhow::Result<Estimator> {
+    let mut estimator = Estimator::new(cell, rig, model, method).with_context(|| rig_path.display().to_string())?;
+    if let Some(frames) = background {
+        estimator.set_background(&frames.left, &frames.right).context("background")?;
+    }
+    Ok(estimator)
+}
+
+/// The record of the frame the estimator just processed, scored against `truth` (a
+/// `truth.json`) when there is one.
+pub fn record(
+    cell: &Cell,
+    estimator: &Estimator,
+    pose: &PoseEstimate,
+    name: &str,
+    truth: Option<&Path>,
+) -> anyhow::Result<FrameRecord> {
+    let mut record = FrameRecord::new(name, pose);
+    if let Some(path) = truth {
+        let truth = TruthFile::load(path)?;
+        let symmetries: Vec<f32> = truth.symmetries.iter().map(|&s| s as f32).collect();
+        let t = isometry_from_rows(&truth.t_world_tray);
+        record.score = Some(score(pose, estimator, &t, &symmetries, &cell.metrics));
+    }
+    Ok(record)
+}
+
+/// The `truth.json` of the frame called `name` in dataset `dir`, when it has one.
+pub fn truth_path(dir: &Path, name: &str) -> Option<PathBuf> {
+    let p = dir.join("frames").join(name).join("truth.json");
+    p.is_file().then_some(p)
+}
+
+/// Every frame of the dataset `dir` estimated in order; writes `dir/poses.jsonl` and
+/// returns the records and the method.
+pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> anyhow::Result<(Vec<FrameRecord>, Method)> {
+    let source = RecordedSource::open(dir)?;
+    let method = method_for(source.shots());
+    let rig = Rig::from_file(source.rig());
+    let mut frames = Frames::new(source.shots());
+    let background = source.background(&mut frames)?.then_some(&frames);
+    let mut estimator = estimator_for(cell, model, &rig, &dir.join("rig.json"), method, background)?;
+    let mut lines = String::new();
+    let mut records = Vec::with_capacity(source.frame_dirs().len());
+    let mut pose = PoseEstimate::default();
+    for i in 0..source.frame_dirs().len() {
+        let info = source.read_into(i, &mut frames)?;
+        estimator.process(&frames.left, &frames.right, &mut pose).with_context(|| format!("frame {}", info.name))?;
+        let record = record(cell, &estimator, &pose, &info.name, source.truth_path(i).as_deref())?;
+        lines.push_str(&record.to_line());
+        lines.push('\n');
+        records.push(record);
+    }
+    if records.is_empty() {
+        bail!("{}: the dataset has no frames", dir.display());
+    }
+    write_atomic(&dir.join("poses.jsonl"), lines.as_bytes())?;
+    Ok((records, method))
+}

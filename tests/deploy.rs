@@ -1,0 +1,240 @@
+//! Deployment end to end: a dataset written by `render --dataset` replayed equals the
+//! evaluation of the same scenarios, `run` on it equals `replay`, a slow estimator behind a
+//! paced source drops frames and says how many, and missing hardware is a clear error.
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use camplace_config::Cell;
+use camplace_sim::study::{Evaluator, FrameRecord, Summary};
+use camplace_sim::Method;
+
+use crate::cli::{camplace, stderr};
+
+const OPTIMUM: &str = "r=605,alpha=32,baseline=81,vergence=3.5";
+const SEED: u64 = 1;
+const SCENES: u64 = 4;
+
+/// A rendered dataset of `SCENES` scenarios at the optimum and the model of that placement,
+/// made once for every test here.
+struct Fixture {
+    _dir: tempfile::TempDir,
+    root: PathBuf,
+}
+
+fn fixture() -> &'static Fixture {
+    static FIXTURE: OnceLock<Fixture> = OnceLock::new();
+    FIXTURE.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path().to_path_buf();
+        let (count, seed) = (SCENES.to_string(), SEED.to_string());
+        let o = camplace(
+            &root,
+            &["render", "--dataset", "--count", &count, "--placement", OPTIMUM, "--seed", &seed, "--out", "data"],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        let o = camplace(&root, &["model", "--placement", OPTIMUM, "--seed", &seed, "--out", "tray.model"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        Fixture { _dir: dir, root }
+    })
+}
+
+/// The JSON lines of `text` as frame records (extra keys such as `sequence` ignored).
+fn records(text: &str) -> Vec<FrameRecord> {
+    text.lines().map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}"))).collect()
+}
+
+/// Everything of a record but its timings, which differ from run to run.
+fn untimed(r: &FrameRecord) -> FrameRecord {
+    FrameRecord { timings_ms: Default::default(), ms: 0.0, ..r.clone() }
+}
+
+fn untimed_summary(s: &Summary) -> Summary {
+    Summary { median_timings_ms: Default::default(), median_ms: 0.0, ..s.clone() }
+}
+
+fn read(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+#[test]
+fn replay_equals_the_evaluation_and_run_equals_replay() {
+    let f = fixture();
+    let o = camplace(&f.root, &["replay", "data", "--model", "tray.model"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let replayed = records(&read(&f.root.join("data/poses.jsonl")));
+    let summary: Summary = serde_json::from_str(&read(&f.root.join("data/summary.json"))).unwrap();
+    assert!(String::from_utf8_lossy(&o.stdout).contains(&summary.line()[..20]));
+
+    // The evaluator of the same placement, seed and model, scene by scene.
+    let cell = Cell::default();
+    let placement = cell.placement.with_overrides(OPTIMUM).unwrap();
+    let bytes = std::fs::read(f.root.join("tray.model")).unwrap();
+    let model = camplace_estimator::Model::from_bytes(&bytes).unwrap();
+    let evaluator = Evaluator::with_model(&cell, &placement, Method::OneShot, SEED, model);
+    let mut worker = evaluator.worker().unwrap();
+    let evaluated: Vec<FrameRecord> = (0..SCENES).map(|i| worker.scene(i).unwrap()).collect();
+
+    assert_eq!(replayed.len(), SCENES as usize);
+    for (r, e) in replayed.iter().zip(&evaluated) {
+        assert!(r.score.is_some(), "frame {} not scored", r.frame);
+        assert_eq!(untimed(r), untimed(e), "frame {}", r.frame);
+    }
+    assert_eq!(untimed_summary(&summary), untimed_summary(&Summary::from_records(&evaluated)));
+    // Not a vacuous comparison: the estimator found trays here.
+    assert!(summary.found > 0, "{summary:?}");
+
+    let o = camplace(&f.root, &["run", "--source", "dir:data", "--model", "tray.model", "--out", "run.jsonl"]);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    let text = read(&f.root.join("run.jsonl"));
+    let run = records(&text);
+    assert_eq!(run.len(), replayed.len(), "one pose per frame");
+    for (r, p) in run.iter().zip(&replayed) {
+        assert_eq!(untimed(r), untimed(p), "frame {}", r.frame);
+    }
+    for (i, line) in text.lines().enumerate() {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        assert_eq!(v["sequence"], i as u64, "{line}");
+        assert!(v["latency_ms"].as_f64().unwrap() > 0.0, "{line}");
+    }
+    assert!(err.contains(&format!("{SCENES} frames estimated, 0 dropped")), "{err}");
+    assert!(err.contains("p50") && err.contains("p90") && err.contains("p99"), "{err}");
+}
+
+#[test]
+fn a_slow_estimator_behind_a_paced_source_drops_frames_and_counts_them() {
+    let f = fixture();
+    let o = camplace(
+        &f.root,
+        &["run", "--source", "dir:data", "--model", "tray.model", "--fps", "20", "--debug-delay-ms", "500"],
+    );
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    let sequences: Vec<u64> = text
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["sequence"].as_u64().unwrap())
+        .collect();
+    let dropped: u64 = err
+        .split(" dropped")
+        .next()
+        .and_then(|s| s.rsplit(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no drop count in: {err}"));
+    assert!(dropped > 0, "{err}");
+    assert_eq!(sequences.len() as u64 + dropped, SCENES, "{sequences:?} + {dropped}");
+    // The newest frames win: what is emitted is in order and ends with the last frame.
+    assert!(sequences.windows(2).all(|w| w[0] < w[1]), "{sequences:?}");
+    assert_eq!(sequences.last(), Some(&(SCENES - 1)));
+}
+
+fn assert_one_line_error(o: &std::process::Output, must_name: &[&str]) {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    for s in must_name {
+        assert!(err.contains(s), "{s:?} missing from: {err}");
+    }
+}
+
+#[test]
+fn missing_cameras_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = camplace(dir.path(), &["run", "--source", "v4l2:/dev/video0", "--model", "tray.model"]);
+    assert_one_line_error(&o, &["v4l2:/dev/video0", "expected"]);
+    let dev = "/dev/video-camplace-missing";
+    let o = camplace(dir.path(), &["run", "--source", &format!("v4l2-sbs:{dev}"), "--model", "tray.model"]);
+    assert_one_line_error(&o, &[if cfg!(feature = "v4l") { dev } else { "--features v4l" }]);
+    let o = camplace(dir.path(), &["run", "--source", "dc1394", "--model", "tray.model"]);
+    assert_one_line_error(&o, &[if cfg!(feature = "dc1394") { "dc1394" } else { "--features dc1394" }]);
+
+    let o = camplace(dir.path(), &["devices"]);
+    if camplace_hwio::list_devices().unwrap().is_empty() {
+        assert_one_line_error(&o, &["no camera found"]);
+    } else {
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+}
+
+#[test]
+fn bad_run_flags_are_one_line_errors() {
+    let f = fixture();
+    let o = camplace(&f.root, &["run", "--source", "dir:data", "--model", "tray.model", "--fps", "0"]);
+    assert_one_line_error(&o, &["--fps", "positive"]);
+    let o = camplace(&f.root, &["run", "--source", "dir:nowhere", "--model", "tray.model"]);
+    assert_one_line_error(&o, &["nowhere"]);
+}
+
+#[cfg(not(feature = "display"))]
+#[test]
+fn project_without_the_display_feature_says_how_to_build_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = camplace(dir.path(), &["project", "--method", "phase-12"]);
+    assert_one_line_error(&o, &["`display`", "--features display"]);
+}
+
+/// `project --source dir:` under a virtual X server: the pattern is shown, then the source
+/// read, and the frame lands in the dataset as the next frame folder with the source's
+/// images. Skips (saying why) without Xvfb.
+#[cfg(feature = "display")]
+#[test]
+fn project_captures_a_frame_in_step_under_xvfb() {
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+
+    let Some(n) = (300..400).find(|n| {
+        !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
+    }) else {
+        return;
+    };
+    let display = format!(":{n}");
+    let Ok(mut xvfb) = Command::new("Xvfb")
+        .args([display.as_str(), "-screen", "0", "1280x800x24", "-nolisten", "tcp"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+    else {
+        println!("skipped: Xvfb is not installed");
+        return;
+    };
+    let start = Instant::now();
+    while !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && start.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // A dataset of its own: the model of the shared fixture is not needed here.
+    let out = tempfile::tempdir().unwrap();
+    let o = camplace(out.path(), &["render", "--dataset", "--count", "1", "--placement", OPTIMUM, "--out", "data"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rec = out.path().join("rec");
+    let data = out.path().join("data");
+    let run = || {
+        Command::new(env!("CARGO_BIN_EXE_camplace"))
+            .args(["project", "--method", "one-shot", "--settle-ms", "50", "--skip", "0"])
+            .arg("--source")
+            .arg(format!("dir:{}", data.display()))
+            .arg("--out")
+            .arg(&rec)
+            .arg("--rig")
+            .arg(data.join("rig.json"))
+            .env("DISPLAY", &display)
+            .output()
+            .unwrap()
+    };
+    let (first, second) = (run(), run());
+    let _ = xvfb.kill();
+    let _ = xvfb.wait();
+    for o in [&first, &second] {
+        assert!(o.status.success(), "{}", stderr(o));
+    }
+    // Each call reads the recording from its start and adds the next frame folder.
+    for frame in ["0000", "0001"] {
+        for side in ["left.png", "right.png"] {
+            let want = camplace_config::formats::png::read_gray(&data.join("frames/0000").join(side)).unwrap();
+            let got = camplace_config::formats::png::read_gray(&rec.join("frames").join(frame).join(side)).unwrap();
+            assert_eq!((got.width, got.height, got.data), (want.width, want.height, want.data), "{frame}/{side}");
+        }
+    }
+    assert_eq!(read(&rec.join("rig.json")), read(&data.join("rig.json")));
+}
