@@ -2,40 +2,39 @@
 //! estimator's poses scored against the truth; and frames without a tray, and a bad model
 //! file through the CLI.
 
-use camplace_config::Cell;
-use camplace_estimator::metrics::pose_errors;
+use camplace_config::{Cell, TrayKind};
 use camplace_estimator::{Estimator, PoseEstimate};
-use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
+use camplace_sim::study::Evaluator;
+use camplace_sim::{background_scene, build_model, noise_key, Frame, Method, Simulator};
 
 use crate::cli::{camplace, stderr};
 
 const OPTIMUM: &str = "r=605,alpha=32,baseline=81,vergence=3.5";
 
+/// Successes among scenarios 0..n of seed 1 at the optimum, one shot, through the study's
+/// evaluator (the path `camplace evaluate` takes).
+fn successes_at_the_optimum(cell: &Cell, n: u64) -> usize {
+    let placement = cell.placement.with_overrides(OPTIMUM).unwrap();
+    let mut worker = Evaluator::new(cell, &placement, Method::OneShot, 1).unwrap().worker().unwrap();
+    (0..n).filter(|&i| worker.scene(i).unwrap().score.is_some_and(|s| s.success)).count()
+}
+
 #[test]
 fn one_shot_at_the_optimum_finds_trays() {
-    let cell = Cell::default();
-    let placement = cell.placement.with_overrides(OPTIMUM).unwrap();
-    let seed = 1;
-    let model = build_model(&cell, &placement, Method::OneShot, seed).unwrap();
-    let symmetries = model.symmetries_deg.clone();
-    let mut sim = Simulator::new(&cell, &placement, seed).unwrap();
-    let mut frame = Frame::default();
-    sim.render(&background_scene(&cell, seed), Method::OneShot, noise_key(seed, 0, true), &mut frame);
-    let mut estimator = Estimator::new(&cell, sim.rig(), model, Method::OneShot).unwrap();
-    estimator.set_background(&frame.left, &frame.right).unwrap();
-    let mut pose = PoseEstimate::default();
-    let n = 50;
-    let mut successes = 0;
-    for i in 0..n {
-        let scenario = draw_scenario(&cell, seed, i);
-        sim.render(&scenario.scene(), Method::OneShot, noise_key(seed, i, false), &mut frame);
-        estimator.process(&frame.left, &frame.right, &mut pose).unwrap();
-        let errors = pose_errors(&pose.t_world_tray, &scenario.t_world_tray, &symmetries, &cell.metrics);
-        successes += usize::from(pose.found && errors.success);
-    }
-    // Measured: 49 of these 50 with the default settings (the one miss is 3.3 mm off);
-    // the acceptance figure is 90 %.
-    assert!(successes >= 46, "{successes} of {n} trays found within the success limits");
+    let successes = successes_at_the_optimum(&Cell::default(), 50);
+    // Measured: 50 of these 50 with the default settings (49 before the stereo gap fill
+    // widened); the acceptance figure is 90 %.
+    assert!(successes >= 46, "{successes} of 50 trays found within the success limits");
+}
+
+#[test]
+fn the_square_tray_is_not_taken_a_quarter_turn_off() {
+    // The 4-slot tray is square: only its tab tells quarter turns apart. Measured: 20 of 20
+    // (15 of 20, every miss a 90° turn, when only the half turn was checked).
+    let mut cell = Cell::default();
+    cell.tray.kind = TrayKind::Tray4;
+    let successes = successes_at_the_optimum(&cell, 20);
+    assert!(successes >= 18, "{successes} of 20 square trays found within the success limits");
 }
 
 #[test]

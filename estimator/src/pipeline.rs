@@ -5,9 +5,10 @@
 //! After reconstruction: down-sampling to SRes, PCA normals, key points every
 //! `keypoint_spacing`, ECSAD descriptors, key points without relief dropped, k-NN matching
 //! with the height band, prerejective RANSAC (2- or 3-match samples), point-to-plane ICP on
-//! the closest view, and last the half-turn check: the tray is nearly symmetric under a half
-//! turn, so the turned pose is scored too and the one whose whole tray explains more of the
-//! scene is kept.
+//! the closest view, and last the turn check: a tray is nearly symmetric under a half turn
+//! (a square one under quarter turns too), so the pose turned by 90°, 180° and 270° about
+//! the tray's z axis is scored too and the one whose whole tray explains most of the scene
+//! is kept.
 //!
 //! Allocation policy: `Estimator::new` sizes every buffer for a full camera frame; a frame
 //! larger than any seen before may grow one once, after which `process` allocates nothing.
@@ -300,22 +301,38 @@ impl Stages {
         let view = out.ransac.view;
         let mut refined =
             self.icp.refine(&self.cloud, &self.model, view, &self.sensor_position, &coarse, &mut out.icp)?;
-        // A rectangular tray is nearly symmetric under a half turn about its z axis: only a
-        // small feature (a chamfer, a tab) tells the two apart, and RANSAC's inlier count
-        // often cannot. So the half-turned pose is tried too: it places the symmetric body
-        // where this one does, and the one under which the whole tray explains more scene
-        // points within the inlier distance has that feature where the scene shows it. A
-        // half-turned winner is refined again (a tray need not be exactly symmetric) and
-        // kept only if it still explains more.
+        // A rectangular tray is nearly symmetric under a half turn about its z axis, a square
+        // one under quarter turns too: only a small feature (a chamfer, a tab) tells the
+        // turned poses apart, and RANSAC's inlier count often cannot. So the pose turned by
+        // each quarter turn is scored too: each places the symmetric body where this one
+        // does, and the one under which the whole tray explains the most scene points within
+        // the inlier distance has that feature where the scene shows it. Turns that break
+        // the body's symmetry explain far fewer points and never win. A turned winner is
+        // refined again (a tray need not be exactly symmetric) and kept only if it still
+        // explains more.
         let reach = p.inlier_distance as f32;
         let pose = if refined { out.icp.t_world_tray } else { coarse };
         let ours = self.icp.explained(&self.cloud, &pose, reach);
-        let turned = pose * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI);
-        if self.icp.explained(&self.cloud, &turned, reach) > ours {
-            let turned_view = self.model.closest_view(&turned, &self.sensor_position);
+        let (mut best_turn, mut best_explained) = (pose, ours);
+        for quarters in 1..4 {
+            let angle = f64::from(quarters) * std::f64::consts::FRAC_PI_2;
+            let turned = pose * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), angle);
+            let explained = self.icp.explained(&self.cloud, &turned, reach);
+            if explained > best_explained {
+                (best_turn, best_explained) = (turned, explained);
+            }
+        }
+        if best_explained > ours {
+            let turned_view = self.model.closest_view(&best_turn, &self.sensor_position);
             let mut other = IcpResult::default();
-            let other_refined =
-                self.icp.refine(&self.cloud, &self.model, turned_view, &self.sensor_position, &turned, &mut other)?;
+            let other_refined = self.icp.refine(
+                &self.cloud,
+                &self.model,
+                turned_view,
+                &self.sensor_position,
+                &best_turn,
+                &mut other,
+            )?;
             if other_refined && self.icp.explained(&self.cloud, &other.t_world_tray, reach) > ours {
                 out.icp = other;
                 refined = true;
