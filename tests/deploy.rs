@@ -71,7 +71,7 @@ fn replay_equals_the_evaluation_and_run_equals_replay() {
     let placement = cell.placement.with_overrides(OPTIMUM).unwrap();
     let bytes = std::fs::read(f.root.join("tray.model")).unwrap();
     let model = camplace_estimator::Model::from_bytes(&bytes).unwrap();
-    let evaluator = Evaluator::with_model(&cell, &placement, Method::OneShot, SEED, model);
+    let evaluator = Evaluator::with_model(&cell, &placement, Method::OneShot, SEED, model).unwrap();
     let mut worker = evaluator.worker().unwrap();
     let evaluated: Vec<FrameRecord> = (0..SCENES).map(|i| worker.scene(i).unwrap()).collect();
 

@@ -15,7 +15,8 @@ const OPTIMUM: &str = "r=605,alpha=32,baseline=81,vergence=3.5";
 /// evaluator (the path `camplace evaluate` takes).
 fn successes_at_the_optimum(cell: &Cell, n: u64) -> usize {
     let placement = cell.placement.with_overrides(OPTIMUM).unwrap();
-    let mut worker = Evaluator::new(cell, &placement, Method::OneShot, 1).unwrap().worker().unwrap();
+    let evaluator = Evaluator::new(cell, &placement, Method::OneShot, 1).unwrap();
+    let mut worker = evaluator.worker().unwrap();
     (0..n).filter(|&i| worker.scene(i).unwrap().score.is_some_and(|s| s.success)).count()
 }
 

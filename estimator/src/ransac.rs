@@ -311,8 +311,10 @@ impl Ransac {
     /// twice the inlier distance of it, and a draw picks a key point, then one of its
     /// matches, as the sampler does. Never more than `ransac_iterations`.
     ///
-    /// The pipeline tries the half-turned pose of the winner anyway (a nearly symmetric
-    /// tray), so matches right under either count, whichever of the two explains more.
+    /// The pipeline tries the winner turned by quarter and half turns anyway (a nearly
+    /// symmetric tray); matches right under the half turn count here too, whichever of the
+    /// two explains more. Quarter turns are not counted, so for a square tray the rule may
+    /// stop later than it could, never earlier.
     fn iterations_needed(&self, pose: &Isometry3<f64>, scene_keypoints: &[Point3<f32>], model: &Model) -> u32 {
         let turned = pose * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI);
         let share =

@@ -10,7 +10,7 @@ use camplace_estimator::keypoints::keep_distinctive;
 use camplace_estimator::normals::MIN_NEIGHBOURS;
 use camplace_estimator::{
     Descriptor, Downsampler, Ecsad, KeypointSelector, Method, Model, ModelView, Neighbours, NormalEstimator,
-    Reconstruction, Reconstructor,
+    Reconstruction, Reconstructor, Rectification,
 };
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
@@ -43,8 +43,8 @@ struct Capture {
 pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64) -> Result<Model> {
     let probe = Simulator::new(cell, placement, seed)?;
     let slots = probe.objects().tray.slots.len();
-    let reconstructor = Reconstructor::new(cell, probe.rig(), method)?;
-    let sensor_world = reconstructor.rectification().camera.t_world_rectified.translation.vector;
+    let rectification = Rectification::new(probe.rig(), &cell.work_volume)?;
+    let sensor_world = rectification.camera.t_world_rectified.translation.vector;
     let sensor_world = Point3::from(sensor_world);
     let light = &cell.lighting;
     let mid = |[lo, hi]: [f64; 2]| 0.5 * (lo + hi);

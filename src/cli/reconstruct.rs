@@ -98,7 +98,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
 
 fn dataset(cell: &camplace_config::Cell, dir: &Path) -> anyhow::Result<ExitCode> {
     let source = RecordedSource::open(dir)?;
-    let method = if source.shots() == 1 { Method::OneShot } else { Method::Phase12 };
+    let method = super::recording::method_for(source.shots());
     let rig = Rig::from_file(source.rig());
     let mut background = Frames::new(source.shots());
     let has_background = source.background(&mut background)?;
@@ -114,8 +114,11 @@ fn dataset(cell: &camplace_config::Cell, dir: &Path) -> anyhow::Result<ExitCode>
     let mut rig_file = source.rig().clone();
     rig_file.rectified = Some(rectified_file(&first.rectification().camera));
     let n = source.frame_dirs().len();
+    // One block of frames per thread, so each thread builds one reconstructor (its maps and
+    // matcher buffers are costly), not one per work split.
     let points: Vec<usize> = (0..n)
         .into_par_iter()
+        .with_min_len(n.div_ceil(rayon::current_num_threads()).max(1))
         .map_init(
             || (make(), Frames::new(source.shots()), Reconstruction::default()),
             |(rec, frames, result), i| -> anyhow::Result<usize> {

@@ -160,9 +160,8 @@ pub struct RbfOptimizer {
     told_unit: Vec<Vec<f64>>,
     told_raw: Vec<Vec<f64>>,
     told_values: Vec<f64>,
-    /// Asked and not yet told, in the unit box and as handed out.
+    /// Asked and not yet told, in the unit box.
     pending_unit: Vec<Vec<f64>>,
-    pending_raw: Vec<Vec<f64>>,
     trust_radius: f64,
     /// Whether the last told value improved on the best before it.
     last_improved: bool,
@@ -207,7 +206,6 @@ impl RbfOptimizer {
             told_raw: Vec::new(),
             told_values: Vec::new(),
             pending_unit: Vec::new(),
-            pending_raw: Vec::new(),
             last_improved: false,
             epoch: 0,
             epoch_start: 0,
@@ -234,7 +232,6 @@ impl RbfOptimizer {
         let u = self.next_unit_point();
         let x = self.to_raw(&u);
         self.pending_unit.push(u);
-        self.pending_raw.push(x.clone());
         x
     }
 
@@ -253,7 +250,6 @@ impl RbfOptimizer {
         let u = self.to_unit(x);
         if let Some(i) = self.pending_unit.iter().position(|p| p.iter().zip(&u).all(|(a, b)| (a - b).abs() <= 1e-12)) {
             self.pending_unit.remove(i);
-            self.pending_raw.remove(i);
         }
         if self.told_values.len() - self.epoch_start >= self.design.len() {
             self.update_trust_region(y);
@@ -409,13 +405,13 @@ impl RbfOptimizer {
         let mut log_from = None;
         // Log scaling when the spread above the median dwarfs the spread below it: a few
         // huge values (Goldstein–Price's corners) would otherwise bend the whole surface.
-        if ymax - ymin > 50.0 * (median(&y) - ymin).max(1e-300) {
+        if ymax - ymin > 50.0 * (crate::study::median(&y).unwrap_or(0.0) - ymin).max(1e-300) {
             for v in &mut y {
                 *v = (1.0 + *v - ymin).ln();
             }
             log_from = Some(ymin);
         }
-        let med = median(&y);
+        let med = crate::study::median(&y).unwrap_or(0.0);
         if self.settings.clip_at_median {
             for v in &mut y {
                 *v = v.min(med);
@@ -705,20 +701,6 @@ fn mix(seed: u64, k: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
-}
-
-fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    let n = s.len();
-    if n == 0 {
-        return 0.0;
-    }
-    if n % 2 == 1 {
-        s[n / 2]
-    } else {
-        0.5 * (s[n / 2 - 1] + s[n / 2])
-    }
 }
 
 fn min_max(it: impl Iterator<Item = f64>) -> (f64, f64) {

@@ -15,86 +15,87 @@ use crate::render::{Frame, Method, Simulator};
 use crate::scenario::draw_scenario;
 use crate::Result;
 
-/// What every worker of one placement's evaluation shares: the settings and the model.
-#[derive(Debug, Clone)]
+/// What every worker of one placement's evaluation shares: the settings, the model and the
+/// background capture.
 pub struct Evaluator {
     cell: Cell,
     placement: Placement,
     method: Method,
     seed: u64,
     model: Model,
+    background: Frame,
+}
+
+impl std::fmt::Debug for Evaluator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Evaluator")
+            .field("placement", &self.placement)
+            .field("method", &self.method)
+            .field("seed", &self.seed)
+            .finish()
+    }
 }
 
 impl Evaluator {
     /// Builds the model at `placement` with `seed` (as `camplace model --seed` does).
     pub fn new(cell: &Cell, placement: &Placement, method: Method, seed: u64) -> Result<Evaluator> {
         let model = build_model(cell, placement, method, seed)?;
-        Ok(Self::with_model(cell, placement, method, seed, model))
+        Self::with_model(cell, placement, method, seed, model)
     }
 
-    /// Uses a model built before (or loaded from a file).
-    pub fn with_model(cell: &Cell, placement: &Placement, method: Method, seed: u64, model: Model) -> Evaluator {
-        Evaluator { cell: cell.clone(), placement: *placement, method, seed, model }
-    }
-
-    /// The model scenes are estimated with.
-    pub fn model(&self) -> &Model {
-        &self.model
+    /// Uses a model built before (or loaded from a file); captures the background once.
+    pub fn with_model(
+        cell: &Cell,
+        placement: &Placement,
+        method: Method,
+        seed: u64,
+        model: Model,
+    ) -> Result<Evaluator> {
+        let mut sim = Simulator::new(cell, placement, seed)?;
+        let mut background = Frame::default();
+        sim.render(&background_scene(cell, seed), method, noise_key(seed, 0, true), &mut background);
+        Ok(Evaluator { cell: cell.clone(), placement: *placement, method, seed, model, background })
     }
 
     /// A worker with its own simulator and estimator (each owns its buffers), the
-    /// background already captured.
-    pub fn worker(&self) -> Result<Worker> {
-        let mut sim = Simulator::new(&self.cell, &self.placement, self.seed)?;
-        let mut frame = Frame::default();
-        sim.render(&background_scene(&self.cell, self.seed), self.method, noise_key(self.seed, 0, true), &mut frame);
+    /// background already set.
+    pub fn worker(&self) -> Result<Worker<'_>> {
+        let sim = Simulator::new(&self.cell, &self.placement, self.seed)?;
         let mut estimator = Estimator::new(&self.cell, sim.rig(), self.model.clone(), self.method)?;
-        estimator.set_background(&frame.left, &frame.right)?;
-        Ok(Worker { sim, estimator, frame, pose: PoseEstimate::default(), settings: self.settings() })
+        estimator.set_background(&self.background.left, &self.background.right)?;
+        Ok(Worker { sim, estimator, frame: Frame::default(), pose: PoseEstimate::default(), evaluator: self })
     }
-
-    fn settings(&self) -> Settings {
-        Settings { cell: self.cell.clone(), method: self.method, seed: self.seed }
-    }
-}
-
-/// The settings a worker needs of its evaluator.
-#[derive(Debug)]
-struct Settings {
-    cell: Cell,
-    method: Method,
-    seed: u64,
 }
 
 /// Renders, estimates and scores scenes of one placement, one at a time.
-pub struct Worker {
+pub struct Worker<'a> {
     sim: Simulator,
     estimator: Estimator,
     frame: Frame,
     pose: PoseEstimate,
-    settings: Settings,
+    evaluator: &'a Evaluator,
 }
 
-impl std::fmt::Debug for Worker {
+impl std::fmt::Debug for Worker<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Worker").field("estimator", &self.estimator).finish()
     }
 }
 
-impl Worker {
+impl Worker<'_> {
     /// Scenario `index` of the study seed: rendered, estimated and scored. The record's
     /// `frame` is the folder name `render --dataset` gives the same scene.
     pub fn scene(&mut self, index: u64) -> Result<FrameRecord> {
-        let Settings { cell, method, seed } = &self.settings;
+        let Evaluator { cell, method, seed, .. } = self.evaluator;
         let scenario = draw_scenario(cell, *seed, index);
         self.sim.render(&scenario.scene(), *method, noise_key(*seed, index, false), &mut self.frame);
         self.estimator.process(&self.frame.left, &self.frame.right, &mut self.pose)?;
         let mut record = FrameRecord::new(frame_name(index), &self.pose);
-        let symmetries = self.estimator.model().symmetries_deg.clone();
         // The truth as a dataset's truth.json carries it (a 4x4 matrix, not a quaternion),
         // so replaying the rendered dataset scores to the last bit alike.
         let truth = isometry_from_rows(&isometry_to_rows(&scenario.t_world_tray));
-        record.score = Some(score(&self.pose, &self.estimator, &truth, &symmetries, &cell.metrics));
+        let symmetries = &self.estimator.model().symmetries_deg;
+        record.score = Some(score(&self.pose, &self.estimator, &truth, symmetries, &cell.metrics));
         Ok(record)
     }
 }

@@ -119,7 +119,7 @@ impl<'a> SceneRunner<'a> {
         }
         bar.set_message(format!("{} (model)", job.placement));
         let model = self.model(&job.placement, job.seed)?;
-        let evaluator = Evaluator::with_model(self.cell, &job.placement, self.method, job.seed, model);
+        let evaluator = Evaluator::with_model(self.cell, &job.placement, self.method, job.seed, model)?;
         bar.set_message(job.placement.to_string());
         let next = AtomicUsize::new(0);
         let failed = AtomicBool::new(false);
