@@ -3,7 +3,8 @@
 //! tray's coarse pose. ICP refines it afterwards; the matches come from elsewhere.
 //!
 //! Each iteration draws 3 matches (3 distinct key points, then one of each one's matches, as
-//! PCL does), rejects the sample unless its scene and model triangles
+//! PCL does, but nearer matches more often: see [`RankWeights`]), rejects the sample unless
+//! its scene and model triangles
 //! have similar edges, fits a pose (Kabsch), rejects it unless the tray rests on the table,
 //! and scores the survivors. With `ransac_sample = 2` (beyond the paper) it draws 2 matches
 //! instead and builds the pose of a tray lying level on the table from them: the horizontal
@@ -27,6 +28,7 @@ use rand_chacha::ChaCha8Rng;
 use crate::correspondence::Correspondence;
 use crate::error::{Error, ErrorKind, Result};
 use crate::kabsch::RigidFit;
+use crate::matching::MAX_K;
 use crate::model::Model;
 
 /// Points scored between two early-exit checks.
@@ -85,6 +87,7 @@ pub struct Ransac {
     match_model: Vec<u32>,
     /// Key points with at least one match.
     matched: Vec<u32>,
+    ranks: RankWeights,
 }
 
 impl Ransac {
@@ -122,6 +125,7 @@ impl Ransac {
             match_start: Vec::with_capacity(1 << 13),
             match_model: Vec::with_capacity(1 << 17),
             matched: Vec::with_capacity(1 << 13),
+            ranks: RankWeights::new(),
         })
     }
 
@@ -161,6 +165,14 @@ impl Ransac {
             ));
         }
         self.group_matches(scene_keypoints.len(), correspondences);
+        if let Some(k) =
+            (0..scene_keypoints.len()).find(|&k| self.match_start[k + 1] - self.match_start[k] > MAX_K as u32)
+        {
+            return Err(Error::new(
+                ErrorKind::Input,
+                format!("ransac: expected at most {MAX_K} matches per key point, key point {k} has more"),
+            ));
+        }
         if self.matched.len() < self.sample as usize || scene_points.is_empty() {
             return Ok(false);
         }
@@ -203,10 +215,7 @@ impl Ransac {
             if !good_scene_triangle(&s, min_edge2) {
                 continue;
             }
-            let f = k.map(|i| {
-                let (lo, hi) = (self.match_start[i], self.match_start[i + 1]);
-                self.match_model[rng.random_range(lo..hi) as usize]
-            });
+            let f = k.map(|i| self.draw_match(&mut rng, i));
             if f[0] == f[1] || f[0] == f[2] || f[1] == f[2] {
                 continue;
             }
@@ -281,10 +290,7 @@ impl Ransac {
         if ls2 < min_edge2 {
             return None;
         }
-        let f = k.map(|i| {
-            let (lo, hi) = (self.match_start[i], self.match_start[i + 1]);
-            self.match_model[rng.random_range(lo..hi) as usize]
-        });
+        let f = k.map(|i| self.draw_match(rng, i));
         if f[0] == f[1] {
             return None;
         }
@@ -334,8 +340,9 @@ impl Ransac {
         }
     }
 
-    /// The chance that a key point drawn at random, then one of its matches, is a match
-    /// `pose` confirms (its model feature within twice the inlier distance).
+    /// The chance that a key point drawn at random, then one of its matches as
+    /// [`Ransac::draw_match`] draws it, is a match `pose` confirms (its model feature within
+    /// twice the inlier distance).
     fn right_share(&self, pose: &Isometry3<f64>, scene_keypoints: &[Point3<f32>], model: &Model) -> f64 {
         let (r, t) = split(pose);
         let reach2 = 4.0 * self.inlier_distance * self.inlier_distance;
@@ -343,13 +350,23 @@ impl Ransac {
         for &k in &self.matched {
             let (lo, hi) = (self.match_start[k as usize] as usize, self.match_start[k as usize + 1] as usize);
             let s = scene_keypoints[k as usize];
-            let right = self.match_model[lo..hi]
+            let right: u64 = self.match_model[lo..hi]
                 .iter()
-                .filter(|&&f| (r * model.feature_points[f as usize] + t - s.coords).coords.norm_squared() <= reach2)
-                .count();
-            share += right as f64 / (hi - lo) as f64;
+                .enumerate()
+                .filter(|(_, &f)| (r * model.feature_points[f as usize] + t - s.coords).coords.norm_squared() <= reach2)
+                .map(|(rank, _)| u64::from(self.ranks.weight(rank)))
+                .sum();
+            share += right as f64 / self.ranks.total(hi - lo) as f64;
         }
         share / self.matched.len() as f64
+    }
+
+    /// One of key point `k`'s model features, drawn by [`RankWeights`].
+    #[inline]
+    fn draw_match(&self, rng: &mut ChaCha8Rng, k: usize) -> u32 {
+        let (lo, hi) = (self.match_start[k] as usize, self.match_start[k + 1] as usize);
+        let u = rng.random_range(0..self.ranks.total(hi - lo));
+        self.match_model[lo + self.ranks.rank_of(u)]
     }
 
     /// Groups the matches by key point (a counting sort into the match buffers).
@@ -440,6 +457,46 @@ impl Ransac {
 }
 
 /// The rotation matrix and translation of `pose` in f32, for transforming many points.
+/// How often a key point's matches are drawn by their rank (0 = the nearest descriptor):
+/// weight 1 / (1 + rank / 2), in whole units so draws are exact and alike on every machine.
+/// A right match is most often the nearest and less often the farther it ranks (measured at
+/// the optimum over 20 scenes: 519 right matches at rank 0, 254 at rank 6, 65 at rank 24), so
+/// favouring near ranks raises the chance of an all-right sample, as PROSAC (Chum and Matas,
+/// 2005) does by ordering, while every match keeps a fair chance: the 25th is drawn 13 times
+/// less often than the first. The stopping rule counts right matches with the same weights.
+#[derive(Debug, Clone)]
+struct RankWeights {
+    /// `cumulative[n]`: the summed weight of ranks 0..n.
+    cumulative: [u32; MAX_K + 1],
+}
+
+impl RankWeights {
+    /// Weight of rank 0; rank r weighs `UNIT / (1 + r / 2)`.
+    const UNIT: u32 = 1 << 16;
+
+    fn new() -> Self {
+        let mut cumulative = [0u32; MAX_K + 1];
+        for rank in 0..MAX_K {
+            cumulative[rank + 1] = cumulative[rank] + Self::UNIT * 2 / (2 + rank as u32);
+        }
+        RankWeights { cumulative }
+    }
+
+    fn weight(&self, rank: usize) -> u32 {
+        self.cumulative[rank + 1] - self.cumulative[rank]
+    }
+
+    /// Summed weight of a key point with `n` matches (1 to [`MAX_K`]).
+    fn total(&self, n: usize) -> u32 {
+        self.cumulative[n]
+    }
+
+    /// The rank whose share of the cumulative weight holds `u` (below `total(n)`).
+    fn rank_of(&self, u: u32) -> usize {
+        self.cumulative[1..].partition_point(|&c| c <= u)
+    }
+}
+
 fn split(pose: &Isometry3<f64>) -> (Matrix3<f32>, Vector3<f32>) {
     (pose.rotation.to_rotation_matrix().matrix().cast::<f32>(), pose.translation.vector.cast::<f32>())
 }
@@ -633,6 +690,23 @@ mod tests {
                 assert_eq!(grid.any_within(&q, 9.0), nearest <= 9.0);
                 let got = grid.nearest_within(&q, 9.0).map(|p| (p - q).norm_squared());
                 assert_eq!(got, (nearest <= 9.0).then_some(nearest));
+            }
+        }
+    }
+
+    /// Draws land on each rank in proportion to its weight, and the weights fall with rank.
+    #[test]
+    fn match_draws_follow_the_rank_weights() {
+        let w = RankWeights::new();
+        assert_eq!(w.weight(0), RankWeights::UNIT);
+        assert!((1..MAX_K).all(|r| w.weight(r) < w.weight(r - 1)));
+        for n in [1, 2, 7, 25, MAX_K] {
+            let mut hits = vec![0u32; n];
+            for u in 0..w.total(n) {
+                hits[w.rank_of(u)] += 1;
+            }
+            for (r, &h) in hits.iter().enumerate() {
+                assert_eq!(h, w.weight(r), "n {n} rank {r}");
             }
         }
     }
