@@ -18,12 +18,9 @@ use std::time::Instant;
 use camplace_config::{Cell, EstimatorParams};
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
-use crate::keypoints::keep_distinctive;
-use crate::normals::MIN_NEIGHBOURS;
 use crate::{
-    Correspondence, Descriptor, Downsampler, Ecsad, Error, ErrorKind, FeatureMatcher, GrayImage, Icp, IcpResult,
-    KeypointSelector, Method, Model, Neighbours, NormalEstimator, Ransac, RansacResult, Reconstruction, Reconstructor,
-    Result, Rig,
+    Correspondence, Error, ErrorKind, FeatureExtractor, FeatureMatcher, GrayImage, Icp, IcpResult, Method, Model,
+    Ransac, RansacResult, Reconstruction, Reconstructor, Result, Rig,
 };
 
 /// Time spent in each stage of the last frame, ms (zero for stages a frame skipped).
@@ -96,17 +93,8 @@ struct Stages {
     params: EstimatorParams,
     model: Model,
     sensor_position: Point3<f32>,
-    downsampler: Downsampler,
-    cloud: Vec<Point3<f32>>,
-    neighbours: Neighbours,
-    normal_estimator: NormalEstimator,
-    normals: Vec<Vector3<f32>>,
-    selector: KeypointSelector,
-    keypoints: Vec<u32>,
-    keypoint_points: Vec<Point3<f32>>,
+    features: FeatureExtractor,
     heights: Vec<f32>,
-    ecsad: Ecsad,
-    descriptors: Vec<Descriptor>,
     matcher: FeatureMatcher,
     correspondences: Vec<Correspondence>,
     ransac: Ransac,
@@ -147,7 +135,6 @@ impl Estimator {
         let (w, h) = (cam.width, cam.height);
         let sensor_position = Point3::from(cam.t_world_rectified.translation.vector.cast::<f32>());
         let pixels = w * h;
-        // Key points are at most one per key-point voxel of the SRes cloud: a generous share.
         let keypoints = (pixels / 16).max(1024);
         let k = params.k as usize;
         let heights: Vec<f32> = model.feature_points.iter().map(|p| p.z).collect();
@@ -158,21 +145,12 @@ impl Estimator {
             ..Reconstruction::default()
         };
         let stages = Stages {
-            normal_estimator: NormalEstimator::new(params.normal_radius as f32, MIN_NEIGHBOURS)?,
-            ecsad: Ecsad::new(params.feature_radius as f32)?,
+            features: FeatureExtractor::new(&params, pixels)?,
             ransac: Ransac::new(&params, &model)?,
             icp: Icp::new(&params, &model)?,
             matcher,
             sensor_position,
-            downsampler: Downsampler::with_capacity(pixels),
-            cloud: Vec::with_capacity(pixels),
-            neighbours: Neighbours::with_capacity(pixels),
-            normals: Vec::with_capacity(pixels),
-            selector: KeypointSelector::new(),
-            keypoints: Vec::with_capacity(keypoints),
-            keypoint_points: Vec::with_capacity(keypoints),
             heights: Vec::with_capacity(keypoints),
-            descriptors: Vec::with_capacity(keypoints),
             correspondences: Vec::with_capacity(keypoints * k),
             params,
             model,
@@ -225,12 +203,12 @@ impl Estimator {
 
     /// The last frame's down-sampled scene cloud, world mm.
     pub fn scene_cloud(&self) -> &[Point3<f32>] {
-        &self.stages.cloud
+        self.stages.features.cloud()
     }
 
     /// The last frame's scene key points, world mm (indexed by `Correspondence::scene`).
     pub fn scene_keypoints(&self) -> &[Point3<f32>] {
-        &self.stages.keypoint_points
+        self.stages.features.keypoint_points()
     }
 
     /// The last frame's feature matches after the height filter.
@@ -243,36 +221,22 @@ impl Stages {
     fn run(&mut self, points: &[Point3<f32>], out: &mut PoseEstimate) -> Result<()> {
         let p = &self.params;
         *out = PoseEstimate::default();
-        self.keypoints.clear();
-        self.keypoint_points.clear();
         self.correspondences.clear();
 
-        let t = Instant::now();
-        self.downsampler.downsample(points, p.surface_resolution as f32, &mut self.cloud)?;
-        out.timings.downsample_ms = ms(t);
-        out.scene_points = self.cloud.len() as u32;
-
-        let t = Instant::now();
-        self.neighbours.build(&self.cloud, p.normal_radius as f32)?;
-        self.normal_estimator.compute(&self.cloud, &self.neighbours, &self.sensor_position, &mut self.normals);
-        out.timings.normals_ms = ms(t);
-
-        let t = Instant::now();
-        self.selector.select(&self.cloud, &self.normals, p.keypoint_spacing as f32, &mut self.keypoints)?;
-        self.neighbours.build(&self.cloud, p.feature_radius as f32 / 2.0)?;
-        self.ecsad.compute(&self.cloud, &self.normals, &self.neighbours, &self.keypoints, &mut self.descriptors)?;
-        keep_distinctive(&mut self.keypoints, &mut self.descriptors, p.min_relief as f32);
-        self.keypoint_points.extend(self.keypoints.iter().map(|&i| self.cloud[i as usize]));
+        let f = self.features.extract(points, &self.sensor_position)?;
+        out.timings.downsample_ms = f.downsample_ms;
+        out.timings.normals_ms = f.normals_ms;
+        out.timings.features_ms = f.features_ms;
+        out.scene_points = self.features.cloud().len() as u32;
+        out.keypoints = self.features.keypoints().len() as u32;
         self.heights.clear();
         // The table is z = 0 in the world and the tray's bottom is z = 0 in its frame, so
         // world z and tray-frame z are both heights above the table.
-        self.heights.extend(self.keypoint_points.iter().map(|q| q.z));
-        out.timings.features_ms = ms(t);
-        out.keypoints = self.keypoints.len() as u32;
+        self.heights.extend(self.features.keypoint_points().iter().map(|q| q.z));
 
         let t = Instant::now();
         self.matcher.match_into(
-            &self.descriptors,
+            self.features.descriptors(),
             &self.heights,
             p.k as usize,
             p.height_band as f32,
@@ -283,8 +247,8 @@ impl Stages {
 
         let t = Instant::now();
         let found = self.ransac.estimate(
-            &self.cloud,
-            &self.keypoint_points,
+            self.features.cloud(),
+            self.features.keypoint_points(),
             &self.correspondences,
             &self.model,
             &self.sensor_position,
@@ -300,7 +264,7 @@ impl Stages {
         // RANSAC scored the hypothesis against the view closest to the sensor under it.
         let view = out.ransac.view;
         let mut refined =
-            self.icp.refine(&self.cloud, &self.model, view, &self.sensor_position, &coarse, &mut out.icp)?;
+            self.icp.refine(self.features.cloud(), &self.model, view, &self.sensor_position, &coarse, &mut out.icp)?;
         // A rectangular tray is nearly symmetric under a half turn about its z axis, a square
         // one under quarter turns too: only a small feature (a chamfer, a tab) tells the
         // turned poses apart, and RANSAC's inlier count often cannot. So the pose turned by
@@ -312,12 +276,12 @@ impl Stages {
         // explains more.
         let reach = p.inlier_distance as f32;
         let pose = if refined { out.icp.t_world_tray } else { coarse };
-        let ours = self.icp.explained(&self.cloud, &pose, reach);
+        let ours = self.icp.explained(self.features.cloud(), &pose, reach);
         let (mut best_turn, mut best_explained) = (pose, ours);
         for quarters in 1..4 {
             let angle = f64::from(quarters) * std::f64::consts::FRAC_PI_2;
             let turned = pose * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), angle);
-            let explained = self.icp.explained(&self.cloud, &turned, reach);
+            let explained = self.icp.explained(self.features.cloud(), &turned, reach);
             if explained > best_explained {
                 (best_turn, best_explained) = (turned, explained);
             }
@@ -326,14 +290,14 @@ impl Stages {
             let turned_view = self.model.closest_view(&best_turn, &self.sensor_position);
             let mut other = IcpResult::default();
             let other_refined = self.icp.refine(
-                &self.cloud,
+                self.features.cloud(),
                 &self.model,
                 turned_view,
                 &self.sensor_position,
                 &best_turn,
                 &mut other,
             )?;
-            if other_refined && self.icp.explained(&self.cloud, &other.t_world_tray, reach) > ours {
+            if other_refined && self.icp.explained(self.features.cloud(), &other.t_world_tray, reach) > ours {
                 out.icp = other;
                 refined = true;
             }

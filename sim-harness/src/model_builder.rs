@@ -6,11 +6,10 @@
 //! then share the features they agree on. The file format is the estimator's.
 
 use camplace_config::{Cell, Placement};
-use camplace_estimator::keypoints::keep_distinctive;
 use camplace_estimator::normals::MIN_NEIGHBOURS;
 use camplace_estimator::{
-    Descriptor, Downsampler, Ecsad, KeypointSelector, Method, Model, ModelView, Neighbours, NormalEstimator,
-    Reconstruction, Reconstructor, Rectification,
+    Descriptor, Downsampler, FeatureExtractor, Method, Model, ModelView, Neighbours, NormalEstimator, Reconstruction,
+    Reconstructor, Rectification,
 };
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
@@ -87,11 +86,13 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
             || {
                 let sim = Simulator::new(cell, placement, seed);
                 let rec = Reconstructor::new(cell, probe.rig(), method);
-                (sim, rec, Frame::default(), Reconstruction::default())
+                let features = FeatureExtractor::new(params, 1 << 16);
+                (sim, rec, features, Frame::default(), Reconstruction::default())
             },
-            |(sim, rec, frame, reconstruction), index| -> Result<Capture> {
+            |(sim, rec, features, frame, reconstruction), index| -> Result<Capture> {
                 let sim = sim.as_mut().map_err(|e| Error::Other(e.to_string()))?;
                 let rec = rec.as_mut().map_err(|e| Error::Other(e.to_string()))?;
+                let features = features.as_mut().map_err(|e| Error::Other(e.to_string()))?;
                 let (v, state) = (index / states, index % states);
                 let mut filled: Vec<usize> = removal[v][state..].to_vec();
                 filled.sort_unstable();
@@ -107,7 +108,7 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
                     .filter(|q| (0..3).all(|a| q[a] >= lo[a] && q[a] <= hi[a]))
                     .collect();
                 let eye = (poses[v].inverse() * sensor_world).cast::<f32>();
-                describe(params, &raw, &eye)
+                describe(features, &raw, &eye)
             },
         )
         .collect::<Result<_>>()?;
@@ -173,25 +174,16 @@ fn tray_bounds(objects: &crate::scene::Objects, slots: usize, margin: f32) -> (P
     (lo - Vector3::repeat(margin), hi + Vector3::repeat(margin))
 }
 
-/// Down-samples one tray-frame capture and describes its key points.
-fn describe(params: &camplace_config::EstimatorParams, raw: &[Point3<f32>], eye: &Point3<f32>) -> Result<Capture> {
-    let mut cloud = Vec::new();
-    Downsampler::new().downsample(raw, params.surface_resolution as f32, &mut cloud)?;
-    let mut grid = Neighbours::new();
-    grid.build(&cloud, params.normal_radius as f32)?;
-    let mut normals = Vec::new();
-    NormalEstimator::new(params.normal_radius as f32, MIN_NEIGHBOURS)?.compute(&cloud, &grid, eye, &mut normals);
-    let mut keypoints = Vec::new();
-    KeypointSelector::new().select(&cloud, &normals, params.keypoint_spacing as f32, &mut keypoints)?;
-    grid.build(&cloud, params.feature_radius as f32 / 2.0)?;
-    let mut descriptors = Vec::new();
-    Ecsad::new(params.feature_radius as f32)?.compute(&cloud, &normals, &grid, &keypoints, &mut descriptors)?;
-    keep_distinctive(&mut keypoints, &mut descriptors, params.min_relief as f32);
+/// Down-samples one tray-frame capture and describes its key points, as the estimator
+/// describes a scene.
+fn describe(features: &mut FeatureExtractor, raw: &[Point3<f32>], eye: &Point3<f32>) -> Result<Capture> {
+    features.extract(raw, eye)?;
+    let normals = features.normals();
     Ok(Capture {
-        points: keypoints.iter().map(|&i| cloud[i as usize]).collect(),
-        normals: keypoints.iter().map(|&i| normals[i as usize]).collect(),
-        descriptors,
-        cloud,
+        points: features.keypoint_points().to_vec(),
+        normals: features.keypoints().iter().map(|&i| normals[i as usize]).collect(),
+        descriptors: features.descriptors().to_vec(),
+        cloud: features.cloud().to_vec(),
     })
 }
 
