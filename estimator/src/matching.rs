@@ -310,6 +310,8 @@ fn search(
 /// tile by tile as [`search_tiles`] does, 4 dimensions per instruction.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512bw,avx512vnni")]
+// Indexed loops over fixed-size arrays are the shape that keeps the accumulators in registers.
+#[allow(clippy::needless_range_loop)]
 fn search_vnni(blocks: &[ByteBlock], queries: &[[f32; ECSAD_DIM]], norms: &[f32], k: usize, tops: &mut [TopK]) {
     use std::arch::x86_64::*;
     for (tile, tile_blocks) in blocks.chunks(TILE_BLOCKS).enumerate() {
