@@ -318,7 +318,7 @@ impl Cell {
         if s.noise_amplitude > 127 {
             return Err(Error::value("sensor.noise_amplitude", "expected 0 to 127 grey levels"));
         }
-        if s.blur == 0 || s.blur % 2 == 0 || s.blur > 15 {
+        if s.blur == 0 || s.blur.is_multiple_of(2) || s.blur > 15 {
             return Err(Error::value(
                 "sensor.blur",
                 format!("expected an odd filter side from 1 to 15, got {}", s.blur),

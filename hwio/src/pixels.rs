@@ -138,7 +138,7 @@ pub fn deinterleave16(
 /// A side-by-side grey frame split into its left and right halves (the left camera on the
 /// left). The frame's width must be even.
 pub fn split_side_by_side(frame: &GrayImage, left: &mut GrayImage, right: &mut GrayImage) -> Result<()> {
-    if frame.width % 2 != 0 || frame.data.len() != frame.width * frame.height {
+    if !frame.width.is_multiple_of(2) || frame.data.len() != frame.width * frame.height {
         return Err(Error::new(
             ErrorKind::Format,
             format!("side-by-side frame is {}x{}, expected an even width", frame.width, frame.height),

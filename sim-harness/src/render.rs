@@ -68,7 +68,7 @@ impl Simulator {
     /// The sensor of `cell` at `placement`, its one-shot dots drawn from `pattern_seed`.
     pub fn new(cell: &Cell, placement: &Placement, pattern_seed: u64) -> Result<Simulator> {
         let sensor = &cell.sensor;
-        if sensor.blur % 2 == 0 || sensor.blur > 15 {
+        if sensor.blur.is_multiple_of(2) || sensor.blur > 15 {
             return Err(Error::Other(format!(
                 "sensor.blur: expected an odd filter side up to 15, got {}",
                 sensor.blur

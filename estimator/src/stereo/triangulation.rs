@@ -43,8 +43,8 @@ impl Prior {
     /// Buffers for `width` x `height` images and support points every `step` px.
     pub fn new(width: usize, height: usize, step: usize) -> Self {
         let step = step.max(1);
-        let cols = width.div_ceil(step) + usize::from((width.max(1) - 1) % step != 0);
-        let rows = height.div_ceil(step) + usize::from((height.max(1) - 1) % step != 0);
+        let cols = width.div_ceil(step) + usize::from(!(width.max(1) - 1).is_multiple_of(step));
+        let rows = height.div_ceil(step) + usize::from(!(height.max(1) - 1).is_multiple_of(step));
         let n = cols * rows;
         Prior {
             width,
