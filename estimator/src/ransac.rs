@@ -33,6 +33,12 @@ use crate::model::Model;
 
 /// Points scored between two early-exit checks.
 const SCORE_BLOCK: usize = 32;
+/// Hypotheses are compared on this many points of the view (a random sample: the view is
+/// shuffled); the winner is then counted on every point. Inlier shares on 8 192 points
+/// differ from the whole view's by about half a percent (one standard deviation at a share
+/// of 0.5), far below the gap between the right pose and a wrong one, and the sample costs a
+/// fifth of a 40 000-point view.
+const SCORE_SAMPLE: usize = 8192;
 /// A hypothesis is dropped once its inliers on the points scored so far fall this many
 /// standard deviations below what a hypothesis with exactly the count to beat would show.
 /// The points come in a random order, so a truly better hypothesis is dropped with about the
@@ -193,7 +199,7 @@ impl Ransac {
             if self.sample == 2 {
                 let Some(pose) = self.table_pair(&mut rng, scene_keypoints, model, min_edge2) else { continue };
                 let view = model.closest_view(&pose, sensor_position_world);
-                let to_beat = best_inliers.max(self.required(view).saturating_sub(1));
+                let to_beat = best_inliers.max(self.required_in_sample(view).saturating_sub(1));
                 if let Some(inliers) = self.score(&pose, view, to_beat) {
                     if inliers > best_inliers {
                         best_inliers = inliers;
@@ -233,7 +239,7 @@ impl Ransac {
             }
             let view = model.closest_view(&pose, sensor_position_world);
             // Reaching the minimum exactly is enough to qualify.
-            let to_beat = best_inliers.max(self.required(view).saturating_sub(1));
+            let to_beat = best_inliers.max(self.required_in_sample(view).saturating_sub(1));
             if let Some(inliers) = self.score(&pose, view, to_beat) {
                 if inliers > best_inliers {
                     best_inliers = inliers;
@@ -244,6 +250,7 @@ impl Ransac {
         }
         out.iterations = iterations;
         let Some((mut pose, mut view)) = best else { return Ok(false) };
+        best_inliers = self.count(&pose, view);
 
         for _ in 0..REFITS {
             let Some(refit) = self.consensus_fit(&pose, view) else { break };
@@ -395,7 +402,12 @@ impl Ransac {
         self.match_start[keypoints] = correspondences.len() as u32;
     }
 
-    /// The fewest inliers a pose scored on `view` needs to be returned.
+    /// The fewest inliers among `view`'s scoring sample a hypothesis needs to be kept.
+    fn required_in_sample(&self, view: usize) -> u32 {
+        (self.min_inlier_share * self.views[view].len().min(SCORE_SAMPLE) as f32).ceil() as u32
+    }
+
+    /// The fewest inliers a pose scored on all of `view` needs to be returned.
     fn required(&self, view: usize) -> u32 {
         (self.min_inlier_share * self.views[view].len() as f32).ceil() as u32
     }
@@ -406,11 +418,11 @@ impl Ransac {
         pose.translation.vector.z.abs() <= self.table_height && z_axis.z >= self.cos_tilt
     }
 
-    /// Inliers of `pose` on `view`, or `None` as soon as the sample scored so far shows it
-    /// will not reach `to_beat`.
+    /// Inliers of `pose` among the first [`SCORE_SAMPLE`] points of `view`, or `None` as
+    /// soon as the points scored so far show it will not reach `to_beat`.
     fn score(&self, pose: &Isometry3<f64>, view: usize, to_beat: u32) -> Option<u32> {
         let (r, t) = split(pose);
-        let points = &self.views[view];
+        let points = &self.views[view][..self.views[view].len().min(SCORE_SAMPLE)];
         let total = points.len();
         let r2 = self.inlier_distance * self.inlier_distance;
         let mut inliers = 0u32;
