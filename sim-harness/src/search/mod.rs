@@ -4,7 +4,8 @@
 //!
 //! The method, on the box scaled to [0,1]^d:
 //! - a space-filling start: the box centre plus a maximin Latin hypercube, d + 1 points
-//!   in all for an exact objective, 2(d + 1) for a noisy one;
+//!   in all (at least 6, at most 2(d + 1)) for an exact objective, 2(d + 1) for a noisy
+//!   one;
 //! - a cubic surrogate with a linear tail (`rbf`), optionally smoothed for noisy values.
 //!   Values are log-scaled when a few huge values would otherwise swamp the interesting
 //!   low region (as RBFopt does), and optionally clipped at their median;
@@ -45,11 +46,16 @@ pub struct RbfSettings {
     /// (0.01 for success rates at 250 scenarios; the effect does not depend on the scale
     /// of the values, only on the spacing of the points in the unit box).
     pub noise_smoothing: f64,
-    /// Size of the space-filling start; 0 means d + 1 for an exact objective (RBFopt's
-    /// size: the surrogate starts steering sooner and a restart costs less) and 2(d + 1)
-    /// with `noise_smoothing` (Regis–Shoemaker's: a smoothed fit needs more points before
-    /// it can tell the trend from the noise). With d + 1 points the first step after the
-    /// start, before a surrogate can be fitted, is the point farthest from them.
+    /// Size of the space-filling start; 0 picks it from the dimension d.
+    ///
+    /// For an exact objective: d + 1, the fewest points that fix the linear tail (RBFopt's
+    /// size), so the surrogate starts steering sooner and a restart costs less; but at
+    /// least 6 (never more than 2(d + 1)), so that in two to four dimensions the first
+    /// surrogate has some curvature to go on rather than little more than a plane.
+    /// With `noise_smoothing`: 2(d + 1) (Regis–Shoemaker's), as a smoothed fit needs more
+    /// points before it can tell the trend from the noise. When the start holds only d + 1
+    /// points, the step after it, before a surrogate can be fitted, is the point farthest
+    /// from them.
     pub initial_points: usize,
     /// Latin hypercubes tried for the maximin start.
     pub design_tries: usize,
@@ -199,7 +205,7 @@ impl RbfOptimizer {
         let dim = bounds.len();
         let n0 = match settings.initial_points {
             0 if settings.noise_smoothing > 0.0 => 2 * (dim + 1),
-            0 => dim + 1,
+            0 => (dim + 1).max(6).min(2 * (dim + 1)),
             n => n,
         };
         let mut rng = ChaCha8Rng::seed_from_u64(mix(seed, u64::MAX));
