@@ -3,7 +3,9 @@
 //! It minimises over a box through an ask/tell interface; it never calls the objective.
 //!
 //! The method, on the box scaled to [0,1]^d:
-//! - a space-filling start: the box centre plus a maximin Latin hypercube, 2(d+1) points;
+//! - a space-filling start: the box centre plus a maximin Latin hypercube, d + 1 points
+//!   in all (at least 6, at most 2(d + 1)) for an exact objective, 2(d + 1) for a noisy
+//!   one;
 //! - a cubic surrogate with a linear tail (`rbf`), optionally smoothed for noisy values.
 //!   Values are log-scaled when a few huge values would otherwise swamp the interesting
 //!   low region (as RBFopt does), and optionally clipped at their median;
@@ -44,7 +46,16 @@ pub struct RbfSettings {
     /// (0.01 for success rates at 250 scenarios; the effect does not depend on the scale
     /// of the values, only on the spacing of the points in the unit box).
     pub noise_smoothing: f64,
-    /// Size of the space-filling start; 0 means 2(d+1).
+    /// Size of the space-filling start; 0 picks it from the dimension d.
+    ///
+    /// For an exact objective: d + 1, the fewest points that fix the linear tail (RBFopt's
+    /// size), so the surrogate starts steering sooner and a restart costs less; but at
+    /// least 6 (never more than 2(d + 1)), so that in two to four dimensions the first
+    /// surrogate has some curvature to go on rather than little more than a plane.
+    /// With `noise_smoothing`: 2(d + 1) (Regis–Shoemaker's), as a smoothed fit needs more
+    /// points before it can tell the trend from the noise. When the start holds only d + 1
+    /// points, the step after it, before a surrogate can be fitted, is the point farthest
+    /// from them.
     pub initial_points: usize,
     /// Latin hypercubes tried for the maximin start.
     pub design_tries: usize,
@@ -192,7 +203,11 @@ impl RbfOptimizer {
             );
         }
         let dim = bounds.len();
-        let n0 = if settings.initial_points == 0 { 2 * (dim + 1) } else { settings.initial_points };
+        let n0 = match settings.initial_points {
+            0 if settings.noise_smoothing > 0.0 => 2 * (dim + 1),
+            0 => (dim + 1).max(6).min(2 * (dim + 1)),
+            n => n,
+        };
         let mut rng = ChaCha8Rng::seed_from_u64(mix(seed, u64::MAX));
         let design = design::latin_hypercube_with_centre(n0, dim, settings.design_tries, &mut rng);
         RbfOptimizer {
@@ -834,8 +849,9 @@ mod tests {
             SearchStep::TrustRegion,
         ];
         for step in steps {
-            // The step alone, apart from the refinement after an improvement.
-            let settings = RbfSettings { cycle: vec![step], ..RbfSettings::default() };
+            // The step alone, apart from the refinement after an improvement, measured from
+            // the end of a six-point start design.
+            let settings = RbfSettings { cycle: vec![step], initial_points: 6, ..RbfSettings::default() };
             let mut opt = RbfOptimizer::new(vec![(-5.0, 10.0), (0.0, 15.0)], settings, 3);
             for _ in 0..6 {
                 let x = opt.ask();

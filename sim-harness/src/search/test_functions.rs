@@ -57,8 +57,16 @@ pub fn test_function(name: &str) -> Option<TestFunction> {
 /// # Panics
 /// If `name` is not one of `TEST_FUNCTIONS`.
 pub fn run_test_function(name: &str, seed: u64, budget: usize) -> TestRun {
+    run_test_function_with(name, seed, budget, RbfSettings::default())
+}
+
+/// `run_test_function` with other settings, for comparing variants of the search.
+///
+/// # Panics
+/// If `name` is not one of `TEST_FUNCTIONS`.
+pub fn run_test_function_with(name: &str, seed: u64, budget: usize, settings: RbfSettings) -> TestRun {
     let f = test_function(name).unwrap_or_else(|| panic!("unknown test function {name:?}"));
-    let mut opt = RbfOptimizer::new(f.bounds.to_vec(), RbfSettings::default(), seed);
+    let mut opt = RbfOptimizer::new(f.bounds.to_vec(), settings, seed);
     let mut best = f64::INFINITY;
     for evals in 1..=budget {
         let x = opt.ask();
@@ -202,10 +210,7 @@ mod tests {
         assert!(missing.is_empty(), "slower than RBFopt on {missing:?}");
     }
 
-    /// Not met yet: every seed is solved, but the median is about 48.5 evaluations against
-    /// RBFopt's 47. Run with `--ignored` to see the table.
     #[test]
-    #[ignore = "Hartmann 6 does not yet meet RBFopt's median"]
     fn matches_rbfopt_on_hartmann6() {
         let missing = functions_missing_the_bar(&[("hartmann6", 47)]);
         assert!(missing.is_empty(), "slower than RBFopt on {missing:?}");
