@@ -4,17 +4,20 @@
 //!
 //! Each iteration draws 3 matches (3 distinct key points, then one of each one's matches, as
 //! PCL does, but nearer matches more often: see [`RankWeights`]), rejects the sample unless
-//! its scene and model triangles
-//! have similar edges, fits a pose (Kabsch), rejects it unless the tray rests on the table,
-//! and scores the survivors. With `ransac_sample = 2` (beyond the paper) it draws 2 matches
-//! instead and builds the pose of a tray lying level on the table from them: the horizontal
-//! edge fixes yaw, the mean offset x, y and z, and the pair is rejected unless its edge
-//! lengths and height differences agree. A share p of right matches then gives an all-right
-//! sample with probability p^2 rather than p^3; the consensus re-fit and ICP free the tilt
-//! again. Either way the hypotheses are scored by the inliers of the closest viewpoint's ICP
-//! cloud against the scene. Scoring walks the view's points in a fixed random order, so
-//! every prefix is a random sample, and gives up once that sample shows the hypothesis cannot win (a sequential test in
-//! the spirit of Chum and Matas' randomized RANSAC).
+//! its scene and model triangles have similar edges, fits a pose (Kabsch), rejects it unless
+//! the tray rests on the table, and scores the survivors. With `ransac_sample = 2` (beyond
+//! the paper) it draws 2 matches instead and builds the pose of a tray lying level on the
+//! table from them: the horizontal edge fixes yaw, the mean offset x, y and z, and the pair
+//! is rejected unless its edge lengths and height differences agree. A share p of right
+//! matches then gives an all-right sample with probability p^2 rather than p^3; the
+//! consensus re-fit and ICP free the tilt again.
+//!
+//! Either way the hypotheses are scored by the inliers of the closest viewpoint's ICP cloud
+//! against the scene. The view's points are kept in a fixed random order, so every prefix is
+//! a random sample: hypotheses are compared on the first [`SCORE_SAMPLE`] points, and
+//! scoring gives up once the points scored so far show the hypothesis cannot win (a
+//! sequential test in the spirit of Chum and Matas' randomized RANSAC). The winner is then
+//! counted on the whole view.
 //!
 //! A pose is returned only when its inliers reach `min_inlier_share` of the view's points:
 //! a scene without the tray then yields no pose rather than the least bad wrong one.
