@@ -3,7 +3,7 @@
 //! tray's coarse pose. ICP refines it afterwards; the matches come from elsewhere.
 //!
 //! Each iteration draws 3 matches (3 distinct key points, then one of each one's matches, as
-//! PCL does, but nearer matches more often: see [`RankWeights`]), rejects the sample unless
+//! PCL does, but nearer matches more often: see `RankWeights`), rejects the sample unless
 //! its scene and model triangles have similar edges, fits a pose (Kabsch), rejects it unless
 //! the tray rests on the table, and scores the survivors. With `ransac_sample = 2` (beyond
 //! the paper) it draws 2 matches instead and builds the pose of a tray lying level on the
@@ -14,7 +14,7 @@
 //!
 //! Either way the hypotheses are scored by the inliers of the closest viewpoint's ICP cloud
 //! against the scene. The view's points are kept in a fixed random order, so every prefix is
-//! a random sample: hypotheses are compared on the first [`SCORE_SAMPLE`] points, and
+//! a random sample: hypotheses are compared on the first `SCORE_SAMPLE` (8 192) points, and
 //! scoring gives up once the points scored so far show the hypothesis cannot win (a
 //! sequential test in the spirit of Chum and Matas' randomized RANSAC). The winner is then
 //! counted on the whole view.
