@@ -8,6 +8,7 @@
 
 use camplace_config::EstimatorParams;
 use nalgebra::{Isometry3, Matrix6, Point3, Vector3, Vector6};
+use rayon::prelude::*;
 
 use crate::error::{Error, ErrorKind, Result};
 use crate::model::Model;
@@ -84,7 +85,6 @@ impl Icp {
     /// Builds a lookup grid over every view of `model`; fails when a view has too few points.
     pub fn new(params: &EstimatorParams, model: &Model) -> Result<Self> {
         model.validate()?;
-        let mut grids = Vec::with_capacity(model.views.len());
         let mut bounds = Vec::with_capacity(model.views.len());
         for (k, view) in model.views.iter().enumerate() {
             if view.points.len() < MIN_PAIRS {
@@ -93,7 +93,6 @@ impl Icp {
                     format!("model: expected at least {MIN_PAIRS} points in view {k}, found {}", view.points.len()),
                 ));
             }
-            grids.push(NearestGrid::new(&view.points, model.surface_resolution, params.icp_max_distance as f32));
             let mut lo = view.points[0];
             let mut hi = view.points[0];
             for p in &view.points {
@@ -105,7 +104,19 @@ impl Icp {
         let all: Vec<Point3<f32>> = model.views.iter().flat_map(|v| v.points.iter().copied()).collect();
         let mut whole_points = Vec::new();
         crate::Downsampler::new().downsample(&all, model.surface_resolution, &mut whole_points)?;
-        let whole = NearestGrid::new(&whole_points, model.surface_resolution, params.inlier_distance as f32);
+        // The grids are independent: built side by side, each the same whatever the threads.
+        let (grids, whole) = rayon::join(
+            || {
+                model
+                    .views
+                    .par_iter()
+                    .map(|view| {
+                        NearestGrid::new(&view.points, model.surface_resolution, params.icp_max_distance as f32)
+                    })
+                    .collect::<Vec<_>>()
+            },
+            || NearestGrid::new(&whole_points, model.surface_resolution, params.inlier_distance as f32),
+        );
         let capacity = 1 << 15;
         Ok(Icp {
             whole_points,
