@@ -87,7 +87,7 @@ impl Elas {
             grid_left: CandidateGrid::new(width, height, cell, max_disparity_span),
             grid_right: CandidateGrid::new(width, height, cell, max_disparity_span),
             disp_right: vec![INVALID; width * height],
-            speckles: SpeckleScratch::new(width * height),
+            speckles: SpeckleScratch::new(width, height),
             subpixel: SubpixelScratch::new(width * height),
         }
     }
