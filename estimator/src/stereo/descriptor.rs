@@ -414,6 +414,21 @@ mod tests {
         assert_eq!(texture(&inner), 23 * (expect as i32 - 128));
     }
 
+    /// The 3x3 Sobel responses (x, y) of pixel (x, y) from their definition; zero on the
+    /// image border.
+    fn sobel_at(img: &GrayImage, x: usize, y: usize) -> (i32, i32) {
+        let (w, h) = (img.width, img.height);
+        if x == 0 || y == 0 || x + 1 >= w || y + 1 >= h {
+            return (0, 0);
+        }
+        let px = |x: usize, y: usize| img.get(x, y) as i32;
+        let gx = px(x + 1, y - 1) - px(x - 1, y - 1) + 2 * (px(x + 1, y) - px(x - 1, y)) + px(x + 1, y + 1)
+            - px(x - 1, y + 1);
+        let gy = px(x - 1, y + 1) + 2 * px(x, y + 1) + px(x + 1, y + 1)
+            - (px(x - 1, y - 1) + 2 * px(x, y - 1) + px(x + 1, y - 1));
+        (gx, gy)
+    }
+
     #[test]
     fn descriptors_match_a_per_pixel_definition() {
         // Every byte from its definition: Sobel at the sample, divided by the window's mean
@@ -423,17 +438,7 @@ mod tests {
             let img = GrayImage::from_vec(w, h, (0..w * h).map(|_| rng.random_range(0..=255u8)).collect()).unwrap();
             let mut d = DescriptorImage::new(w, h);
             d.compute(&img);
-            let px = |x: usize, y: usize| img.get(x, y) as i32;
-            let sobel = |x: usize, y: usize| -> (i32, i32) {
-                if x == 0 || y == 0 || x + 1 >= w || y + 1 >= h {
-                    return (0, 0);
-                }
-                let gx = px(x + 1, y - 1) - px(x - 1, y - 1) + 2 * (px(x + 1, y) - px(x - 1, y)) + px(x + 1, y + 1)
-                    - px(x - 1, y + 1);
-                let gy = px(x - 1, y + 1) + 2 * px(x, y + 1) + px(x + 1, y + 1)
-                    - (px(x - 1, y - 1) + 2 * px(x, y - 1) + px(x + 1, y - 1));
-                (gx, gy)
-            };
+            let sobel = |x: usize, y: usize| sobel_at(&img, x, y);
             let bytes = |x: usize, y: usize| -> (u8, u8) {
                 let (mut sum, mut count) = (0, 0);
                 for yy in y.saturating_sub(NORM_RADIUS)..=(y + NORM_RADIUS).min(h - 1) {
@@ -485,17 +490,7 @@ mod tests {
             let img = GrayImage::from_vec(w, h, (0..w * h).map(|_| rng.random_range(0..=255u8)).collect()).unwrap();
             let mut d = DescriptorImage::new(w, h);
             d.compute(&img);
-            let px = |x: usize, y: usize| img.get(x, y) as i32;
-            let sobel = |x: usize, y: usize| -> (i32, i32) {
-                if x == 0 || y == 0 || x + 1 >= w || y + 1 >= h {
-                    return (0, 0);
-                }
-                let gx = px(x + 1, y - 1) - px(x - 1, y - 1) + 2 * (px(x + 1, y) - px(x - 1, y)) + px(x + 1, y + 1)
-                    - px(x - 1, y + 1);
-                let gy = px(x - 1, y + 1) + 2 * px(x, y + 1) + px(x + 1, y + 1)
-                    - (px(x - 1, y - 1) + 2 * px(x, y - 1) + px(x + 1, y - 1));
-                (gx, gy)
-            };
+            let sobel = |x: usize, y: usize| sobel_at(&img, x, y);
             for y in 0..h {
                 for x in 0..w {
                     let rows = y.saturating_sub(NORM_RADIUS)..=(y + NORM_RADIUS).min(h - 1);
