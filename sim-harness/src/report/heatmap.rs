@@ -51,6 +51,9 @@ impl Plot for HeatMap {
             .disable_mesh()
             .x_desc(&self.x_label)
             .y_desc(&self.y_label)
+            // The grid values label their own cells below (plotters would tick round numbers).
+            .x_labels(0)
+            .y_labels(0)
             .label_style((FAMILY, 13))
             .axis_desc_style((FAMILY, 15))
             .draw()
@@ -78,6 +81,15 @@ impl Plot for HeatMap {
                 chart.draw_series(std::iter::once(Text::new(text, (x, y), style))).map_err(e)?;
             }
         }
+        let label = |anchor: Pos| TextStyle::from((FAMILY, 13).into_font()).color(&BLACK).pos(anchor);
+        for &x in &self.xs {
+            let (px, py) = chart.backend_coord(&(x, y0));
+            root.draw_text(&axis_value(x), &label(Pos::new(HPos::Center, VPos::Top)), (px, py + 6)).map_err(e)?;
+        }
+        for &y in &self.ys {
+            let (px, py) = chart.backend_coord(&(x0, y));
+            root.draw_text(&axis_value(y), &label(Pos::new(HPos::Right, VPos::Center)), (px - 6, py)).map_err(e)?;
+        }
         if let Some(b) = self.best {
             let (x, y) = (self.xs[b % nx], self.ys[b / nx]);
             let area = chart.plotting_area().dim_in_pixel();
@@ -86,5 +98,26 @@ impl Plot for HeatMap {
             chart.draw_series(std::iter::once(Circle::new((x, y), radius, ring))).map_err(e)?;
         }
         Ok(())
+    }
+}
+
+/// A grid value as an axis label: up to two decimals, without trailing zeros ("400",
+/// "5.54").
+fn axis_value(v: f64) -> String {
+    let text = format!("{v:.2}");
+    text.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::axis_value;
+
+    #[test]
+    fn axis_values_drop_trailing_zeros() {
+        assert_eq!(axis_value(400.0), "400");
+        assert_eq!(axis_value(0.0), "0");
+        assert_eq!(axis_value(5.54), "5.54");
+        assert_eq!(axis_value(81.5), "81.5");
+        assert_eq!(axis_value(-12.0), "-12");
     }
 }
