@@ -222,8 +222,7 @@ fn box_sums(m: &[u16], out: &mut [u16]) {
 }
 
 /// Where byte k of a descriptor comes from: (from dv rather than du, dx, dy), the order of
-/// DU_PATTERN, DV_PATTERN, DU_OUTER, DV_OUTER.
-#[cfg(target_arch = "x86_64")]
+/// DU_PATTERN, DV_PATTERN, DU_OUTER, DV_OUTER. Both assembly paths read the layout here.
 const SAMPLES: [(bool, isize, isize); LEN] = {
     assert!(DU_PATTERN.len() + DV_PATTERN.len() == 16 && DU_OUTER.len() + DV_OUTER.len() == 16);
     let mut out = [(false, 0, 0); LEN];
@@ -255,21 +254,11 @@ fn gather(du_rows: &[&[u8]; 9], dv_rows: &[&[u8]; 9], x: usize) -> Descriptor {
     // 9-wide windows centred on x: constant indices below, checked once here.
     let wu: [&[u8; 9]; 9] = du_rows.map(|r| r[x - 4..x + 5].try_into().expect("9 columns"));
     let wv: [&[u8; 9]; 9] = dv_rows.map(|r| r[x - 4..x + 5].try_into().expect("9 columns"));
-    let at = |win: &[&[u8; 9]; 9], (dx, dy): (isize, isize)| win[(dy + 4) as usize][(dx + 4) as usize];
-    let mut out = [NEUTRAL; LEN];
-    for (k, &o) in DU_PATTERN.iter().enumerate() {
-        out[k] = at(&wu, o);
-    }
-    for (k, &o) in DV_PATTERN.iter().enumerate() {
-        out[DU_PATTERN.len() + k] = at(&wv, o);
-    }
-    for (k, &o) in DU_OUTER.iter().enumerate() {
-        out[16 + k] = at(&wu, o);
-    }
-    for (k, &o) in DV_OUTER.iter().enumerate() {
-        out[16 + DU_OUTER.len() + k] = at(&wv, o);
-    }
-    out
+    std::array::from_fn(|k| {
+        let (from_dv, dx, dy) = SAMPLES[k];
+        let win = if from_dv { wv[(dy + 4) as usize] } else { wu[(dy + 4) as usize] };
+        win[(dx + 4) as usize]
+    })
 }
 
 /// The descriptors of pixels BORDER .. w - BORDER of `row` in blocks of LANES, as far as
