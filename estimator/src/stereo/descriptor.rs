@@ -52,12 +52,48 @@ const NORM_TARGET: f32 = 64.0;
 /// response of the simulated sensor noise (std ~2 grey levels after its 3x3 mean).
 const NORM_FLOOR: f32 = 12.0;
 
+/// Two descriptors: the unit [`DescriptorBuffer`] allocates in, so that each descriptor
+/// starts on a 32-byte boundary and no 32-byte load of one straddles two cache lines.
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
+struct DescriptorPair([Descriptor; 2]);
+const _: () = assert!(std::mem::size_of::<DescriptorPair>() == 2 * LEN);
+
+/// `len` descriptors in 64-byte aligned storage, used as a slice of them.
+#[derive(Debug, Clone)]
+pub struct DescriptorBuffer {
+    pairs: Vec<DescriptorPair>,
+    len: usize,
+}
+
+impl DescriptorBuffer {
+    fn new(len: usize, value: Descriptor) -> Self {
+        DescriptorBuffer { pairs: vec![DescriptorPair([value; 2]); len.div_ceil(2)], len }
+    }
+}
+
+impl std::ops::Deref for DescriptorBuffer {
+    type Target = [Descriptor];
+    fn deref(&self) -> &[Descriptor] {
+        // SAFETY: a DescriptorPair is two descriptors with no padding (size 64 = 2 x 32, and
+        // u8 arrays need no alignment), so `pairs` holds 2 x pairs.len() >= len of them.
+        unsafe { std::slice::from_raw_parts(self.pairs.as_ptr().cast(), self.len) }
+    }
+}
+
+impl std::ops::DerefMut for DescriptorBuffer {
+    fn deref_mut(&mut self) -> &mut [Descriptor] {
+        // SAFETY: as in `deref`, with the unique borrow of `pairs`.
+        unsafe { std::slice::from_raw_parts_mut(self.pairs.as_mut_ptr().cast(), self.len) }
+    }
+}
+
 /// Descriptors of one image, with the Sobel planes they are sampled from.
 #[derive(Debug, Clone)]
 pub struct DescriptorImage {
     pub width: usize,
     pub height: usize,
-    pub data: Vec<Descriptor>,
+    pub data: DescriptorBuffer,
     du: Vec<u8>,
     dv: Vec<u8>,
     /// Raw Sobel responses (x, y) per pixel.
@@ -82,7 +118,7 @@ impl DescriptorImage {
         DescriptorImage {
             width,
             height,
-            data: vec![[NEUTRAL; LEN]; n],
+            data: DescriptorBuffer::new(n, [NEUTRAL; LEN]),
             du: vec![NEUTRAL; n],
             dv: vec![NEUTRAL; n],
             gx: vec![0; n],

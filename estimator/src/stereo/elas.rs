@@ -9,7 +9,8 @@
 use camplace_config::StereoParams;
 use rayon::prelude::*;
 
-use super::descriptor::{sad, texture, Descriptor, DescriptorImage, BORDER};
+use super::dense::{match_row, Kernel, Search, Side, VectorPrior, INVALID};
+use super::descriptor::{DescriptorImage, BORDER};
 use super::postprocess::{interpolate_gaps, remove_speckles, SpeckleScratch};
 use super::subpixel::{refine_subpixel, SubpixelScratch};
 use super::support::{SupportGrid, SupportParams, SupportPoint};
@@ -17,9 +18,6 @@ use super::triangulation::{CandidateGrid, Prior};
 use super::DisparityMatcher;
 use crate::error::{Error, ErrorKind, Result};
 use crate::image::{FloatImage, GrayImage};
-
-/// Marks an invalid integer disparity in the internal maps.
-const INVALID: f32 = f32::INFINITY;
 
 /// The ELAS matcher with all its buffers.
 #[derive(Debug)]
@@ -38,6 +36,8 @@ pub struct Elas {
     /// Prior energy by |d - prior| in px: -ln(gamma + exp(-delta^2 / 2 sigma^2)) + ln gamma,
     /// over beta, rounded (ELAS's Gaussian-plus-uniform prior).
     prior_energy: Vec<i32>,
+    /// The same energies as the vector kernel reads them, when it can.
+    vector_prior: VectorPrior,
     desc_left: DescriptorImage,
     desc_right: DescriptorImage,
     support: SupportGrid,
@@ -64,7 +64,8 @@ impl Elas {
                 let p = -(gamma + (-delta * delta / (2.0 * sigma * sigma)).exp()).ln() + gamma.ln();
                 (p / beta).round() as i32
             })
-            .collect();
+            .collect::<Vec<i32>>();
+        let vector_prior = VectorPrior::new(&prior_energy, max_disparity_span + 1);
         let cell = params.grid_size.max(1) as usize;
         Elas {
             width,
@@ -79,6 +80,7 @@ impl Elas {
             gap_width: params.gap_width as usize,
             subpixel_radius: params.subpixel_radius as usize,
             prior_energy,
+            vector_prior,
             desc_left: DescriptorImage::new(width, height),
             desc_right: DescriptorImage::new(width, height),
             support,
@@ -95,92 +97,6 @@ impl Elas {
     /// The support points of the last `compute` (left pixels, integer disparities).
     pub fn support_points(&self) -> &[SupportPoint] {
         &self.points
-    }
-}
-
-/// Where one image's pixels look in the other: what differs between matching the left
-/// image and matching the right one.
-#[derive(Clone, Copy)]
-struct Side<'a> {
-    own: &'a DescriptorImage,
-    other: &'a DescriptorImage,
-    prior: &'a [f32],
-    grid: &'a CandidateGrid,
-    /// -1: the other image's pixel is x - d (left image); +1: x + d (right image).
-    sign: isize,
-}
-
-/// The energy minimiser of one pixel, or `INVALID`.
-#[inline]
-#[allow(clippy::too_many_arguments)]
-fn match_pixel(
-    s: &Side<'_>,
-    x: usize,
-    y: usize,
-    d_min: i32,
-    d_max: i32,
-    radius: i32,
-    min_texture: i32,
-    prior_energy: &[i32],
-) -> f32 {
-    let w = s.own.width;
-    let row = y * w;
-    let own: &Descriptor = &s.own.data[row + x];
-    if texture(own) < min_texture {
-        return INVALID;
-    }
-    // Keep the other pixel's descriptor window inside the image.
-    let d_hi = if s.sign < 0 { x as i32 - BORDER as i32 } else { (w - 1 - BORDER) as i32 - x as i32 };
-    let d_hi = d_hi.min(d_max);
-    if d_hi < d_min {
-        return INVALID;
-    }
-    let other = &s.other.data[row..row + w];
-    let at = |d: i32| (x as isize + s.sign * d as isize) as usize;
-    let mu = s.prior[row + x];
-    let (mut best_e, mut best_d) = (i32::MAX, -1);
-    if mu.is_finite() {
-        let mu_i = mu.round() as i32;
-        let p = |d: i32| prior_energy[((d - mu_i).unsigned_abs() as usize).min(prior_energy.len() - 1)];
-        for &d in s.grid.at(x, y) {
-            let d = d as i32;
-            if d > d_hi {
-                break;
-            }
-            // The band around the prior below tries these anyway.
-            if (d - mu_i).abs() <= radius {
-                continue;
-            }
-            let e = sad(own, &other[at(d)]) + p(d);
-            if e < best_e {
-                best_e = e;
-                best_d = d;
-            }
-        }
-        for d in (mu_i - radius).max(d_min)..=(mu_i + radius).min(d_hi) {
-            let e = sad(own, &other[at(d)]) + p(d);
-            if e < best_e {
-                best_e = e;
-                best_d = d;
-            }
-        }
-    } else {
-        for &d in s.grid.at(x, y) {
-            let d = d as i32;
-            if d > d_hi {
-                break;
-            }
-            let e = sad(own, &other[at(d)]);
-            if e < best_e {
-                best_e = e;
-                best_d = d;
-            }
-        }
-    }
-    if best_d < 0 {
-        INVALID
-    } else {
-        best_d as f32
     }
 }
 
@@ -229,33 +145,30 @@ impl DisparityMatcher for Elas {
         self.grid_right.compute(&self.points, d_min, d_max, true);
         self.prior.compute(&self.support);
 
-        let left_side = Side {
-            own: &self.desc_left,
-            other: &self.desc_right,
-            prior: &self.prior.left,
-            grid: &self.grid_left,
-            sign: -1,
+        let left_side =
+            Side { own: &self.desc_left, other: &self.desc_right, prior: &self.prior.left, grid: &self.grid_left };
+        let right_side =
+            Side { own: &self.desc_right, other: &self.desc_left, prior: &self.prior.right, grid: &self.grid_right };
+        let q = Search {
+            d_min,
+            d_max,
+            radius: self.prior_radius,
+            min_texture: self.min_texture,
+            prior_energy: &self.prior_energy,
+            vector: self.vector_prior,
         };
-        let right_side = Side {
-            own: &self.desc_right,
-            other: &self.desc_left,
-            prior: &self.prior.right,
-            grid: &self.grid_right,
-            sign: 1,
-        };
-        let (radius, min_texture, pe, lr_tol) =
-            (self.prior_radius, self.min_texture, &self.prior_energy[..], self.lr_tolerance);
+        let lr_tol = self.lr_tolerance;
+        let kernel = Kernel::detect();
         out.data.par_chunks_mut(w).zip(self.disp_right.par_chunks_mut(w)).enumerate().for_each(|(y, (dl, dr))| {
             if y < BORDER || y + BORDER >= h {
                 dr.fill(INVALID);
                 return;
             }
-            for (x, o) in dr.iter_mut().enumerate() {
-                *o = match_pixel(&right_side, x, y, d_min, d_max, radius, min_texture, pe);
-            }
+            match_row::<false>(&right_side, &q, y, dr, kernel);
+            match_row::<true>(&left_side, &q, y, dl, kernel);
+            // Left-right check: the right pixel a left one lands on must point back.
             for (x, o) in dl.iter_mut().enumerate() {
-                let d = match_pixel(&left_side, x, y, d_min, d_max, radius, min_texture, pe);
-                // Left-right check: the right pixel it lands on must point back.
+                let d = *o;
                 *o = if d.is_finite() && (dr[x - d as usize] - d).abs() <= lr_tol { d } else { INVALID };
             }
         });

@@ -6,6 +6,7 @@
 
 use rayon::prelude::*;
 
+use super::avx2_available;
 use crate::image::GrayImage;
 
 /// Gauss-Newton steps (the second removes the bias of the first on curved cost).
@@ -77,6 +78,8 @@ pub fn refine_subpixel(left: &GrayImage, right: &GrayImage, disp: &mut [f32], ra
     float_planes(right, &mut s.right, &mut s.right_grad);
     let p = Planes { lf: &s.left, lg: &s.left_grad, rf: &s.right, rg: &s.right_grad, width: w, radius };
     let (x_lo, x_hi) = (radius + 1, w.saturating_sub(radius + 1));
+    // The same arithmetic with AVX2, eight lanes a register instead of four (Rust never
+    // fuses a multiply and an add, so the bits do not change).
     let avx2 = avx2_available();
     disp.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         if y < radius || y + radius >= h || x_lo >= x_hi {
@@ -90,19 +93,6 @@ pub fn refine_subpixel(left: &GrayImage, right: &GrayImage, disp: &mut [f32], ra
         }
         refine_row(&p, y, row, x_lo, x_hi);
     });
-}
-
-/// Whether the row loop can run with AVX2: the same arithmetic, eight lanes a register
-/// instead of four (Rust never fuses a multiply and an add, so the bits do not change).
-fn avx2_available() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
 }
 
 #[cfg(target_arch = "x86_64")]

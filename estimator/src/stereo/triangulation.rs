@@ -395,6 +395,9 @@ impl Moved {
     }
 }
 
+/// Entries after each candidate list that hold the range's lowest disparity.
+pub const LIST_PAD: usize = 3;
+
 /// Per grid cell, the disparities its own and its eight neighbour cells' support points
 /// suggest (each +-1), as sorted lists in fixed-size slots.
 #[derive(Debug, Clone)]
@@ -404,6 +407,8 @@ pub struct CandidateGrid {
     rows: usize,
     /// Capacity of one cell's list: the largest disparity span + 1.
     slot: usize,
+    /// Distance between two cells' lists: `slot` + [`LIST_PAD`].
+    stride: usize,
     words: usize,
     bits: Vec<u64>,
     counts: Vec<u16>,
@@ -417,15 +422,17 @@ impl CandidateGrid {
         let rows = height.div_ceil(cell);
         let slot = max_span + 1;
         let words = slot.div_ceil(64);
+        let stride = slot + LIST_PAD;
         CandidateGrid {
             cell,
             cols,
             rows,
             slot,
+            stride,
             words,
             bits: vec![0; cols * rows * words],
             counts: vec![0; cols * rows],
-            lists: vec![0; cols * rows * slot],
+            lists: vec![0; cols * rows * stride],
         }
     }
 
@@ -452,7 +459,7 @@ impl CandidateGrid {
         }
         for cy in 0..self.rows {
             for cx in 0..self.cols {
-                let list = &mut self.lists[(cy * self.cols + cx) * self.slot..][..self.slot];
+                let list = &mut self.lists[(cy * self.cols + cx) * self.stride..][..self.stride];
                 let mut n = 0;
                 for word in 0..self.words {
                     let mut m = 0u64;
@@ -468,16 +475,19 @@ impl CandidateGrid {
                         n += 1;
                     }
                 }
+                list[n..n + LIST_PAD].fill(d_min as u16);
                 self.counts[cy * self.cols + cx] = n as u16;
             }
         }
     }
 
-    /// The candidate disparities of the cell holding pixel (x, y).
+    /// The candidate disparities of the cell holding pixel (x, y), ascending, followed by
+    /// [`LIST_PAD`] copies of the lowest disparity of the range: vector code may read whole
+    /// groups of four past the list's end.
     #[inline]
-    pub fn at(&self, x: usize, y: usize) -> &[u16] {
+    pub fn padded_at(&self, x: usize, y: usize) -> &[u16] {
         let c = (y / self.cell).min(self.rows - 1) * self.cols + (x / self.cell).min(self.cols - 1);
-        &self.lists[c * self.slot..c * self.slot + self.counts[c] as usize]
+        &self.lists[c * self.stride..c * self.stride + self.counts[c] as usize + LIST_PAD]
     }
 }
 
