@@ -110,6 +110,31 @@ pub fn match_row<const LEFT: bool>(s: &Side<'_>, q: &Search<'_>, y: usize, out: 
     match_row_scalar::<LEFT>(s, q, y, out);
 }
 
+/// SADs of `own` against the other image's descriptors at disparities `d0 ..` into
+/// `costs` (one per entry): `other[at - d]` for the left image (`LEFT`), `other[at + d]` for
+/// the right one. `other` is the whole image and `at` a pixel of a row at least BORDER rows
+/// inside it whose disparities up to d0 + costs.len() - 1 keep the descriptor window
+/// inside the row (the wide kernel reads up to fifteen further, still inside the buffer).
+pub fn run_costs<const LEFT: bool>(
+    own: &Descriptor,
+    other: &[Descriptor],
+    at: usize,
+    d0: i32,
+    costs: &mut [i32],
+    kernel: Kernel,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if kernel == Kernel::Avx512 {
+        // SAFETY: `detect` found AVX-512 F, BW and VL on this machine.
+        return unsafe { avx2::run_costs_wide::<LEFT>(own, other, at, d0, costs) };
+    }
+    let _ = kernel;
+    for (k, c) in costs.iter_mut().enumerate() {
+        let d = d0 as usize + k;
+        *c = sad(own, &other[if LEFT { at - d } else { at + d }]);
+    }
+}
+
 /// The cells of row `y` in order: the pixel columns each covers and its padded list.
 #[inline(always)]
 fn cells(grid: &CandidateGrid, w: usize, y: usize) -> impl Iterator<Item = (std::ops::Range<usize>, &[u16])> {
@@ -235,6 +260,40 @@ mod avx2 {
     ) {
         // SAFETY: AVX2 and AVX-512 F, BW and VL are enabled here.
         unsafe { row::<LEFT, true>(s, q, y, out, table) }
+    }
+
+    /// [`super::run_costs`] sixteen disparities a step.
+    #[target_feature(enable = "avx2,avx512f,avx512bw,avx512vl")]
+    pub unsafe fn run_costs_wide<const LEFT: bool>(
+        own: &Descriptor,
+        other: &[Descriptor],
+        at: usize,
+        d0: i32,
+        costs: &mut [i32],
+    ) {
+        let n = costs.len();
+        let last = at as i64 + if LEFT { -(d0 as i64 + n as i64 + 15) } else { d0 as i64 + n as i64 + 15 };
+        assert!(last >= 0 && (last as usize) < other.len() && at < other.len(), "run leaves the image");
+        // SAFETY: an unaligned 32-byte read of one descriptor.
+        let own = _mm512_broadcast_i64x4(unsafe { _mm256_loadu_si256(own.as_ptr().cast()) });
+        let pattern = if LEFT { &WIDE_LEFT } else { &WIDE_RIGHT };
+        let base = other.as_ptr().wrapping_add(at);
+        let mut lanes = [0i32; 16];
+        let mut k0 = 0;
+        while k0 < n {
+            let d = d0 as usize + k0;
+            let from = if LEFT { base.wrapping_sub(d + 15) } else { base.wrapping_add(d) };
+            // SAFETY: the sixteen descriptors from `from` lie inside `other` (asserted above).
+            let sad = unsafe { sad16(own, from) };
+            // SAFETY: an unaligned 64-byte write of [i32; 16].
+            unsafe { _mm512_storeu_si512(lanes.as_mut_ptr().cast(), sad) };
+            for (l, &off) in pattern.iter().enumerate() {
+                if let Some(c) = costs.get_mut(k0 + off as usize) {
+                    *c = lanes[l];
+                }
+            }
+            k0 += 16;
+        }
     }
 
     /// Whether this machine runs the wide kernel.
@@ -647,6 +706,40 @@ mod tests {
                 }
                 assert!(slow.iter().any(|d| d.is_finite()), "trial {trial}, row {y} matched nothing");
             }
+        }
+    }
+
+    #[test]
+    fn wide_run_costs_match_scalar_ones() {
+        if Kernel::detect() != Kernel::Avx512 {
+            eprintln!("no AVX-512 here: only the scalar costs run");
+            return;
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(23);
+        let (w, h) = (120, 16);
+        let (left, right) = images(&mut rng, w, h, 20);
+        for _ in 0..500 {
+            let y = rng.random_range(BORDER..h - BORDER);
+            let x = rng.random_range(BORDER..w - BORDER);
+            let d0 = rng.random_range(0..8);
+            // The disparities keep the other pixel BORDER px inside the row.
+            let left_side = rng.random_bool(0.5);
+            let room = if left_side { x - BORDER } else { w - 1 - BORDER - x };
+            if room < d0 as usize {
+                continue;
+            }
+            let n = rng.random_range(1..=room - d0 as usize + 1);
+            let (mut slow, mut fast) = (vec![0; n], vec![-1; n]);
+            let (own, other) = if left_side { (&left, &right) } else { (&right, &left) };
+            let at = y * w + x;
+            if left_side {
+                run_costs::<true>(&own.data[at], &other.data, at, d0, &mut slow, Kernel::Scalar);
+                run_costs::<true>(&own.data[at], &other.data, at, d0, &mut fast, Kernel::Avx512);
+            } else {
+                run_costs::<false>(&own.data[at], &other.data, at, d0, &mut slow, Kernel::Scalar);
+                run_costs::<false>(&own.data[at], &other.data, at, d0, &mut fast, Kernel::Avx512);
+            }
+            assert_eq!(slow, fast, "pixel ({x}, {y}), d0 {d0}, {n} disparities");
         }
     }
 

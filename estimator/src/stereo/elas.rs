@@ -130,12 +130,14 @@ impl DisparityMatcher for Elas {
         }
         out.reset(w, h, INVALID);
 
+        let kernel = Kernel::detect();
         let sp = SupportParams {
             d_min,
             d_max,
             uniqueness: self.support_uniqueness,
             min_texture: self.min_texture,
             lr_tolerance: self.lr_tolerance.round().max(1.0) as i32,
+            kernel,
         };
         self.desc_left.compute(left);
         self.desc_right.compute(right);
@@ -158,7 +160,6 @@ impl DisparityMatcher for Elas {
             vector: self.vector_prior,
         };
         let lr_tol = self.lr_tolerance;
-        let kernel = Kernel::detect();
         out.data.par_chunks_mut(w).zip(self.disp_right.par_chunks_mut(w)).enumerate().for_each(|(y, (dl, dr))| {
             if y < BORDER || y + BORDER >= h {
                 dr.fill(INVALID);

@@ -4,6 +4,7 @@
 
 use rayon::prelude::*;
 
+use super::dense::{run_costs, Kernel};
 use super::descriptor::{sad, texture, DescriptorImage, BORDER};
 
 /// Marks a grid node without a support point.
@@ -41,6 +42,8 @@ pub struct SupportParams {
     pub uniqueness: f32,
     pub min_texture: i32,
     pub lr_tolerance: i32,
+    /// The SAD kernel for the full-range searches.
+    pub kernel: Kernel,
 }
 
 impl SupportGrid {
@@ -130,14 +133,25 @@ fn support_match(
     if d_hi < p.d_min {
         return None;
     }
-    let mut best = Best4::new();
-    for d in p.d_min..=d_hi {
-        best.push(sad(dl, &right.data[row + u - d as usize]), d);
-    }
-    let (c1, d1) = best.first();
-    // The second best excludes the winner's neighbours: on band-limited images they are
-    // nearly as good whenever the true disparity falls between two integers.
-    let c2 = best.second_apart(d1)?;
+    let (c1, d1, c2) = if (d_hi - p.d_min) as usize >= COSTS {
+        let mut best = Best4::new();
+        for d in p.d_min..=d_hi {
+            best.push(sad(dl, &right.data[row + u - d as usize]), d);
+        }
+        let (c1, d1) = best.first();
+        (c1, d1, best.second_apart(d1))
+    } else {
+        // All costs first, then the two minima: no data-dependent branch per disparity.
+        let mut costs = [0i32; COSTS];
+        let costs = &mut costs[..(d_hi - p.d_min + 1) as usize];
+        run_costs::<true>(dl, &right.data, row + u, p.d_min, costs, p.kernel);
+        let (c1, k1) = first_min(costs);
+        // The second best excludes the winner's neighbours: on band-limited images they are
+        // nearly as good whenever the true disparity falls between two integers.
+        let apart = costs.iter().enumerate().filter(|&(k, _)| k.abs_diff(k1) > 1).map(|(_, &c)| c).min();
+        (c1, p.d_min + k1 as i32, apart)
+    };
+    let c2 = c2?;
     if c1 as f32 >= p.uniqueness * c2 as f32 {
         return None;
     }
@@ -148,13 +162,37 @@ fn support_match(
     }
     let d_hi_r = p.d_max.min((w - BORDER - 1 - ur) as i32);
     let mut best_r = (i32::MAX, -1);
-    for d in p.d_min..=d_hi_r {
-        let c = sad(dr, &left.data[row + ur + d as usize]);
-        if c < best_r.0 {
-            best_r = (c, d);
+    if d_hi_r >= p.d_min && ((d_hi_r - p.d_min) as usize) < COSTS {
+        let mut costs = [0i32; COSTS];
+        let costs = &mut costs[..(d_hi_r - p.d_min + 1) as usize];
+        run_costs::<false>(dr, &left.data, row + ur, p.d_min, costs, p.kernel);
+        let (c, k) = first_min(costs);
+        best_r = (c, p.d_min + k as i32);
+    } else {
+        for d in p.d_min..=d_hi_r {
+            let c = sad(dr, &left.data[row + ur + d as usize]);
+            if c < best_r.0 {
+                best_r = (c, d);
+            }
         }
     }
     ((best_r.1 - d1).abs() <= p.lr_tolerance).then_some(d1)
+}
+
+/// Disparity ranges up to this many px keep all their costs on the stack; wider ones go
+/// through [`Best4`].
+const COSTS: usize = 256;
+
+/// The first lowest cost and its index (`costs` not empty).
+#[inline]
+fn first_min(costs: &[i32]) -> (i32, usize) {
+    let mut best = (costs[0], 0);
+    for (k, &c) in costs.iter().enumerate().skip(1) {
+        if c < best.0 {
+            best = (c, k);
+        }
+    }
+    best
 }
 
 /// The four lowest costs seen, cheapest first: enough to find the cheapest candidate that
