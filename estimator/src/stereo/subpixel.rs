@@ -1,18 +1,18 @@
 //! Sub-pixel refinement of integer disparities: Gauss-Newton on the sum of squared
 //! intensity differences over a small window, with the right image sampled linearly.
 //! Runs of pixels whose integer disparities differ by at most one (most of a smooth
-//! surface) are refined [`LANES`] at a time with contiguous loads; the rest one by one, with the same arithmetic
-//! in the same order, so both paths give the same bits.
+//! surface) are refined [`LANES`] at a time with contiguous loads (one AVX-512 register a
+//! value, two with AVX2); the rest one by one, with the same arithmetic in the same order,
+//! so both paths give the same bits.
 
 use rayon::prelude::*;
 
-use super::avx2_available;
 use crate::image::GrayImage;
 
 /// Gauss-Newton steps (the second removes the bias of the first on curved cost).
 const STEPS: usize = 2;
-/// Pixels refined together when they share an integer disparity.
-const LANES: usize = 8;
+/// Pixels refined together when their integer disparities differ by at most one.
+const LANES: usize = 16;
 /// Below this summed squared gradient the window has no texture to refine on.
 const MIN_GRADIENT: f32 = 1e-3;
 
@@ -43,15 +43,25 @@ fn float_planes(img: &GrayImage, value: &mut Vec<f32>, grad: &mut Vec<f32>) {
         return;
     }
     value.par_chunks_mut(w).zip(grad.par_chunks_mut(w)).enumerate().for_each(|(y, (v, g))| {
-        let src = img.row(y);
-        for (o, &p) in v.iter_mut().zip(src) {
-            *o = p as f32;
-        }
-        g.fill(0.0);
-        for x in 1..w.saturating_sub(1) {
-            g[x] = 0.5 * (src[x + 1] as f32 - src[x - 1] as f32);
-        }
+        float_row(img.row(y), v, g);
     });
+}
+
+multiversion! {
+    /// One row of [`float_planes`].
+    fn float_row(src: &[u8], value: &mut [f32], grad: &mut [f32]) => float_row_body
+}
+
+#[inline(always)]
+fn float_row_body(src: &[u8], value: &mut [f32], grad: &mut [f32]) {
+    for (o, &p) in value.iter_mut().zip(src) {
+        *o = p as f32;
+    }
+    grad.fill(0.0);
+    let w = src.len().min(grad.len());
+    for x in 1..w.saturating_sub(1) {
+        grad[x] = 0.5 * (src[x + 1] as f32 - src[x - 1] as f32);
+    }
 }
 
 /// The four planes and the window they are read through.
@@ -78,27 +88,17 @@ pub fn refine_subpixel(left: &GrayImage, right: &GrayImage, disp: &mut [f32], ra
     float_planes(right, &mut s.right, &mut s.right_grad);
     let p = Planes { lf: &s.left, lg: &s.left_grad, rf: &s.right, rg: &s.right_grad, width: w, radius };
     let (x_lo, x_hi) = (radius + 1, w.saturating_sub(radius + 1));
-    // The same arithmetic with AVX2, eight lanes a register instead of four (Rust never
-    // fuses a multiply and an add, so the bits do not change).
-    let avx2 = avx2_available();
     disp.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         if y < radius || y + radius >= h || x_lo >= x_hi {
             return;
         }
-        #[cfg(target_arch = "x86_64")]
-        if avx2 {
-            // SAFETY: AVX2 was detected on this machine.
-            unsafe { refine_row_avx2(&p, y, row, x_lo, x_hi) };
-            return;
-        }
-        refine_row(&p, y, row, x_lo, x_hi);
+        refine_row_best(&p, y, row, x_lo, x_hi);
     });
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn refine_row_avx2(p: &Planes<'_>, y: usize, row: &mut [f32], x_lo: usize, x_hi: usize) {
-    refine_row(p, y, row, x_lo, x_hi);
+multiversion! {
+    /// [`refine_row`] with the widest registers this machine has.
+    fn refine_row_best(p: &Planes<'_>, y: usize, row: &mut [f32], x_lo: usize, x_hi: usize) => refine_row
 }
 
 /// Refines columns `x_lo .. x_hi` of row `y`: groups of [`LANES`] pixels together where
