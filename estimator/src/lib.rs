@@ -2,6 +2,9 @@
 //! tray's pose. Pure compute: it never opens a file or a device; the crate that owns a
 //! format loads it and hands the estimator plain values.
 
+#[macro_use]
+mod multiversion;
+
 pub mod background;
 pub mod camera;
 pub mod cloud;

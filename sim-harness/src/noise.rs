@@ -9,7 +9,7 @@ use rayon::prelude::*;
 const CHUNK_ROWS: usize = 16;
 
 /// SplitMix64's finaliser: a bijective mix with good avalanche.
-#[inline]
+#[inline(always)]
 fn mix(mut z: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
@@ -22,7 +22,7 @@ pub fn image_key(noise_key: u64, camera: u64, shot: u64) -> u64 {
 }
 
 /// The noise of `pixel` in the image of `key`: uniform over the integers -A ..= A.
-#[inline]
+#[inline(always)]
 pub fn pixel_noise(key: u64, pixel: u64, amplitude: u32) -> i32 {
     let h = mix(key ^ pixel.wrapping_mul(0x9E37_79B9_7F4A_7C15));
     let n = 2 * amplitude as u64 + 1;
@@ -32,7 +32,7 @@ pub fn pixel_noise(key: u64, pixel: u64, amplitude: u32) -> i32 {
 
 /// `v.round().clamp(0.0, 255.0) as u8` (halves away from zero, NaN to 0) without the
 /// library call `round` becomes on x86-64 without SSE4.1.
-#[inline]
+#[inline(always)]
 fn round_to_u8(v: f32) -> u8 {
     if v.is_nan() || v <= 0.0 {
         return 0;
@@ -49,50 +49,81 @@ fn round_to_u8(v: f32) -> u8 {
 /// and clamped into `out`; `scratch` holds the row sums and is resized as needed. `blur`
 /// is odd and at most 15 (the cell file's range).
 pub fn mean_filter_to_u8(image: &[f32], width: usize, blur: usize, scratch: &mut Vec<f32>, out: &mut [u8]) {
-    let height = image.len() / width.max(1);
     if blur <= 1 {
         out.par_chunks_mut(width * CHUNK_ROWS).zip(image.par_chunks(width * CHUNK_ROWS)).for_each(|(o, i)| {
-            for (o, &v) in o.iter_mut().zip(i) {
-                *o = round_to_u8(v);
-            }
+            round_band(i, o);
         });
         return;
     }
-    let r = blur / 2;
     scratch.clear();
     scratch.resize(image.len(), 0.0);
     let band = width * CHUNK_ROWS;
     scratch.par_chunks_mut(band).zip(image.par_chunks(band)).for_each(|(s, rows)| {
-        for (s, row) in s.chunks_mut(width).zip(rows.chunks(width)) {
-            for (x, s) in s.iter_mut().enumerate() {
-                *s = if x >= r && x + r < width {
-                    // Away from the borders: no index clamping, which lets the loop vectorise.
-                    row[x - r..=x + r].iter().sum()
-                } else {
-                    (0..blur).map(|dx| row[(x + dx).saturating_sub(r).min(width - 1)]).sum()
-                };
-            }
-        }
+        row_sums(rows, width, blur, s);
     });
     let sums = &scratch[..];
-    let scale = 1.0 / (blur * blur) as f32;
     out.par_chunks_mut(band).enumerate().for_each(|(chunk, o)| {
-        for (dy0, o) in o.chunks_mut(width).enumerate() {
-            let y = chunk * CHUNK_ROWS + dy0;
-            let mut rows: [&[f32]; 15] = [&[]; 15];
-            for (dy, row) in rows.iter_mut().take(blur).enumerate() {
-                let yy = (y + dy).saturating_sub(r).min(height - 1);
-                *row = &sums[yy * width..(yy + 1) * width];
-            }
-            for (x, o) in o.iter_mut().enumerate() {
-                let mut sum = 0.0;
-                for row in &rows[..blur] {
-                    sum += row[x];
-                }
-                *o = round_to_u8(sum * scale);
-            }
-        }
+        column_means(sums, width, blur, chunk * CHUNK_ROWS, o);
     });
+}
+
+camplace_estimator::multiversion! {
+    /// Rounds and clamps `values` into `out`.
+    fn round_band(values: &[f32], out: &mut [u8]) => round_band_body
+}
+
+#[inline(always)]
+fn round_band_body(values: &[f32], out: &mut [u8]) {
+    for (o, &v) in out.iter_mut().zip(values) {
+        *o = round_to_u8(v);
+    }
+}
+
+camplace_estimator::multiversion! {
+    /// The `blur`-wide horizontal sums of the rows of `rows` (`width` px each) into `out`.
+    fn row_sums(rows: &[f32], width: usize, blur: usize, out: &mut [f32]) => row_sums_body
+}
+
+#[inline(always)]
+fn row_sums_body(rows: &[f32], width: usize, blur: usize, out: &mut [f32]) {
+    let r = blur / 2;
+    for (s, row) in out.chunks_mut(width).zip(rows.chunks(width)) {
+        for (x, s) in s.iter_mut().enumerate() {
+            *s = if x >= r && x + r < width {
+                // Away from the borders: no index clamping, which lets the loop vectorise.
+                row[x - r..=x + r].iter().sum()
+            } else {
+                (0..blur).map(|dx| row[(x + dx).saturating_sub(r).min(width - 1)]).sum()
+            };
+        }
+    }
+}
+
+camplace_estimator::multiversion! {
+    /// The `blur` x `blur` means of the rows from `y0` on, from the row sums `sums`,
+    /// rounded and clamped into `out`.
+    fn column_means(sums: &[f32], width: usize, blur: usize, y0: usize, out: &mut [u8]) => column_means_body
+}
+
+#[inline(always)]
+fn column_means_body(sums: &[f32], width: usize, blur: usize, y0: usize, out: &mut [u8]) {
+    let (r, height) = (blur / 2, sums.len() / width);
+    let scale = 1.0 / (blur * blur) as f32;
+    for (dy0, o) in out.chunks_mut(width).enumerate() {
+        let y = y0 + dy0;
+        let mut rows: [&[f32]; 15] = [&[]; 15];
+        for (dy, row) in rows.iter_mut().take(blur).enumerate() {
+            let yy = (y + dy).saturating_sub(r).min(height - 1);
+            *row = &sums[yy * width..(yy + 1) * width];
+        }
+        for (x, o) in o.iter_mut().enumerate() {
+            let mut sum = 0.0;
+            for row in &rows[..blur] {
+                sum += row[x];
+            }
+            *o = round_to_u8(sum * scale);
+        }
+    }
 }
 
 #[cfg(test)]

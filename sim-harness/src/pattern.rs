@@ -104,7 +104,7 @@ impl ProjectorImage {
     }
 
     /// Brightness at projector pixel coordinates (u, v), pixel centres at integers.
-    #[inline]
+    #[inline(always)]
     pub fn sample(&self, u: f32, v: f32) -> f32 {
         let (w, h) = (self.width as f32, self.height as f32);
         if !(u >= -0.5 && v >= -0.5 && u < w - 0.5 && v < h - 0.5) {

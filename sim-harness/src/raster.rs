@@ -340,8 +340,20 @@ fn setup(v: [[f64; 2]; 3], plane: [f64; 3], source: u32, w: usize, h: usize) -> 
     })
 }
 
-/// Fills rows `y_begin..y_end` (the band held by `z` and `t`).
-fn fill_band(screen: &[ScreenTriangle], w: usize, y_begin: usize, y_end: usize, z: &mut [f32], t: &mut [u32]) {
+camplace_estimator::multiversion! {
+    /// Fills rows `y_begin..y_end` (the band held by `z` and `t`).
+    fn fill_band(
+        screen: &[ScreenTriangle],
+        w: usize,
+        y_begin: usize,
+        y_end: usize,
+        z: &mut [f32],
+        t: &mut [u32],
+    ) => fill_band_body
+}
+
+#[inline(always)]
+fn fill_band_body(screen: &[ScreenTriangle], w: usize, y_begin: usize, y_end: usize, z: &mut [f32], t: &mut [u32]) {
     for st in screen {
         if st.y1 < y_begin || st.y0 >= y_end || st.x0 > st.x1 {
             continue;

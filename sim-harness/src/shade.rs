@@ -159,22 +159,7 @@ impl ShadingTerms {
             .zip(self.projector_uv.par_chunks(band))
             .enumerate()
             .for_each(|(chunk, (((out, base), proj), uv))| {
-                let n = out.len();
-                let (base, proj, uv) = (&base[..n], &proj[..n], &uv[..n]);
-                for x in 0..n {
-                    let mut g = base[x];
-                    let p = proj[x];
-                    if p > 0.0 {
-                        g += p * pattern.sample(uv[x][0], uv[x][1]);
-                    }
-                    out[x] = g.clamp(0.0, 255.0);
-                }
-                if let Some((key, amplitude)) = noise.filter(|n| n.1 > 0) {
-                    let first = (chunk * band) as u64;
-                    for (x, o) in out.iter_mut().enumerate() {
-                        *o += pixel_noise(key, first + x as u64, amplitude) as f32;
-                    }
-                }
+                shade_band(pattern, noise, (chunk * band) as u64, base, proj, uv, out);
             });
     }
 
@@ -182,6 +167,47 @@ impl ShadingTerms {
     /// its back-facing surfaces and what lies outside the projector's image).
     pub fn projector_lit(&self, i: usize) -> bool {
         self.projector[i] > 0.0
+    }
+}
+
+camplace_estimator::multiversion! {
+    /// [`ShadingTerms::shade`] of one band of pixels, the first of which is pixel `first`
+    /// of the image.
+    fn shade_band(
+        pattern: &ProjectorImage,
+        noise: Option<(u64, u32)>,
+        first: u64,
+        base: &[f32],
+        proj: &[f32],
+        uv: &[[f32; 2]],
+        out: &mut [f32],
+    ) => shade_band_body
+}
+
+#[inline(always)]
+fn shade_band_body(
+    pattern: &ProjectorImage,
+    noise: Option<(u64, u32)>,
+    first: u64,
+    base: &[f32],
+    proj: &[f32],
+    uv: &[[f32; 2]],
+    out: &mut [f32],
+) {
+    let n = out.len();
+    let (base, proj, uv) = (&base[..n], &proj[..n], &uv[..n]);
+    for x in 0..n {
+        let mut g = base[x];
+        let p = proj[x];
+        if p > 0.0 {
+            g += p * pattern.sample(uv[x][0], uv[x][1]);
+        }
+        out[x] = g.clamp(0.0, 255.0);
+    }
+    if let Some((key, amplitude)) = noise.filter(|n| n.1 > 0) {
+        for (x, o) in out.iter_mut().enumerate() {
+            *o += pixel_noise(key, first + x as u64, amplitude) as f32;
+        }
     }
 }
 

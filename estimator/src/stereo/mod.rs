@@ -1,8 +1,6 @@
 //! Dense stereo on rectified image pairs: the matcher trait the pipeline calls and the
 //! one-shot ELAS-class matcher behind it. Rectification itself lives in `rectify`.
 
-#[macro_use]
-mod multiversion;
 mod dense;
 mod descriptor;
 pub mod elas;

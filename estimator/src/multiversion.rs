@@ -1,18 +1,20 @@
-//! Row loops compiled more than once: for the x86_64 baseline, for AVX2 and for AVX-512,
-//! and run with the best this machine has. The arithmetic is the same in every version:
-//! wider registers do the same IEEE operations lane by lane, and Rust never fuses a
-//! multiply and an add, so every version gives the same bits.
+//! Hot loops compiled more than once: for the x86_64 baseline, for AVX2 and for AVX-512,
+//! and run with the best this machine has (the simulator's loops use it too). The
+//! arithmetic is the same in every version: wider registers do the same IEEE operations
+//! lane by lane, and Rust never fuses a multiply and an add, so every version gives the
+//! same bits.
 
 /// Defines `fn $name(args)` that calls the `#[inline(always)]` function `$body(args)`
-/// inlined into a copy compiled with AVX-512 (F, BW, VL) and AVX2, a copy with AVX2, or
-/// the baseline, whichever this machine runs best.
+/// inlined into a copy compiled with AVX-512 (F, BW, DQ, VL) and AVX2, a copy with AVX2,
+/// or the baseline, whichever this machine runs best.
+#[macro_export]
 macro_rules! multiversion {
     ($(#[$meta:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) => $body:path) => {
         $(#[$meta])*
         $vis fn $name($($arg: $ty),*) {
             #[cfg(target_arch = "x86_64")]
             {
-                #[target_feature(enable = "avx2,avx512f,avx512bw,avx512vl")]
+                #[target_feature(enable = "avx2,avx512f,avx512bw,avx512dq,avx512vl")]
                 unsafe fn wide($($arg: $ty),*) {
                     $body($($arg),*)
                 }
@@ -22,9 +24,10 @@ macro_rules! multiversion {
                 }
                 if std::arch::is_x86_feature_detected!("avx512f")
                     && std::arch::is_x86_feature_detected!("avx512bw")
+                    && std::arch::is_x86_feature_detected!("avx512dq")
                     && std::arch::is_x86_feature_detected!("avx512vl")
                 {
-                    // SAFETY: AVX-512 F, BW and VL (and so AVX2) were detected.
+                    // SAFETY: AVX-512 F, BW, DQ and VL (and so AVX2) were detected.
                     return unsafe { wide($($arg),*) };
                 }
                 if std::arch::is_x86_feature_detected!("avx2") {
