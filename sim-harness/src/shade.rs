@@ -144,7 +144,7 @@ impl ShadingTerms {
                         depth: &mut depth[span.clone()],
                         ids: &mut ids[span],
                     };
-                    ctx.row(y as f64, row);
+                    terms_row(&ctx, y as f64, row);
                 }
             });
     }
@@ -280,8 +280,19 @@ struct Context<'a> {
     lights: &'a Lights<'a>,
 }
 
+camplace_estimator::multiversion! {
+    /// [`Context::row`].
+    fn terms_row(ctx: &Context<'_>, fy: f64, row: Row<'_>) => terms_row_body
+}
+
+#[inline(always)]
+fn terms_row_body(ctx: &Context<'_>, fy: f64, row: Row<'_>) {
+    ctx.row(fy, row);
+}
+
 impl Context<'_> {
     /// The terms of every pixel of row `fy`.
+    #[inline(always)]
     fn row(&self, fy: f64, row: Row<'_>) {
         let w = row.tri.len();
         let (base, proj, uvs, depth, ids) =
@@ -359,7 +370,7 @@ impl Context<'_> {
     /// Whether a point of triangle `t` at depth `z_light` from a light is not hidden by
     /// what the light's shadow map holds at pixel `i`. The point's own surface never
     /// shadows it, which avoids acne on faces the light grazes.
-    #[inline]
+    #[inline(always)]
     fn unshadowed(&self, map: &ZBuffer, i: usize, t: usize, z_light: f64) -> bool {
         let o = map.triangle[i];
         if o == NO_TRIANGLE || o as usize == t {
