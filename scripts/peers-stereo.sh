@@ -26,10 +26,10 @@ print(max(0, math.floor(v.min()) - 4), math.ceil(v.max()) + 4)
 PY
 )
   ours=$($bin reconstruct --rectified --left "$dir/rectified_left.png" --right "$dir/rectified_right.png" \
-    --focal-px "$f" --baseline-mm "$b" --disparity-range "$lo:$hi" --runs 5 --out "$dir/ours-rectified")
+    --focal-px "$f" --baseline-mm "$b" --disparity-range "$lo:$hi" --runs 20 --out "$dir/ours-rectified")
   ms=$(echo "$ours" | sed -E 's/.*median ([0-9.]+) ms.*/\1/')
   echo "== $(basename "$dir") (disparity $lo..$hi)"
   $py "$peers/stereo.py" --left "$dir/rectified_left.png" --right "$dir/rectified_right.png" \
-    --truth "$dir/disparity_truth.pfm" --min-disp "$lo" --max-disp "$hi" --threads 2 --runs 5 \
+    --truth "$dir/disparity_truth.pfm" --min-disp "$lo" --max-disp "$hi" --threads 2 --runs 20 \
     --ours "$dir/ours-rectified/disparity.pfm" --ours-ms "$ms"
 done
