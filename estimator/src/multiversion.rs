@@ -4,26 +4,23 @@
 //! lane by lane, and Rust never fuses a multiply and an add, so every version gives the
 //! same bits.
 
-/// Defines `fn $name(args) { body }` whose body is compiled three times: with AVX-512
-/// (F, BW, DQ, VL) and AVX2, with AVX2, and for the baseline; each call runs the best
-/// this machine has. The body is an inner function, so it sees the module's items but no
-/// generic parameters; arguments are plain names.
+/// Defines `fn $name(args)` that calls the `#[inline(always)]` function `$body(args)`
+/// inlined into a copy compiled with AVX-512 (F, BW, DQ, VL) and AVX2, a copy with AVX2,
+/// or the baseline, whichever this machine runs best.
 #[macro_export]
 macro_rules! multiversion {
-    ($(#[$meta:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $body:block) => {
+    ($(#[$meta:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) => $body:path) => {
         $(#[$meta])*
         $vis fn $name($($arg: $ty),*) {
-            #[inline(always)]
-            fn body($($arg: $ty),*) $body
             #[cfg(target_arch = "x86_64")]
             {
                 #[target_feature(enable = "avx2,avx512f,avx512bw,avx512dq,avx512vl")]
                 unsafe fn wide($($arg: $ty),*) {
-                    body($($arg),*)
+                    $body($($arg),*)
                 }
                 #[target_feature(enable = "avx2")]
                 unsafe fn narrow($($arg: $ty),*) {
-                    body($($arg),*)
+                    $body($($arg),*)
                 }
                 if std::arch::is_x86_feature_detected!("avx512f")
                     && std::arch::is_x86_feature_detected!("avx512bw")
@@ -38,7 +35,7 @@ macro_rules! multiversion {
                     return unsafe { narrow($($arg),*) };
                 }
             }
-            body($($arg),*)
+            $body($($arg),*)
         }
     };
 }

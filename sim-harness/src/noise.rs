@@ -69,26 +69,32 @@ pub fn mean_filter_to_u8(image: &[f32], width: usize, blur: usize, scratch: &mut
 
 camplace_estimator::multiversion! {
     /// Rounds and clamps `values` into `out`.
-    fn round_band(values: &[f32], out: &mut [u8]) {
-        for (o, &v) in out.iter_mut().zip(values) {
-            *o = round_to_u8(v);
-        }
+    fn round_band(values: &[f32], out: &mut [u8]) => round_band_body
+}
+
+#[inline(always)]
+fn round_band_body(values: &[f32], out: &mut [u8]) {
+    for (o, &v) in out.iter_mut().zip(values) {
+        *o = round_to_u8(v);
     }
 }
 
 camplace_estimator::multiversion! {
     /// The `blur`-wide horizontal sums of the rows of `rows` (`width` px each) into `out`.
-    fn row_sums(rows: &[f32], width: usize, blur: usize, out: &mut [f32]) {
-        let r = blur / 2;
-        for (s, row) in out.chunks_mut(width).zip(rows.chunks(width)) {
-            for (x, s) in s.iter_mut().enumerate() {
-                *s = if x >= r && x + r < width {
-                    // Away from the borders: no index clamping, which lets the loop vectorise.
-                    row[x - r..=x + r].iter().sum()
-                } else {
-                    (0..blur).map(|dx| row[(x + dx).saturating_sub(r).min(width - 1)]).sum()
-                };
-            }
+    fn row_sums(rows: &[f32], width: usize, blur: usize, out: &mut [f32]) => row_sums_body
+}
+
+#[inline(always)]
+fn row_sums_body(rows: &[f32], width: usize, blur: usize, out: &mut [f32]) {
+    let r = blur / 2;
+    for (s, row) in out.chunks_mut(width).zip(rows.chunks(width)) {
+        for (x, s) in s.iter_mut().enumerate() {
+            *s = if x >= r && x + r < width {
+                // Away from the borders: no index clamping, which lets the loop vectorise.
+                row[x - r..=x + r].iter().sum()
+            } else {
+                (0..blur).map(|dx| row[(x + dx).saturating_sub(r).min(width - 1)]).sum()
+            };
         }
     }
 }
@@ -96,23 +102,26 @@ camplace_estimator::multiversion! {
 camplace_estimator::multiversion! {
     /// The `blur` x `blur` means of the rows from `y0` on, from the row sums `sums`,
     /// rounded and clamped into `out`.
-    fn column_means(sums: &[f32], width: usize, blur: usize, y0: usize, out: &mut [u8]) {
-        let (r, height) = (blur / 2, sums.len() / width);
-        let scale = 1.0 / (blur * blur) as f32;
-        for (dy0, o) in out.chunks_mut(width).enumerate() {
-            let y = y0 + dy0;
-            let mut rows: [&[f32]; 15] = [&[]; 15];
-            for (dy, row) in rows.iter_mut().take(blur).enumerate() {
-                let yy = (y + dy).saturating_sub(r).min(height - 1);
-                *row = &sums[yy * width..(yy + 1) * width];
+    fn column_means(sums: &[f32], width: usize, blur: usize, y0: usize, out: &mut [u8]) => column_means_body
+}
+
+#[inline(always)]
+fn column_means_body(sums: &[f32], width: usize, blur: usize, y0: usize, out: &mut [u8]) {
+    let (r, height) = (blur / 2, sums.len() / width);
+    let scale = 1.0 / (blur * blur) as f32;
+    for (dy0, o) in out.chunks_mut(width).enumerate() {
+        let y = y0 + dy0;
+        let mut rows: [&[f32]; 15] = [&[]; 15];
+        for (dy, row) in rows.iter_mut().take(blur).enumerate() {
+            let yy = (y + dy).saturating_sub(r).min(height - 1);
+            *row = &sums[yy * width..(yy + 1) * width];
+        }
+        for (x, o) in o.iter_mut().enumerate() {
+            let mut sum = 0.0;
+            for row in &rows[..blur] {
+                sum += row[x];
             }
-            for (x, o) in o.iter_mut().enumerate() {
-                let mut sum = 0.0;
-                for row in &rows[..blur] {
-                    sum += row[x];
-                }
-                *o = round_to_u8(sum * scale);
-            }
+            *o = round_to_u8(sum * scale);
         }
     }
 }

@@ -349,58 +349,61 @@ camplace_estimator::multiversion! {
         y_end: usize,
         z: &mut [f32],
         t: &mut [u32],
-    ) {
-        for st in screen {
-            if st.y1 < y_begin || st.y0 >= y_end || st.x0 > st.x1 {
+    ) => fill_band_body
+}
+
+#[inline(always)]
+fn fill_band_body(screen: &[ScreenTriangle], w: usize, y_begin: usize, y_end: usize, z: &mut [f32], t: &mut [u32]) {
+    for st in screen {
+        if st.y1 < y_begin || st.y0 >= y_end || st.x0 > st.x1 {
+            continue;
+        }
+        let [pa, pb, pc] = st.plane;
+        for y in st.y0.max(y_begin)..=st.y1.min(y_end - 1) {
+            let fy = y as f64;
+            // The span where every edge function is >= 0, widened by a pixel each side
+            // so the exact test below decides the border pixels.
+            let (mut lo, mut hi) = (st.x0 as f64, st.x1 as f64);
+            let mut empty = false;
+            // A row lying exactly on a horizontal edge needs the fill rule at every pixel.
+            let mut on_edge = false;
+            for &[ex, ey, ga, gb] in &st.edges {
+                let r = gb * (fy - ey);
+                if ga > 0.0 {
+                    lo = lo.max(ex - r / ga);
+                } else if ga < 0.0 {
+                    hi = hi.min(ex - r / ga);
+                } else if r < 0.0 {
+                    empty = true;
+                } else if r == 0.0 {
+                    on_edge = true;
+                }
+            }
+            if empty || lo > hi + 1.0 {
                 continue;
             }
-            let [pa, pb, pc] = st.plane;
-            for y in st.y0.max(y_begin)..=st.y1.min(y_end - 1) {
-                let fy = y as f64;
-                // The span where every edge function is >= 0, widened by a pixel each side
-                // so the exact test below decides the border pixels.
-                let (mut lo, mut hi) = (st.x0 as f64, st.x1 as f64);
-                let mut empty = false;
-                // A row lying exactly on a horizontal edge needs the fill rule at every pixel.
-                let mut on_edge = false;
-                for &[ex, ey, ga, gb] in &st.edges {
-                    let r = gb * (fy - ey);
-                    if ga > 0.0 {
-                        lo = lo.max(ex - r / ga);
-                    } else if ga < 0.0 {
-                        hi = hi.min(ex - r / ga);
-                    } else if r < 0.0 {
-                        empty = true;
-                    } else if r == 0.0 {
-                        on_edge = true;
+            let xs = ((lo.floor() - 1.0).max(st.x0 as f64)) as usize;
+            let xe = ((hi.ceil() + 1.0).min(st.x1 as f64)) as usize;
+            // Pixels a whole pixel inside the span are inside whatever the rounding.
+            let (sure_lo, sure_hi) = if on_edge { (1.0, 0.0) } else { (lo + 1.0, hi - 1.0) };
+            let row = (y - y_begin) * w;
+            for x in xs..=xe {
+                let fx = x as f64;
+                let sure = fx >= sure_lo && fx <= sure_hi;
+                if !sure {
+                    let inside = st.edges.iter().zip(st.top_left).all(|(&[ex, ey, ga, gb], tl)| {
+                        let e = ga * (fx - ex) + gb * (fy - ey);
+                        e > 0.0 || (e == 0.0 && tl)
+                    });
+                    if !inside {
+                        continue;
                     }
                 }
-                if empty || lo > hi + 1.0 {
-                    continue;
-                }
-                let xs = ((lo.floor() - 1.0).max(st.x0 as f64)) as usize;
-                let xe = ((hi.ceil() + 1.0).min(st.x1 as f64)) as usize;
-                // Pixels a whole pixel inside the span are inside whatever the rounding.
-                let (sure_lo, sure_hi) = if on_edge { (1.0, 0.0) } else { (lo + 1.0, hi - 1.0) };
-                let row = (y - y_begin) * w;
-                for x in xs..=xe {
-                    let fx = x as f64;
-                    let sure = fx >= sure_lo && fx <= sure_hi;
-                    if !sure {
-                        let inside = st.edges.iter().zip(st.top_left).all(|(&[ex, ey, ga, gb], tl)| {
-                            let e = ga * (fx - ex) + gb * (fy - ey);
-                            e > 0.0 || (e == 0.0 && tl)
-                        });
-                        if !inside {
-                            continue;
-                        }
-                    }
-                    let iz = (pa * fx + pb * fy + pc) as f32;
-                    let i = row + x;
-                    if iz > z[i] {
-                        z[i] = iz;
-                        t[i] = st.source;
-                    }
+                let iz = (pa * fx + pb * fy + pc) as f32;
+                let i = row + x;
+                if iz > z[i] {
+                    z[i] = iz;
+                    t[i] = st.source;
                 }
             }
         }

@@ -181,22 +181,32 @@ camplace_estimator::multiversion! {
         proj: &[f32],
         uv: &[[f32; 2]],
         out: &mut [f32],
-    ) {
+    ) => shade_band_body
+}
 
-        let n = out.len();
-        let (base, proj, uv) = (&base[..n], &proj[..n], &uv[..n]);
-        for x in 0..n {
-            let mut g = base[x];
-            let p = proj[x];
-            if p > 0.0 {
-                g += p * pattern.sample(uv[x][0], uv[x][1]);
-            }
-            out[x] = g.clamp(0.0, 255.0);
+#[inline(always)]
+fn shade_band_body(
+    pattern: &ProjectorImage,
+    noise: Option<(u64, u32)>,
+    first: u64,
+    base: &[f32],
+    proj: &[f32],
+    uv: &[[f32; 2]],
+    out: &mut [f32],
+) {
+    let n = out.len();
+    let (base, proj, uv) = (&base[..n], &proj[..n], &uv[..n]);
+    for x in 0..n {
+        let mut g = base[x];
+        let p = proj[x];
+        if p > 0.0 {
+            g += p * pattern.sample(uv[x][0], uv[x][1]);
         }
-        if let Some((key, amplitude)) = noise.filter(|n| n.1 > 0) {
-            for (x, o) in out.iter_mut().enumerate() {
-                *o += pixel_noise(key, first + x as u64, amplitude) as f32;
-            }
+        out[x] = g.clamp(0.0, 255.0);
+    }
+    if let Some((key, amplitude)) = noise.filter(|n| n.1 > 0) {
+        for (x, o) in out.iter_mut().enumerate() {
+            *o += pixel_noise(key, first + x as u64, amplitude) as f32;
         }
     }
 }
@@ -272,9 +282,12 @@ struct Context<'a> {
 
 camplace_estimator::multiversion! {
     /// [`Context::row`].
-    fn terms_row(ctx: &Context<'_>, fy: f64, row: Row<'_>) {
-        ctx.row(fy, row)
-    }
+    fn terms_row(ctx: &Context<'_>, fy: f64, row: Row<'_>) => terms_row_body
+}
+
+#[inline(always)]
+fn terms_row_body(ctx: &Context<'_>, fy: f64, row: Row<'_>) {
+    ctx.row(fy, row);
 }
 
 impl Context<'_> {

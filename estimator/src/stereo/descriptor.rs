@@ -184,27 +184,40 @@ multiversion! {
         gyr: &mut [i16],
         magr: &mut [u16],
         sumr: &mut [u16],
-    ) {
-        gxr.fill(0);
-        gyr.fill(0);
-        magr.fill(0);
-        if y == 0 || y + 1 >= h {
-            sumr.fill(0);
-            return;
-        }
-        let (a, b, c) = (&src[(y - 1) * w..y * w], &src[y * w..(y + 1) * w], &src[(y + 1) * w..(y + 2) * w]);
-        let inner = gxr[1..w - 1].iter_mut().zip(&mut gyr[1..w - 1]).zip(&mut magr[1..w - 1]);
-        for (x, ((ox, oy), om)) in inner.enumerate() {
-            // Pixel x + 1 of the row; its neighbours are x and x + 2.
-            let p = |r: &[u8], i: usize| r[i] as i16;
-            let gx = (p(a, x + 2) - p(a, x)) + 2 * (p(b, x + 2) - p(b, x)) + (p(c, x + 2) - p(c, x));
-            let gy = (p(c, x) + 2 * p(c, x + 1) + p(c, x + 2)) - (p(a, x) + 2 * p(a, x + 1) + p(a, x + 2));
-            *ox = gx;
-            *oy = gy;
-            *om = gx.unsigned_abs() + gy.unsigned_abs();
-        }
-        box_sums(magr, sumr);
+    ) => sobel_row_body
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn sobel_row_body(
+    src: &[u8],
+    w: usize,
+    h: usize,
+    y: usize,
+    gxr: &mut [i16],
+    gyr: &mut [i16],
+    magr: &mut [u16],
+    sumr: &mut [u16],
+) {
+    gxr.fill(0);
+    gyr.fill(0);
+    magr.fill(0);
+    if y == 0 || y + 1 >= h {
+        sumr.fill(0);
+        return;
     }
+    let (a, b, c) = (&src[(y - 1) * w..y * w], &src[y * w..(y + 1) * w], &src[(y + 1) * w..(y + 2) * w]);
+    let inner = gxr[1..w - 1].iter_mut().zip(&mut gyr[1..w - 1]).zip(&mut magr[1..w - 1]);
+    for (x, ((ox, oy), om)) in inner.enumerate() {
+        // Pixel x + 1 of the row; its neighbours are x and x + 2.
+        let p = |r: &[u8], i: usize| r[i] as i16;
+        let gx = (p(a, x + 2) - p(a, x)) + 2 * (p(b, x + 2) - p(b, x)) + (p(c, x + 2) - p(c, x));
+        let gy = (p(c, x) + 2 * p(c, x + 1) + p(c, x + 2)) - (p(a, x) + 2 * p(a, x + 1) + p(a, x + 2));
+        *ox = gx;
+        *oy = gy;
+        *om = gx.unsigned_abs() + gy.unsigned_abs();
+    }
+    box_sums(magr, sumr);
 }
 
 /// Rows per band of the normalisation pass and columns per block within a band.
@@ -227,46 +240,60 @@ multiversion! {
         first: usize,
         du: &mut [u8],
         dv: &mut [u8],
-    ) {
-        let rows = first..first + du.len() / w;
-        let row_of = move |y: usize, range: std::ops::Range<usize>| &row_sum[y * w..(y + 1) * w][range];
-        let mut sum = [0u32; BLOCK];
-        for start in (0..w).step_by(BLOCK) {
-            let range = start..start + BLOCK.min(w - start);
-            let sum = &mut sum[..range.len()];
-            sum.fill(0);
-            for yy in first.saturating_sub(NORM_RADIUS)..=(first + NORM_RADIUS).min(h - 1) {
-                for (s, &r) in sum.iter_mut().zip(row_of(yy, range.clone())) {
+    ) => normalise_band_body
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn normalise_band_body(
+    gx: &[i16],
+    gy: &[i16],
+    row_sum: &[u16],
+    inv_cols: &[f32],
+    w: usize,
+    h: usize,
+    first: usize,
+    du: &mut [u8],
+    dv: &mut [u8],
+) {
+    let rows = first..first + du.len() / w;
+    let row_of = move |y: usize, range: std::ops::Range<usize>| &row_sum[y * w..(y + 1) * w][range];
+    let mut sum = [0u32; BLOCK];
+    for start in (0..w).step_by(BLOCK) {
+        let range = start..start + BLOCK.min(w - start);
+        let sum = &mut sum[..range.len()];
+        sum.fill(0);
+        for yy in first.saturating_sub(NORM_RADIUS)..=(first + NORM_RADIUS).min(h - 1) {
+            for (s, &r) in sum.iter_mut().zip(row_of(yy, range.clone())) {
+                *s += r as u32;
+            }
+        }
+        for y in rows.clone() {
+            let (y0, y1) = (y.saturating_sub(NORM_RADIUS), (y + NORM_RADIUS).min(h - 1));
+            let inv_rows = 1.0 / (y1 - y0 + 1) as f32;
+            let (gxr, gyr) = (&gx[y * w..(y + 1) * w], &gy[y * w..(y + 1) * w]);
+            let out = (y - first) * w..(y - first + 1) * w;
+            let (du, dv) = (&mut du[out.clone()][range.clone()], &mut dv[out][range.clone()]);
+            for ((((s, &ic), &gxv), &gyv), (ou, ov)) in sum
+                .iter()
+                .zip(&inv_cols[range.clone()])
+                .zip(&gxr[range.clone()])
+                .zip(&gyr[range.clone()])
+                .zip(du.iter_mut().zip(dv.iter_mut()))
+            {
+                let mean = *s as f32 * (ic * inv_rows);
+                let scale = NORM_TARGET / mean.max(NORM_FLOOR);
+                *ou = sobel_byte(gxv as f32 * scale);
+                *ov = sobel_byte(gyv as f32 * scale);
+            }
+            if y + NORM_RADIUS + 1 < h {
+                for (s, &r) in sum.iter_mut().zip(row_of(y + NORM_RADIUS + 1, range.clone())) {
                     *s += r as u32;
                 }
             }
-            for y in rows.clone() {
-                let (y0, y1) = (y.saturating_sub(NORM_RADIUS), (y + NORM_RADIUS).min(h - 1));
-                let inv_rows = 1.0 / (y1 - y0 + 1) as f32;
-                let (gxr, gyr) = (&gx[y * w..(y + 1) * w], &gy[y * w..(y + 1) * w]);
-                let out = (y - first) * w..(y - first + 1) * w;
-                let (du, dv) = (&mut du[out.clone()][range.clone()], &mut dv[out][range.clone()]);
-                for ((((s, &ic), &gxv), &gyv), (ou, ov)) in sum
-                    .iter()
-                    .zip(&inv_cols[range.clone()])
-                    .zip(&gxr[range.clone()])
-                    .zip(&gyr[range.clone()])
-                    .zip(du.iter_mut().zip(dv.iter_mut()))
-                {
-                    let mean = *s as f32 * (ic * inv_rows);
-                    let scale = NORM_TARGET / mean.max(NORM_FLOOR);
-                    *ou = sobel_byte(gxv as f32 * scale);
-                    *ov = sobel_byte(gyv as f32 * scale);
-                }
-                if y + NORM_RADIUS + 1 < h {
-                    for (s, &r) in sum.iter_mut().zip(row_of(y + NORM_RADIUS + 1, range.clone())) {
-                        *s += r as u32;
-                    }
-                }
-                if y >= NORM_RADIUS {
-                    for (s, &r) in sum.iter_mut().zip(row_of(y - NORM_RADIUS, range.clone())) {
-                        *s -= r as u32;
-                    }
+            if y >= NORM_RADIUS {
+                for (s, &r) in sum.iter_mut().zip(row_of(y - NORM_RADIUS, range.clone())) {
+                    *s -= r as u32;
                 }
             }
         }

@@ -49,15 +49,18 @@ fn float_planes(img: &GrayImage, value: &mut Vec<f32>, grad: &mut Vec<f32>) {
 
 multiversion! {
     /// One row of [`float_planes`].
-    fn float_row(src: &[u8], value: &mut [f32], grad: &mut [f32]) {
-        for (o, &p) in value.iter_mut().zip(src) {
-            *o = p as f32;
-        }
-        grad.fill(0.0);
-        let w = src.len().min(grad.len());
-        for x in 1..w.saturating_sub(1) {
-            grad[x] = 0.5 * (src[x + 1] as f32 - src[x - 1] as f32);
-        }
+    fn float_row(src: &[u8], value: &mut [f32], grad: &mut [f32]) => float_row_body
+}
+
+#[inline(always)]
+fn float_row_body(src: &[u8], value: &mut [f32], grad: &mut [f32]) {
+    for (o, &p) in value.iter_mut().zip(src) {
+        *o = p as f32;
+    }
+    grad.fill(0.0);
+    let w = src.len().min(grad.len());
+    for x in 1..w.saturating_sub(1) {
+        grad[x] = 0.5 * (src[x + 1] as f32 - src[x - 1] as f32);
     }
 }
 
@@ -95,9 +98,7 @@ pub fn refine_subpixel(left: &GrayImage, right: &GrayImage, disp: &mut [f32], ra
 
 multiversion! {
     /// [`refine_row`] with the widest registers this machine has.
-    fn refine_row_best(p: &Planes<'_>, y: usize, row: &mut [f32], x_lo: usize, x_hi: usize) {
-        refine_row(p, y, row, x_lo, x_hi)
-    }
+    fn refine_row_best(p: &Planes<'_>, y: usize, row: &mut [f32], x_lo: usize, x_hi: usize) => refine_row
 }
 
 /// Refines columns `x_lo .. x_hi` of row `y`: groups of [`LANES`] pixels together where

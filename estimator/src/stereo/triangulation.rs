@@ -266,48 +266,57 @@ multiversion! {
         y: usize,
         left: &mut [f32],
         right: &mut [f32],
-    ) {
-        let (cols, rows, step, width, height) = grid;
+    ) => rasterise_row_body
+}
 
-        let per_row = 2 * (cols - 1);
-        // Left view: each pixel interpolates the triangle of its grid square. The
-        // terms that depend only on the row and the square are formed once per
-        // square, from the same operands in the same order as per pixel.
-        let gy = (y / step).min(rows - 2);
-        let (y0, y1) = (at(gy, step, height), at(gy + 1, step, height));
-        let ty = (y - y0) as f32 / (y1 - y0) as f32;
-        let (top, bottom) = (&node[gy * cols..(gy + 1) * cols], &node[(gy + 1) * cols..(gy + 2) * cols]);
-        for gx in 0..cols - 1 {
-            // The last square also takes the columns past its right node's clamp.
-            let span = gx * step..if gx + 2 == cols { width } else { (gx + 1) * step };
-            let (d00, d10, d01, d11) = (top[gx], top[gx + 1], bottom[gx], bottom[gx + 1]);
-            let (upper_slope, upper_offset) = (d10 - d00, ty * (d11 - d10));
-            let (lower_base, lower_slope) = (d00 + ty * (d01 - d00), d11 - d01);
-            // The square's two triangles share the diagonal (x0, y0)-(x1, y1).
-            for (o, &tx) in left[span.clone()].iter_mut().zip(&tx[span]) {
-                *o = if tx >= ty { d00 + tx * upper_slope + upper_offset } else { lower_base + tx * lower_slope };
-            }
+#[inline(always)]
+fn rasterise_row_body(
+    node: &[f32],
+    tx: &[f32],
+    moved: &[Moved],
+    (cols, rows, step, width, height): (usize, usize, usize, usize, usize),
+    y: usize,
+    left: &mut [f32],
+    right: &mut [f32],
+) {
+    let per_row = 2 * (cols - 1);
+    // Left view: each pixel interpolates the triangle of its grid square. The
+    // terms that depend only on the row and the square are formed once per
+    // square, from the same operands in the same order as per pixel.
+    let gy = (y / step).min(rows - 2);
+    let (y0, y1) = (at(gy, step, height), at(gy + 1, step, height));
+    let ty = (y - y0) as f32 / (y1 - y0) as f32;
+    let (top, bottom) = (&node[gy * cols..(gy + 1) * cols], &node[(gy + 1) * cols..(gy + 2) * cols]);
+    for gx in 0..cols - 1 {
+        // The last square also takes the columns past its right node's clamp.
+        let span = gx * step..if gx + 2 == cols { width } else { (gx + 1) * step };
+        let (d00, d10, d01, d11) = (top[gx], top[gx + 1], bottom[gx], bottom[gx + 1]);
+        let (upper_slope, upper_offset) = (d10 - d00, ty * (d11 - d10));
+        let (lower_base, lower_slope) = (d00 + ty * (d01 - d00), d11 - d01);
+        // The square's two triangles share the diagonal (x0, y0)-(x1, y1).
+        for (o, &tx) in left[span.clone()].iter_mut().zip(&tx[span]) {
+            *o = if tx >= ty { d00 + tx * upper_slope + upper_offset } else { lower_base + tx * lower_slope };
         }
-        // Right view: moving is along x only, so a pixel row meets the triangles of
-        // at most the two grid rows whose node rows bracket it. They are drawn in
-        // the order of a whole-image pass (grid rows, squares, then the pair), so
-        // every pixel sees the same sequence of writes and ties resolve the same way.
-        right.fill(f32::NAN);
-        let g = y / step;
-        for gy in g.saturating_sub(1)..=g.min(rows - 2) {
-            if y < at(gy, step, height) || y > at(gy + 1, step, height) {
-                continue;
+    }
+    // Right view: moving is along x only, so a pixel row meets the triangles of
+    // at most the two grid rows whose node rows bracket it. They are drawn in
+    // the order of a whole-image pass (grid rows, squares, then the pair), so
+    // every pixel sees the same sequence of writes and ties resolve the same way.
+    right.fill(f32::NAN);
+    let g = y / step;
+    for gy in g.saturating_sub(1)..=g.min(rows - 2) {
+        if y < at(gy, step, height) || y > at(gy + 1, step, height) {
+            continue;
+        }
+        // Spans first, a batch at a time, so that their divisions overlap
+        // instead of each waiting on the previous triangle's pixels.
+        for batch in moved[gy * per_row..(gy + 1) * per_row].chunks(BATCH) {
+            let mut spans = [(1, 0); BATCH];
+            for (m, s) in batch.iter().zip(&mut spans) {
+                *s = m.span(y, width);
             }
-            // Spans first, a batch at a time, so that their divisions overlap
-            // instead of each waiting on the previous triangle's pixels.
-            for batch in moved[gy * per_row..(gy + 1) * per_row].chunks(BATCH) {
-                let mut spans = [(1, 0); BATCH];
-                for (m, s) in batch.iter().zip(&mut spans) {
-                    *s = m.span(y, width);
-                }
-                for (m, &s) in batch.iter().zip(&spans) {
-                    m.draw(y, s, right);
-                }
+            for (m, &s) in batch.iter().zip(&spans) {
+                m.draw(y, s, right);
             }
         }
     }
