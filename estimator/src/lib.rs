@@ -3,7 +3,7 @@
 //! format loads it and hands the estimator plain values.
 
 #[macro_use]
-mod multiversion;
+pub mod multiversion;
 
 pub mod background;
 pub mod camera;

@@ -4,6 +4,35 @@
 //! lane by lane, and Rust never fuses a multiply and an add, so every version gives the
 //! same bits.
 
+/// Whether this machine runs AVX2.
+pub fn avx2_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Whether this machine runs the AVX-512 subsets the wide loops use: F, BW, DQ and VL
+/// (and with them AVX2).
+pub fn avx512_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512bw")
+            && std::arch::is_x86_feature_detected!("avx512dq")
+            && std::arch::is_x86_feature_detected!("avx512vl")
+            && std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
 /// Defines `fn $name(args)` that calls the `#[inline(always)]` function `$body(args)`
 /// inlined into a copy compiled with AVX-512 (F, BW, DQ, VL) and AVX2, a copy with AVX2,
 /// or the baseline, whichever this machine runs best.
@@ -22,15 +51,11 @@ macro_rules! multiversion {
                 unsafe fn narrow($($arg: $ty),*) {
                     $body($($arg),*)
                 }
-                if std::arch::is_x86_feature_detected!("avx512f")
-                    && std::arch::is_x86_feature_detected!("avx512bw")
-                    && std::arch::is_x86_feature_detected!("avx512dq")
-                    && std::arch::is_x86_feature_detected!("avx512vl")
-                {
-                    // SAFETY: AVX-512 F, BW, DQ and VL (and so AVX2) were detected.
+                if $crate::multiversion::avx512_available() {
+                    // SAFETY: AVX-512 F, BW, DQ and VL and AVX2 were detected.
                     return unsafe { wide($($arg),*) };
                 }
-                if std::arch::is_x86_feature_detected!("avx2") {
+                if $crate::multiversion::avx2_available() {
                     // SAFETY: AVX2 was detected.
                     return unsafe { narrow($($arg),*) };
                 }

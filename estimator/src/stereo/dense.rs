@@ -74,7 +74,7 @@ pub enum Kernel {
     Scalar,
     /// x86_64 with AVX2.
     Avx2,
-    /// x86_64 with AVX2 and AVX-512 F, BW and VL: runs of candidates sixteen at a time.
+    /// x86_64 with AVX2 and AVX-512 F, BW, DQ and VL: runs of candidates sixteen at a time.
     Avx512,
 }
 
@@ -83,8 +83,11 @@ impl Kernel {
     pub fn detect() -> Kernel {
         #[cfg(target_arch = "x86_64")]
         {
-            if super::avx2_available() {
-                return if avx2::wide_available() { Kernel::Avx512 } else { Kernel::Avx2 };
+            if crate::multiversion::avx512_available() {
+                return Kernel::Avx512;
+            }
+            if crate::multiversion::avx2_available() {
+                return Kernel::Avx2;
             }
         }
         Kernel::Scalar
@@ -294,13 +297,6 @@ mod avx2 {
             }
             k0 += 16;
         }
-    }
-
-    /// Whether this machine runs the wide kernel.
-    pub fn wide_available() -> bool {
-        std::arch::is_x86_feature_detected!("avx512f")
-            && std::arch::is_x86_feature_detected!("avx512bw")
-            && std::arch::is_x86_feature_detected!("avx512vl")
     }
 
     /// The row loop of both vector kernels; inlined into a caller that enables AVX2, and
@@ -640,7 +636,7 @@ mod tests {
 
     #[test]
     fn vector_kernels_match_scalar_kernel() {
-        if !crate::stereo::avx2_available() {
+        if !crate::multiversion::avx2_available() {
             eprintln!("no AVX2 here: only the scalar kernel runs");
             return;
         }
@@ -683,7 +679,7 @@ mod tests {
             };
             let VectorPrior(Some(table)) = q.vector else { panic!("table {energy:?} should fit the vector kernel") };
             let side = Side { own: &left, other: &right, prior: &prior, grid: &grid };
-            let wide = avx2::wide_available();
+            let wide = crate::multiversion::avx512_available();
             for y in BORDER..h - BORDER {
                 let (mut slow, mut fast, mut widest) = (vec![0.0; w], vec![0.0; w], vec![0.0; w]);
                 // SAFETY: AVX2 (and AVX-512 F, BW, VL for the wide kernel) were detected.

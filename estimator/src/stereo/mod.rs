@@ -23,16 +23,3 @@ pub trait DisparityMatcher {
     /// d = x_left - x_right, searched within `range` (px); +inf where no match is trusted.
     fn compute(&mut self, left: &GrayImage, right: &GrayImage, range: (f32, f32), out: &mut FloatImage) -> Result<()>;
 }
-
-/// Whether this machine runs AVX2, for the row loops compiled twice: once for the x86_64
-/// baseline, once for AVX2 (the same arithmetic, wider or VEX-encoded).
-fn avx2_available() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}

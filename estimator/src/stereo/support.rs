@@ -161,26 +161,25 @@ fn support_match(
         return None;
     }
     let d_hi_r = p.d_max.min((w - BORDER - 1 - ur) as i32);
+    // The first lowest cost, COSTS disparities at a time (a later chunk wins only when
+    // strictly lower).
     let mut best_r = (i32::MAX, -1);
-    if d_hi_r >= p.d_min && ((d_hi_r - p.d_min) as usize) < COSTS {
-        let mut costs = [0i32; COSTS];
-        let costs = &mut costs[..(d_hi_r - p.d_min + 1) as usize];
-        run_costs::<false>(dr, &left.data, row + ur, p.d_min, costs, p.kernel);
-        let (c, k) = first_min(costs);
-        best_r = (c, p.d_min + k as i32);
-    } else {
-        for d in p.d_min..=d_hi_r {
-            let c = sad(dr, &left.data[row + ur + d as usize]);
-            if c < best_r.0 {
-                best_r = (c, d);
-            }
+    let mut costs = [0i32; COSTS];
+    let mut d0 = p.d_min;
+    while d0 <= d_hi_r {
+        let chunk = &mut costs[..((d_hi_r - d0 + 1) as usize).min(COSTS)];
+        run_costs::<false>(dr, &left.data, row + ur, d0, chunk, p.kernel);
+        let (c, k) = first_min(chunk);
+        if c < best_r.0 {
+            best_r = (c, d0 + k as i32);
         }
+        d0 += chunk.len() as i32;
     }
     ((best_r.1 - d1).abs() <= p.lr_tolerance).then_some(d1)
 }
 
 /// Disparity ranges up to this many px keep all their costs on the stack; wider ones go
-/// through [`Best4`].
+/// through [`Best4`] (the left search) or in chunks (the right one).
 const COSTS: usize = 256;
 
 /// The first lowest cost and its index (`costs` not empty).
