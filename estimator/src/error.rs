@@ -2,6 +2,7 @@
 //! buffers of the wrong size, a model file that does not decode).
 
 use std::fmt;
+use std::sync::Arc;
 
 /// What went wrong, broadly.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -15,17 +16,28 @@ pub enum ErrorKind {
     Model,
 }
 
-/// An estimator error with a one-line message naming the field and what was expected.
+/// An estimator error with a one-line message naming the field and what was expected, and
+/// the underlying error when another one caused it.
 #[derive(Debug, Clone)]
 pub struct Error {
     kind: ErrorKind,
     message: String,
+    source: Option<Arc<dyn std::error::Error + Send + Sync + 'static>>,
 }
 
 impl Error {
     /// An error of `kind`.
     pub fn new(kind: ErrorKind, message: impl Into<String>) -> Self {
-        Error { kind, message: message.into() }
+        Error { kind, message: message.into(), source: None }
+    }
+
+    /// An error of `kind` caused by `source`, which [`std::error::Error::source`] returns.
+    pub fn with_source(
+        kind: ErrorKind,
+        message: impl Into<String>,
+        source: impl std::error::Error + Send + Sync + 'static,
+    ) -> Self {
+        Error { kind, message: message.into(), source: Some(Arc::new(source)) }
     }
 
     /// What went wrong, broadly.
@@ -40,7 +52,27 @@ impl fmt::Display for Error {
     }
 }
 
-impl std::error::Error for Error {}
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        self.source.as_deref().map(|e| e as &(dyn std::error::Error + 'static))
+    }
+}
 
 /// The estimator's result type.
 pub type Result<T> = std::result::Result<T, Error>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_wrapped_error_is_the_source() {
+        let config = camplace_config::Error::value("estimator.k", "expected at least 1");
+        let e = Error::with_source(ErrorKind::Input, config.to_string(), config.clone());
+        assert_eq!(e.kind(), ErrorKind::Input);
+        assert_eq!(e.to_string(), config.to_string());
+        let source = std::error::Error::source(&e).expect("a source");
+        assert_eq!(source.to_string(), config.to_string());
+        assert!(std::error::Error::source(&Error::new(ErrorKind::Model, "model: bad")).is_none());
+    }
+}
