@@ -191,16 +191,13 @@ impl FeatureMatcher {
     fn detect() -> Kernel {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f")
-                && std::arch::is_x86_feature_detected!("avx512bw")
-                && std::arch::is_x86_feature_detected!("avx512vnni")
-            {
+            if crate::multiversion::avx512_vnni_available() {
                 return Kernel::Avx512Vnni;
             }
-            if std::arch::is_x86_feature_detected!("avx512f") {
+            if crate::multiversion::avx512f_available() {
                 return Kernel::Avx512;
             }
-            if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+            if crate::multiversion::avx2_fma_available() {
                 return Kernel::Avx2;
             }
         }
@@ -475,14 +472,13 @@ mod tests {
         let mut kernels = vec![Kernel::Baseline];
         #[cfg(target_arch = "x86_64")]
         {
-            use std::arch::is_x86_feature_detected as has;
-            if has!("avx2") && has!("fma") {
+            if crate::multiversion::avx2_fma_available() {
                 kernels.push(Kernel::Avx2);
             }
-            if has!("avx512f") {
+            if crate::multiversion::avx512f_available() {
                 kernels.push(Kernel::Avx512);
             }
-            if has!("avx512f") && has!("avx512bw") && has!("avx512vnni") {
+            if crate::multiversion::avx512_vnni_available() {
                 kernels.push(Kernel::Avx512Vnni);
             }
         }
