@@ -2,13 +2,13 @@
 //! points and 2k key points with 25 matches each, nearly all wrong.
 
 use camplace_config::Cell;
-use camplace_estimator::model::synthetic::{self, Scene, SceneSpec};
+use camplace_estimator::testing::{self, Scene, SceneSpec};
 use camplace_estimator::{Icp, IcpResult, Ransac, RansacResult};
 use criterion::{criterion_group, Criterion};
 
 fn pose(c: &mut Criterion) {
     let params = Cell::default().estimator;
-    let model = synthetic::tray(false, 1);
+    let model = testing::tray(false, 1);
     let spec = SceneSpec {
         seed: 21,
         matches_per_keypoint: 25,

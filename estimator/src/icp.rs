@@ -357,8 +357,8 @@ fn trim_threshold(pairs: &[Pair], distances: &mut Vec<f32>, trim: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::synthetic::{self, Scene, SceneSpec};
     use crate::ransac::{Ransac, RansacResult};
+    use crate::testing::{self, Scene, SceneSpec};
     use camplace_config::Cell;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -370,7 +370,7 @@ mod tests {
     /// From a start a few mm and degrees off, ICP lands within a fraction of a mm.
     #[test]
     fn converges_from_a_perturbed_start() {
-        let model = synthetic::tray(false, 1);
+        let model = testing::tray(false, 1);
         let params = Cell::default().estimator;
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         for seed in 0..8 {
@@ -397,7 +397,7 @@ mod tests {
     /// matches: within 1 mm and 0.5 degree of the truth.
     #[test]
     fn ransac_then_icp_recovers_the_pose() {
-        let model = synthetic::tray(false, 1);
+        let model = testing::tray(false, 1);
         let params = Cell::default().estimator;
         let mut ransac = Ransac::new(&params, &model).unwrap();
         let mut icp = Icp::new(&params, &model).unwrap();
@@ -427,7 +427,7 @@ mod tests {
 
     #[test]
     fn grid_lookup_is_within_a_cell_diagonal_of_brute_force() {
-        let model = synthetic::tray(false, 1);
+        let model = testing::tray(false, 1);
         let points = &model.views[2].points;
         let grid = NearestGrid::new(points, 2.0, 6.0);
         let mut rng = ChaCha8Rng::seed_from_u64(8);
@@ -445,7 +445,7 @@ mod tests {
 
     #[test]
     fn too_few_scene_points_keep_the_start() {
-        let model = synthetic::tray(false, 1);
+        let model = testing::tray(false, 1);
         let mut icp = Icp::new(&Cell::default().estimator, &model).unwrap();
         let start = Isometry3::translation(10.0, 0.0, 0.0);
         let mut out = IcpResult::default();

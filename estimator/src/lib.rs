@@ -24,6 +24,8 @@ pub mod model;
 pub mod neighbours;
 pub mod normals;
 pub mod phase;
+#[cfg(test)]
+mod phase_fixture;
 pub mod pipeline;
 pub mod ransac;
 pub mod reconstruct;
@@ -31,6 +33,8 @@ pub mod rectified;
 pub mod rectify;
 pub mod rig;
 pub mod stereo;
+#[cfg(any(test, feature = "testing"))]
+pub mod testing;
 
 pub use background::Background;
 pub use camera::Camera;

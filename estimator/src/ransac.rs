@@ -667,7 +667,7 @@ impl SceneGrid {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::synthetic::{self, Scene, SceneSpec};
+    use crate::testing::{self, Scene, SceneSpec};
     use camplace_config::Cell;
 
     fn params() -> EstimatorParams {
@@ -728,7 +728,7 @@ mod tests {
 
     #[test]
     fn matches_are_grouped_by_key_point() {
-        let model = synthetic::tray(false, 1);
+        let model = testing::tray(false, 1);
         let mut ransac = Ransac::new(&params(), &model).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(6);
         for keypoints in [1, 7, 300] {
@@ -770,7 +770,7 @@ mod tests {
     /// with 90 % wrong matches, partial visibility, noise and clutter.
     #[test]
     fn recovers_the_pose_through_mostly_wrong_matches() {
-        let model = synthetic::tray(false, 1);
+        let model = testing::tray(false, 1);
         for (seed, sample) in (0..4).flat_map(|seed| [(seed, 2), (seed, 3)]) {
             let mut p = params();
             p.ransac_sample = sample;
@@ -814,7 +814,7 @@ mod tests {
     /// table check. Loosening the check lets the same scene through.
     #[test]
     fn poses_off_the_table_are_rejected() {
-        let model = synthetic::tray(false, 1);
+        let model = testing::tray(false, 1);
         let spec =
             SceneSpec { seed: 3, tilt_deg: 25.0, correct_share: 1.0, matches_per_keypoint: 1, ..SceneSpec::default() };
         let scene = Scene::generate(&model, false, &spec);
@@ -840,7 +840,7 @@ mod tests {
 
     #[test]
     fn a_scene_without_the_tray_gives_no_pose() {
-        let model = synthetic::tray(false, 1);
+        let model = testing::tray(false, 1);
         let mut p = params();
         p.ransac_iterations = 20_000;
         let mut ransac = Ransac::new(&p, &model).unwrap();
@@ -865,7 +865,7 @@ mod tests {
 
     #[test]
     fn bad_indices_are_input_errors() {
-        let model = synthetic::tray(false, 1);
+        let model = testing::tray(false, 1);
         let mut ransac = Ransac::new(&params(), &model).unwrap();
         let scene = [Point3::origin(); 4];
         let bad = [Correspondence { scene: 9, model: 0, distance2: 0.0 }; 3];
