@@ -1,63 +1,49 @@
 //! camplace's estimator: the pipeline that runs on the cell PC, from a stereo frame to the
 //! tray's pose. Pure compute: it never opens a file or a device; the crate that owns a
 //! format loads it and hands the estimator plain values.
+//!
+//! The stages live in folders by pipeline step: `depth` (rectification, stereo or phase
+//! decoding, background, world cloud), `features` (down-sampling, normals, key points,
+//! descriptors, matching), `pose` (model, RANSAC, ICP, metrics) and `spatial` (the point
+//! indexes the stages share). Every public item is re-exported here, at one path.
 
 #[macro_use]
-pub mod multiversion;
+mod cpu;
 
-pub mod background;
-pub mod camera;
-pub mod cloud;
-pub mod correspondence;
-pub mod downsample;
-pub mod ecsad;
+mod camera;
+mod depth;
 mod error;
-pub mod features;
-pub mod icp;
-pub mod image;
-pub mod kabsch;
-pub mod keypoints;
-pub mod matching;
-pub mod method;
-pub mod metrics;
-pub mod model;
-pub mod neighbours;
-pub mod normals;
-pub mod phase;
-#[cfg(test)]
-mod phase_fixture;
-pub mod pipeline;
-pub mod ransac;
-pub mod reconstruct;
-pub mod rectified;
-pub mod rectify;
-pub mod rig;
-pub mod stereo;
+mod features;
+mod image;
+mod method;
+mod pipeline;
+mod pose;
+mod rig;
+mod spatial;
+
+pub use camera::{isometry_from_matrix, isometry_from_rows, isometry_to_rows, Camera};
+pub use depth::{
+    Background, Cloud, CloudBuilder, DisparityMatcher, Elas, PhaseDecoder, ReconstructTimings, Reconstruction,
+    Reconstructor, Rectification, RectifiedCamera,
+};
+pub use error::{Error, ErrorKind, Result};
+pub use features::{
+    is_valid_normal, Correspondence, Descriptor, Downsampler, Ecsad, FeatureExtractor, FeatureMatcher, FeatureTimings,
+    KeypointSelector, NormalEstimator, ECSAD_DIM, MIN_NORMAL_NEIGHBOURS,
+};
+pub use image::{FloatImage, GrayImage, Image};
+pub use method::Method;
+pub use pipeline::{Estimator, PoseEstimate, StageTimings};
+pub use pose::{
+    correct_matches, pose_errors, Icp, IcpResult, Model, ModelView, PoseErrors, Ransac, RansacResult,
+    MODEL_FORMAT_VERSION,
+};
+pub use rig::Rig;
+pub use spatial::Neighbours;
+
 #[cfg(any(test, feature = "testing"))]
 pub mod testing;
 
-pub use background::Background;
-pub use camera::Camera;
-pub use cloud::{Cloud, CloudBuilder};
-pub use correspondence::Correspondence;
-pub use downsample::Downsampler;
-pub use ecsad::{Descriptor, Ecsad, ECSAD_DIM};
-pub use error::{Error, ErrorKind, Result};
-pub use features::{FeatureExtractor, FeatureTimings};
-pub use icp::{Icp, IcpResult};
-pub use image::{FloatImage, GrayImage, Image};
-pub use keypoints::KeypointSelector;
-pub use matching::FeatureMatcher;
-pub use method::Method;
-pub use metrics::PoseErrors;
-pub use model::{Model, ModelView, MODEL_FORMAT_VERSION};
-pub use neighbours::Neighbours;
-pub use normals::NormalEstimator;
-pub use phase::PhaseDecoder;
-pub use pipeline::{Estimator, PoseEstimate, StageTimings};
-pub use ransac::{Ransac, RansacResult};
-pub use reconstruct::{ReconstructTimings, Reconstruction, Reconstructor};
-pub use rectified::RectifiedCamera;
-pub use rectify::Rectification;
-pub use rig::Rig;
-pub use stereo::{DisparityMatcher, Elas};
+/// Instruction-set checks the [`multiversion!`] expansions in other crates call.
+#[doc(hidden)]
+pub use cpu::{avx2_available, avx512_available};

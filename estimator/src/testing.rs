@@ -6,8 +6,8 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::correspondence::Correspondence;
-use crate::model::{Model, ModelView, DESCRIPTOR_LEN};
+use crate::pose::{Model, ModelView, DESCRIPTOR_LEN};
+use crate::Correspondence;
 
 /// Spacing of surface samples, mm (the paper's surface resolution).
 pub const SPACING: f32 = 2.0;

@@ -14,7 +14,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use camplace_config::Cell;
-use camplace_estimator::metrics::{correct_matches, pose_errors};
+use camplace_estimator::{correct_matches, pose_errors};
 use camplace_estimator::{Estimator, Model, Neighbours, PoseEstimate};
 use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
 use nalgebra::{Isometry3, Point3};

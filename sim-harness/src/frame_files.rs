@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use camplace_config::formats::dataset::{frame_name, image_name};
 use camplace_config::formats::{pfm, png};
 use camplace_config::{LightingTruth, Placement, TruthFile};
-use camplace_estimator::camera::isometry_to_rows;
+use camplace_estimator::isometry_to_rows;
 use camplace_estimator::{FloatImage, GrayImage, Rig};
 
 use crate::render::{Frame, Method};

@@ -6,7 +6,7 @@
 //! then share the features they agree on. The file format is the estimator's.
 
 use camplace_config::{Cell, Placement};
-use camplace_estimator::normals::MIN_NEIGHBOURS;
+use camplace_estimator::MIN_NORMAL_NEIGHBOURS;
 use camplace_estimator::{
     Descriptor, Downsampler, FeatureExtractor, Method, Model, ModelView, Neighbours, NormalEstimator, Reconstruction,
     Reconstructor, Rectification,
@@ -122,7 +122,7 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
         merge_fill_states(&captures[v * states..(v + 1) * states], params.surface_resolution as f32, &mut model);
     }
     let sres = params.surface_resolution as f32;
-    let normal_estimator = NormalEstimator::new(params.normal_radius as f32, MIN_NEIGHBOURS)?;
+    let normal_estimator = NormalEstimator::new(params.normal_radius as f32, MIN_NORMAL_NEIGHBOURS)?;
     model.views = poses
         .par_iter()
         .enumerate()
@@ -138,7 +138,7 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
             normal_estimator.compute(&points, &grid, &eye, &mut normals);
             // ICP planes need a normal: points where none could be fitted are left out.
             let (points, normals): (Vec<_>, Vec<_>) =
-                points.into_iter().zip(normals).filter(|(_, n)| camplace_estimator::normals::is_valid(n)).unzip();
+                points.into_iter().zip(normals).filter(|(_, n)| camplace_estimator::is_valid_normal(n)).unzip();
             Ok(ModelView { view_direction: eye.coords.normalize(), points, normals })
         })
         .collect::<Result<_>>()?;

@@ -4,7 +4,7 @@
 use anyhow::{bail, Context};
 use camplace_config::formats::{pfm, ply, png};
 use camplace_config::RigFile;
-use camplace_estimator::stereo::DisparityMatcher;
+use camplace_estimator::DisparityMatcher;
 use camplace_estimator::{Elas, FloatImage, GrayImage, Method, Reconstruction, Reconstructor, RectifiedCamera, Rig};
 use camplace_hwio::{FrameSource, Frames, RecordedSource};
 use rayon::prelude::*;
@@ -242,7 +242,7 @@ pub fn rectified_file(cam: &RectifiedCamera) -> camplace_config::RectifiedFile {
         height: cam.height as u32,
         k: std::array::from_fn(|r| std::array::from_fn(|c| cam.k[(r, c)])),
         baseline: cam.baseline,
-        t_world_rectified: camplace_estimator::camera::isometry_to_rows(&cam.t_world_rectified),
+        t_world_rectified: camplace_estimator::isometry_to_rows(&cam.t_world_rectified),
     }
 }
 

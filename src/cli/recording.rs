@@ -5,7 +5,7 @@
 use anyhow::{bail, Context};
 use camplace_config::formats::write_atomic;
 use camplace_config::{Cell, TruthFile};
-use camplace_estimator::camera::isometry_from_rows;
+use camplace_estimator::isometry_from_rows;
 use camplace_estimator::{Estimator, Method, Model, PoseEstimate, Rig};
 use camplace_hwio::{FrameSource, Frames, RecordedSource};
 use camplace_sim::study::{score, FrameRecord};

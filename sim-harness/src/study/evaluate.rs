@@ -5,7 +5,7 @@
 
 use camplace_config::formats::dataset::frame_name;
 use camplace_config::{Cell, Placement};
-use camplace_estimator::camera::{isometry_from_rows, isometry_to_rows};
+use camplace_estimator::{isometry_from_rows, isometry_to_rows};
 use camplace_estimator::{Estimator, Model, PoseEstimate};
 
 use super::record::{score, FrameRecord};

@@ -2,8 +2,8 @@
 //! and, where the truth is known, the paper's metrics.
 
 use camplace_config::Metrics;
-use camplace_estimator::camera::isometry_to_rows;
-use camplace_estimator::metrics::{correct_matches, pose_errors};
+use camplace_estimator::isometry_to_rows;
+use camplace_estimator::{correct_matches, pose_errors};
 use camplace_estimator::{Estimator, PoseEstimate, StageTimings};
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};

@@ -90,11 +90,11 @@ macro_rules! multiversion {
                 unsafe fn narrow($($arg: $ty),*) {
                     $body($($arg),*)
                 }
-                if $crate::multiversion::avx512_available() {
+                if $crate::avx512_available() {
                     // SAFETY: AVX-512 F, BW, DQ and VL and AVX2 were detected.
                     return unsafe { wide($($arg),*) };
                 }
-                if $crate::multiversion::avx2_available() {
+                if $crate::avx2_available() {
                     // SAFETY: AVX2 was detected.
                     return unsafe { narrow($($arg),*) };
                 }

@@ -5,9 +5,9 @@
 
 use nalgebra::{Point3, Vector3};
 
-use crate::downsample::{check_voxel_size, voxel_key, VoxelTable};
-use crate::ecsad::{relief_deg, Descriptor};
-use crate::normals::is_valid;
+use super::downsample::{check_voxel_size, voxel_key, VoxelTable};
+use super::ecsad::{relief_deg, Descriptor};
+use super::normals::is_valid_normal;
 use crate::{Error, ErrorKind, Result};
 
 /// Picks key points, reusing its buffers from frame to frame.
@@ -53,7 +53,7 @@ impl KeypointSelector {
         self.slots.clear();
         out.clear();
         for (p, n) in cloud.iter().zip(normals) {
-            let key = if is_valid(n) { voxel_key(p, inv) } else { None };
+            let key = if is_valid_normal(n) { voxel_key(p, inv) } else { None };
             let Some(key) = key else {
                 self.slots.push(u32::MAX);
                 continue;

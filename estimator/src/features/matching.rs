@@ -19,7 +19,7 @@
 use rayon::prelude::*;
 use std::f32::consts::PI;
 
-use crate::ecsad::{Descriptor, ECSAD_DIM};
+use super::ecsad::{Descriptor, ECSAD_DIM};
 use crate::{Correspondence, Error, ErrorKind, Result};
 
 /// Largest k the matcher keeps per scene key point.
@@ -191,13 +191,13 @@ impl FeatureMatcher {
     fn detect() -> Kernel {
         #[cfg(target_arch = "x86_64")]
         {
-            if crate::multiversion::avx512_vnni_available() {
+            if crate::cpu::avx512_vnni_available() {
                 return Kernel::Avx512Vnni;
             }
-            if crate::multiversion::avx512f_available() {
+            if crate::cpu::avx512f_available() {
                 return Kernel::Avx512;
             }
-            if crate::multiversion::avx2_fma_available() {
+            if crate::cpu::avx2_fma_available() {
                 return Kernel::Avx2;
             }
         }
@@ -472,13 +472,13 @@ mod tests {
         let mut kernels = vec![Kernel::Baseline];
         #[cfg(target_arch = "x86_64")]
         {
-            if crate::multiversion::avx2_fma_available() {
+            if crate::cpu::avx2_fma_available() {
                 kernels.push(Kernel::Avx2);
             }
-            if crate::multiversion::avx512f_available() {
+            if crate::cpu::avx512f_available() {
                 kernels.push(Kernel::Avx512);
             }
-            if crate::multiversion::avx512_vnni_available() {
+            if crate::cpu::avx512_vnni_available() {
                 kernels.push(Kernel::Avx512Vnni);
             }
         }

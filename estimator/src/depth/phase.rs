@@ -447,7 +447,7 @@ impl RowMatcher {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::phase_fixture::{away_from_edges, params, Scene, DARK, HEIGHT, PERIODS, RANGE, TABLE, WIDTH};
+    use crate::depth::fixture::{away_from_edges, params, Scene, DARK, HEIGHT, PERIODS, RANGE, TABLE, WIDTH};
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 

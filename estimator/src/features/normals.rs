@@ -5,11 +5,11 @@
 use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 
-use crate::neighbours::Neighbours;
+use crate::Neighbours;
 use crate::{Error, ErrorKind, Result};
 
 /// Fewest neighbours (the point included) a normal is fitted to by default.
-pub const MIN_NEIGHBOURS: usize = 6;
+pub const MIN_NORMAL_NEIGHBOURS: usize = 6;
 
 /// A neighbourhood is a line, not a surface, when its middle spread is below this share of
 /// its largest.
@@ -24,7 +24,7 @@ pub struct NormalEstimator {
 
 /// Whether a normal from [`NormalEstimator::compute`] was fitted (invalid ones are zero).
 #[inline]
-pub fn is_valid(normal: &Vector3<f32>) -> bool {
+pub fn is_valid_normal(normal: &Vector3<f32>) -> bool {
     normal.x != 0.0 || normal.y != 0.0 || normal.z != 0.0
 }
 
@@ -63,7 +63,7 @@ impl NormalEstimator {
             .with_min_len(256)
             .map(|(n, p)| {
                 *n = self.fit(p, neighbours, viewpoint).unwrap_or_else(Vector3::zeros);
-                usize::from(is_valid(n))
+                usize::from(is_valid_normal(n))
             })
             .sum()
     }
@@ -189,14 +189,14 @@ mod tests {
         cloud.push(Point3::new(500.0, 500.0, 500.0));
         let mut grid = Neighbours::new();
         grid.build(&cloud, 4.0).unwrap();
-        let est = NormalEstimator::new(4.0, MIN_NEIGHBOURS).unwrap();
+        let est = NormalEstimator::new(4.0, MIN_NORMAL_NEIGHBOURS).unwrap();
         let mut normals = Vec::new();
         let viewpoint = Point3::new(0.0, 0.0, 600.0);
         let fitted = est.compute(&cloud, &grid, &viewpoint, &mut normals);
         assert_eq!(normals.len(), cloud.len());
-        assert!(!is_valid(&normals[lonely]));
+        assert!(!is_valid_normal(&normals[lonely]));
         assert!(fitted >= lonely * 99 / 100, "{fitted} of {lonely}");
-        for (p, n) in cloud.iter().zip(&normals).take(lonely).filter(|(_, n)| is_valid(n)) {
+        for (p, n) in cloud.iter().zip(&normals).take(lonely).filter(|(_, n)| is_valid_normal(n)) {
             let truth = (p - centre).normalize();
             assert!(n.dot(&truth) > 0.995, "{n} vs {truth} at {p}");
             assert!((n.norm() - 1.0).abs() < 1e-5);

@@ -3,10 +3,10 @@
 
 mod dense;
 mod descriptor;
-pub mod elas;
+mod elas;
 mod postprocess;
 mod subpixel;
-pub mod support;
+mod support;
 mod triangulation;
 
 #[cfg(test)]

@@ -83,10 +83,10 @@ impl Kernel {
     pub fn detect() -> Kernel {
         #[cfg(target_arch = "x86_64")]
         {
-            if crate::multiversion::avx512_available() {
+            if crate::cpu::avx512_available() {
                 return Kernel::Avx512;
             }
-            if crate::multiversion::avx2_available() {
+            if crate::cpu::avx2_available() {
                 return Kernel::Avx2;
             }
         }
@@ -614,7 +614,7 @@ mod avx2 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::stereo::support::SupportPoint;
+    use crate::depth::stereo::support::SupportPoint;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
@@ -636,7 +636,7 @@ mod tests {
 
     #[test]
     fn vector_kernels_match_scalar_kernel() {
-        if !crate::multiversion::avx2_available() {
+        if !crate::cpu::avx2_available() {
             eprintln!("no AVX2 here: only the scalar kernel runs");
             return;
         }
@@ -679,7 +679,7 @@ mod tests {
             };
             let VectorPrior(Some(table)) = q.vector else { panic!("table {energy:?} should fit the vector kernel") };
             let side = Side { own: &left, other: &right, prior: &prior, grid: &grid };
-            let wide = crate::multiversion::avx512_available();
+            let wide = crate::cpu::avx512_available();
             for y in BORDER..h - BORDER {
                 let (mut slow, mut fast, mut widest) = (vec![0.0; w], vec![0.0; w], vec![0.0; w]);
                 // SAFETY: AVX2 (and AVX-512 F, BW, VL for the wide kernel) were detected.

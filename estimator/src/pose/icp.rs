@@ -11,7 +11,7 @@ use nalgebra::{Isometry3, Matrix6, Point3, Vector3, Vector6};
 use rayon::prelude::*;
 
 use crate::error::{Error, ErrorKind, Result};
-use crate::model::Model;
+use crate::Model;
 
 /// An update smaller than this in translation (mm) and rotation (rad) ends the iterations:
 /// a thousandth of a millimetre is far below the sensor's noise.
@@ -357,8 +357,8 @@ fn trim_threshold(pairs: &[Pair], distances: &mut Vec<f32>, trim: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ransac::{Ransac, RansacResult};
     use crate::testing::{self, Scene, SceneSpec};
+    use crate::{Ransac, RansacResult};
     use camplace_config::Cell;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;

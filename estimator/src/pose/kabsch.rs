@@ -41,11 +41,6 @@ impl RigidFit {
         self.cross += s * t.transpose();
     }
 
-    /// Number of pairs added.
-    pub fn count(&self) -> u32 {
-        self.count
-    }
-
     /// The pose `T_target_source` minimising the squared distances, or `None` with fewer than
     /// 3 pairs or when the source points are (nearly) collinear, so the rotation about their
     /// line is not determined.
@@ -95,6 +90,7 @@ impl RigidFit {
 
 /// Fits `T_target_source` to paired points (`target[i] ≈ T · source[i]`); `None` when the
 /// slices differ in length, hold fewer than 3 pairs or the source points are collinear.
+#[cfg(test)]
 pub fn fit_rigid(source: &[Point3<f32>], target: &[Point3<f32>]) -> Option<Isometry3<f64>> {
     if source.len() != target.len() {
         return None;

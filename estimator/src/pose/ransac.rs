@@ -28,11 +28,11 @@ use rand::seq::SliceRandom;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::correspondence::Correspondence;
+use super::kabsch::RigidFit;
 use crate::error::{Error, ErrorKind, Result};
-use crate::kabsch::RigidFit;
-use crate::matching::MAX_K;
-use crate::model::Model;
+use crate::features::MAX_K;
+use crate::Correspondence;
+use crate::Model;
 
 /// Points scored between two early-exit checks.
 const SCORE_BLOCK: usize = 32;

@@ -283,9 +283,9 @@ mod tests {
 
     #[test]
     fn background_removal_keeps_the_box_and_drops_the_table() {
-        use crate::phase_fixture::{params as phase_params, Scene, Surface, PERIODS, RANGE};
+        use crate::depth::fixture::{params as phase_params, Scene, Surface, PERIODS, RANGE};
         use crate::PhaseDecoder;
-        let cam = crate::phase_fixture::camera();
+        let cam = crate::depth::fixture::camera();
         let (w, h) = (cam.width, cam.height);
         let mut decoder = PhaseDecoder::new(&phase_params(), &PERIODS, w, h).unwrap();
         let empty = Scene { with_box: false, mirrored: false }.render(&PERIODS, 21);

@@ -5,14 +5,28 @@
 //! call to call; once they have seen a cloud as large as the current one, `extract`
 //! allocates nothing.
 
+mod correspondence;
+mod downsample;
+mod ecsad;
+mod keypoints;
+mod matching;
+mod normals;
+
+pub use correspondence::Correspondence;
+pub use downsample::Downsampler;
+pub use ecsad::{Descriptor, Ecsad, ECSAD_DIM};
+pub use keypoints::KeypointSelector;
+pub use matching::FeatureMatcher;
+pub(crate) use matching::MAX_K;
+pub use normals::{is_valid_normal, NormalEstimator, MIN_NORMAL_NEIGHBOURS};
+
 use std::time::Instant;
 
 use camplace_config::EstimatorParams;
 use nalgebra::{Point3, Vector3};
 
-use crate::keypoints::keep_distinctive;
-use crate::normals::MIN_NEIGHBOURS;
-use crate::{Descriptor, Downsampler, Ecsad, KeypointSelector, Neighbours, NormalEstimator, Result};
+use crate::{Neighbours, Result};
+use keypoints::keep_distinctive;
 
 /// Time spent in each step of the last [`FeatureExtractor::extract`], ms.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -60,7 +74,7 @@ impl FeatureExtractor {
             downsampler: Downsampler::with_capacity(points),
             cloud: Vec::with_capacity(points),
             neighbours: Neighbours::with_capacity(points),
-            normal_estimator: NormalEstimator::new(params.normal_radius as f32, MIN_NEIGHBOURS)?,
+            normal_estimator: NormalEstimator::new(params.normal_radius as f32, MIN_NORMAL_NEIGHBOURS)?,
             normals: Vec::with_capacity(points),
             selector: KeypointSelector::new(),
             keypoints: Vec::with_capacity(keypoints),

@@ -6,7 +6,7 @@
 use camplace_config::Metrics;
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
-use crate::correspondence::Correspondence;
+use crate::Correspondence;
 
 /// How far an estimate is from the truth, and whether that counts as a success.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -2,6 +2,10 @@
 //! the canvas that holds the work volume, the remap tables that resample raw images onto
 //! it, and the disparity search range. Matching itself lives in `stereo`.
 
+mod camera;
+
+pub use camera::RectifiedCamera;
+
 use camplace_config::WorkVolume;
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
@@ -9,7 +13,6 @@ use rayon::prelude::*;
 use crate::camera::Camera;
 use crate::error::{Error, ErrorKind, Result};
 use crate::image::{FloatImage, GrayImage};
-use crate::rectified::RectifiedCamera;
 use crate::rig::Rig;
 
 /// Fixed-point resolution of the bilinear weights: 1/256 px is far below the matcher's

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use camplace_config::Cell;
 
-use crate::stereo::DisparityMatcher;
+use super::stereo::DisparityMatcher;
 use crate::{
     Background, Cloud, CloudBuilder, Elas, Error, ErrorKind, FloatImage, GrayImage, Method, PhaseDecoder,
     Rectification, Result, Rig,

@@ -32,8 +32,8 @@ use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 use std::f32::consts::{FRAC_PI_2, PI, TAU};
 
-use crate::neighbours::Neighbours;
-use crate::normals::is_valid;
+use super::normals::is_valid_normal;
+use crate::Neighbours;
 use crate::{Error, ErrorKind, Result};
 
 /// Length of an ECSAD descriptor.
@@ -229,7 +229,7 @@ fn describe(
 ) {
     *out = [FRAC_PI_2; ECSAD_DIM];
     let (p, n) = (cloud[k], normals[k]);
-    if !(is_valid(&n) && p.x.is_finite() && p.y.is_finite() && p.z.is_finite()) {
+    if !(is_valid_normal(&n) && p.x.is_finite() && p.y.is_finite() && p.z.is_finite()) {
         return;
     }
     let tiny = 1e-12 * radius * radius;
@@ -339,7 +339,7 @@ fn fill_empty(values: &mut Descriptor, filled: &mut [bool; ECSAD_DIM], adjacent:
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::normals::{NormalEstimator, MIN_NEIGHBOURS};
+    use crate::{NormalEstimator, MIN_NORMAL_NEIGHBOURS};
     use nalgebra::{Isometry3, Translation3, UnitQuaternion};
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -386,7 +386,7 @@ mod tests {
         let mut grid = Neighbours::new();
         grid.build(&cloud, 5.0).unwrap();
         let mut normals = Vec::new();
-        NormalEstimator::new(5.0, MIN_NEIGHBOURS).unwrap().compute(&cloud, &grid, &viewpoint, &mut normals);
+        NormalEstimator::new(5.0, MIN_NORMAL_NEIGHBOURS).unwrap().compute(&cloud, &grid, &viewpoint, &mut normals);
         let keypoints = keypoints.unwrap_or_else(|| (0..cloud.len() as u32).collect());
         grid.build(&cloud, 10.0).unwrap();
         let mut descriptors = Vec::new();

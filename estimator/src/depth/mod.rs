@@ -1,0 +1,19 @@
+//! Depth reconstruction, steps 1-3 of the pipeline (docs/architecture.md §5): raw shots are
+//! rectified, turned into a disparity map (one-shot stereo or 12-shot phase decoding), and
+//! back-projected into a world cloud with the background removed.
+
+mod background;
+mod cloud;
+#[cfg(test)]
+mod fixture;
+mod phase;
+mod reconstruct;
+mod rectify;
+mod stereo;
+
+pub use background::Background;
+pub use cloud::{Cloud, CloudBuilder};
+pub use phase::PhaseDecoder;
+pub use reconstruct::{ReconstructTimings, Reconstruction, Reconstructor};
+pub use rectify::{Rectification, RectifiedCamera};
+pub use stereo::{DisparityMatcher, Elas};

@@ -1,0 +1,5 @@
+//! The point indexes the stages query.
+
+mod neighbours;
+
+pub use neighbours::Neighbours;
