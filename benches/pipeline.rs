@@ -5,7 +5,7 @@
 use std::hint::black_box;
 
 use camplace_config::Cell;
-use camplace_estimator::{Estimator, PoseEstimate};
+use camplace_estimator::Estimator;
 use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
 use criterion::Criterion;
 
@@ -22,18 +22,15 @@ pub fn benches(c: &mut Criterion) {
     sim.render(&draw_scenario(&cell, seed, 2).scene(), Method::OneShot, noise_key(seed, 2, false), &mut frame);
     let mut estimator = Estimator::new(&cell, sim.rig(), model, Method::OneShot).expect("the estimator builds");
     estimator.set_background(&background.left, &background.right).expect("the background reconstructs");
-    let mut pose = PoseEstimate::default();
-    estimator.process(&frame.left, &frame.right, &mut pose).expect("the frame is valid");
+    let pose = estimator.process(&frame.left, &frame.right).expect("the frame is valid");
     eprintln!("pipeline: found {}, {} inliers, stages {:?}", pose.found, pose.inliers, pose.timings);
 
     let mut group = c.benchmark_group("pipeline");
     group.sample_size(10);
     group.bench_function("one_shot_frame", |b| {
-        b.iter(|| estimator.process(black_box(&frame.left), black_box(&frame.right), &mut pose).expect("valid"))
+        b.iter(|| estimator.process(black_box(&frame.left), black_box(&frame.right)).expect("valid"))
     });
     let cloud = estimator.reconstruction().cloud.points.clone();
-    group.bench_function("pose_from_cloud", |b| {
-        b.iter(|| estimator.process_cloud(black_box(&cloud), &mut pose).expect("valid"))
-    });
+    group.bench_function("pose_from_cloud", |b| b.iter(|| estimator.process_cloud(black_box(&cloud)).expect("valid")));
     group.finish();
 }

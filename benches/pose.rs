@@ -3,12 +3,13 @@
 
 use camplace_config::Cell;
 use camplace_estimator::testing::{self, Scene, SceneSpec};
-use camplace_estimator::{Icp, IcpResult, Ransac, RansacResult};
+use camplace_estimator::{Icp, IcpResult, Ransac};
 use criterion::{criterion_group, Criterion};
+use std::sync::Arc;
 
 fn pose(c: &mut Criterion) {
     let params = Cell::default().estimator;
-    let model = testing::tray(false, 1);
+    let model = Arc::new(testing::tray(false, 1));
     let spec = SceneSpec {
         seed: 21,
         matches_per_keypoint: 25,
@@ -24,32 +25,25 @@ fn pose(c: &mut Criterion) {
         scene.correspondences.len(),
         scene.correct
     );
-    let mut ransac = Ransac::new(&params, &model).expect("the synthetic model is usable");
-    let mut icp = Icp::new(&params, &model).expect("the synthetic model is usable");
-    let mut coarse = RansacResult::default();
-    let found = ransac
-        .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &model, &scene.sensor_position, &mut coarse)
+    let mut ransac = Ransac::new(&params, model.clone()).expect("the synthetic model is usable");
+    let mut icp = Icp::new(&params, model.clone()).expect("the synthetic model is usable");
+    let mut coarse = ransac
+        .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position)
         .expect("valid inputs");
-    assert!(found, "the bench scene must be solvable");
+    assert!(coarse.found, "the bench scene must be solvable");
 
     c.bench_function("pose/ransac", |b| {
         b.iter(|| {
-            ransac
-                .estimate(
-                    &scene.points,
-                    &scene.keypoints,
-                    &scene.correspondences,
-                    &model,
-                    &scene.sensor_position,
-                    &mut coarse,
-                )
+            coarse = ransac
+                .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position)
                 .expect("valid inputs")
         })
     });
     let mut fine = IcpResult::default();
     c.bench_function("pose/icp", |b| {
         b.iter(|| {
-            icp.refine(&scene.points, &model, coarse.view, &scene.sensor_position, &coarse.t_world_tray, &mut fine)
+            fine = icp
+                .refine(&scene.points, coarse.view, &scene.sensor_position, &coarse.t_world_tray)
                 .expect("valid inputs")
         })
     });

@@ -72,9 +72,8 @@ fn warmed_up() -> (Estimator, Vec<Frame>) {
         .collect();
     let mut estimator = Estimator::new(&cell, sim.rig(), model, Method::OneShot).unwrap();
     estimator.set_background(&background.left, &background.right).unwrap();
-    let mut pose = PoseEstimate::default();
     for frame in &frames {
-        estimator.process(&frame.left, &frame.right, &mut pose).unwrap();
+        estimator.process(&frame.left, &frame.right).unwrap();
     }
     (estimator, frames)
 }
@@ -83,16 +82,15 @@ fn warmed_up() -> (Estimator, Vec<Frame>) {
 fn cloud_to_pose_allocates_nothing_in_steady_state() {
     let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let (mut estimator, frames) = warmed_up();
-    let mut pose = PoseEstimate::default();
     let clouds: Vec<Vec<Point3<f32>>> = frames
         .iter()
         .map(|f| {
-            estimator.process(&f.left, &f.right, &mut pose).unwrap();
+            estimator.process(&f.left, &f.right).unwrap();
             estimator.reconstruction().cloud.points.clone()
         })
         .collect();
     for cloud in &clouds {
-        estimator.process_cloud(cloud, &mut pose).unwrap();
+        estimator.process_cloud(cloud).unwrap();
     }
     // The frame loop runs on a rayon worker, as a deployment's does: parallel stages called
     // from outside the pool go through rayon's injector queue, which allocates a block every
@@ -101,9 +99,9 @@ fn cloud_to_pose_allocates_nothing_in_steady_state() {
         (0..20)
             .map(|i| {
                 let cloud = &clouds[i % clouds.len()];
-                let mut result = Ok(());
-                let n = allocations(|| result = estimator.process_cloud(cloud, &mut pose));
-                result.unwrap();
+                let mut result = Ok(PoseEstimate::default());
+                let n = allocations(|| result = estimator.process_cloud(cloud));
+                let pose = result.unwrap();
                 (n, pose.found)
             })
             .collect()
@@ -126,12 +124,11 @@ fn cloud_to_pose_allocates_nothing_in_steady_state() {
 fn stereo_frame_to_pose_allocates_nothing_in_steady_state() {
     let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let (mut estimator, frames) = warmed_up();
-    let mut pose = PoseEstimate::default();
     rayon::scope(|_| {
         for i in 0..20 {
             let frame = &frames[i % frames.len()];
-            let mut result = Ok(());
-            let n = allocations(|| result = estimator.process(&frame.left, &frame.right, &mut pose));
+            let mut result = Ok(PoseEstimate::default());
+            let n = allocations(|| result = estimator.process(&frame.left, &frame.right));
             result.unwrap();
             assert_eq!(n, 0, "frame {i}: {n} allocations in process");
         }

@@ -3,7 +3,7 @@
 //! file through the CLI.
 
 use camplace_config::{Cell, TrayKind};
-use camplace_estimator::{Estimator, PoseEstimate};
+use camplace_estimator::Estimator;
 use camplace_sim::study::Evaluator;
 use camplace_sim::{background_scene, build_model, noise_key, Frame, Method, Simulator};
 
@@ -50,16 +50,15 @@ fn scenes_without_a_tray_give_no_error() {
     sim.render(&background, Method::OneShot, noise_key(seed, 0, true), &mut frame);
     let mut estimator = Estimator::new(&cell, sim.rig(), model, Method::OneShot).unwrap();
     estimator.set_background(&frame.left, &frame.right).unwrap();
-    let mut pose = PoseEstimate::default();
     // The background itself, freshly captured. Background removal leaves much of the table
     // in a new capture, and a table patch can pass RANSAC's inlier share of a view (the
     // tray's base plate is flat too), so a wrong pose is possible here; an error is not.
     sim.render(&background, Method::OneShot, noise_key(seed, 1, true), &mut frame);
-    estimator.process(&frame.left, &frame.right, &mut pose).unwrap();
+    let pose = estimator.process(&frame.left, &frame.right).unwrap();
     assert!(pose.t_world_tray.to_homogeneous().iter().all(|v| v.is_finite()), "{pose:?}");
     // Without a background, the bare table is all the estimator sees.
     let mut bare = Estimator::new(&cell, sim.rig(), estimator.model().clone(), Method::OneShot).unwrap();
-    bare.process(&frame.left, &frame.right, &mut pose).unwrap();
+    let pose = bare.process(&frame.left, &frame.right).unwrap();
     assert!(pose.t_world_tray.to_homogeneous().iter().all(|v| v.is_finite()), "{pose:?}");
 }
 

@@ -13,6 +13,7 @@
 //! Allocation policy: `Estimator::new` sizes every buffer for a full camera frame; a frame
 //! larger than any seen before may grow one once, after which `process` allocates nothing.
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use camplace_config::{Cell, EstimatorParams};
@@ -48,7 +49,7 @@ pub struct StageTimings {
     pub total_ms: f64,
 }
 
-/// The pose of one frame, filled in place by [`Estimator::process`].
+/// The pose of one frame, as [`Estimator::process`] returns it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PoseEstimate {
     /// Whether a pose passed RANSAC's checks; when false the pose is meaningless.
@@ -91,7 +92,8 @@ impl Default for PoseEstimate {
 /// frame's cloud can be borrowed from it while these run.
 struct Stages {
     params: EstimatorParams,
-    model: Model,
+    /// Shared with RANSAC and ICP, which were built for it.
+    model: Arc<Model>,
     sensor_position: Point3<f32>,
     features: FeatureExtractor,
     heights: Vec<f32>,
@@ -129,6 +131,7 @@ impl Estimator {
         if model.feature_points.is_empty() {
             return Err(Error::new(ErrorKind::Model, "model: expected at least one feature"));
         }
+        let model = Arc::new(model);
         let params = cell.estimator.clone();
         let reconstructor = Reconstructor::new(cell, rig, method)?;
         let cam = &reconstructor.rectification().camera;
@@ -146,8 +149,8 @@ impl Estimator {
         };
         let stages = Stages {
             features: FeatureExtractor::new(&params, pixels)?,
-            ransac: Ransac::new(&params, &model)?,
-            icp: Icp::new(&params, &model)?,
+            ransac: Ransac::new(&params, Arc::clone(&model))?,
+            icp: Icp::new(&params, Arc::clone(&model))?,
             matcher,
             sensor_position,
             heights: Vec::with_capacity(keypoints),
@@ -164,25 +167,25 @@ impl Estimator {
     }
 
     /// Estimates the tray's pose from one stereo frame (one or twelve shots per side).
-    /// A frame without a recognisable tray gives `out.found = false`, not an error.
-    pub fn process(&mut self, left: &[GrayImage], right: &[GrayImage], out: &mut PoseEstimate) -> Result<()> {
+    /// A frame without a recognisable tray gives a pose with `found = false`, not an error.
+    pub fn process(&mut self, left: &[GrayImage], right: &[GrayImage]) -> Result<PoseEstimate> {
         let start = Instant::now();
         self.reconstructor.process(left, right, &mut self.reconstruction)?;
         let r = self.reconstruction.timings;
-        self.stages.run(&self.reconstruction.cloud.points, out)?;
+        let mut out = self.stages.run(&self.reconstruction.cloud.points)?;
         out.timings.rectify_ms = r.rectify_ms;
         out.timings.disparity_ms = r.disparity_ms;
         out.timings.cloud_ms = r.cloud_ms;
         out.timings.total_ms = ms(start);
-        Ok(())
+        Ok(out)
     }
 
     /// Estimates the tray's pose from a world cloud (mm) seen from the rig's sensor.
-    pub fn process_cloud(&mut self, points: &[Point3<f32>], out: &mut PoseEstimate) -> Result<()> {
+    pub fn process_cloud(&mut self, points: &[Point3<f32>]) -> Result<PoseEstimate> {
         let start = Instant::now();
-        self.stages.run(points, out)?;
+        let mut out = self.stages.run(points)?;
         out.timings.total_ms = ms(start);
-        Ok(())
+        Ok(out)
     }
 
     /// The model it matches against.
@@ -218,9 +221,9 @@ impl Estimator {
 }
 
 impl Stages {
-    fn run(&mut self, points: &[Point3<f32>], out: &mut PoseEstimate) -> Result<()> {
+    fn run(&mut self, points: &[Point3<f32>]) -> Result<PoseEstimate> {
         let p = &self.params;
-        *out = PoseEstimate::default();
+        let mut out = PoseEstimate::default();
         self.correspondences.clear();
 
         let f = self.features.extract(points, &self.sensor_position)?;
@@ -246,25 +249,23 @@ impl Stages {
         out.matches = self.correspondences.len() as u32;
 
         let t = Instant::now();
-        let found = self.ransac.estimate(
+        out.ransac = self.ransac.estimate(
             self.features.cloud(),
             self.features.keypoint_points(),
             &self.correspondences,
-            &self.model,
             &self.sensor_position,
-            &mut out.ransac,
         )?;
         out.timings.ransac_ms = ms(t);
-        if !found {
-            return Ok(());
+        if !out.ransac.found {
+            return Ok(out);
         }
 
         let t = Instant::now();
         let coarse = out.ransac.t_world_tray;
         // RANSAC scored the hypothesis against the view closest to the sensor under it.
         let view = out.ransac.view;
-        let mut refined =
-            self.icp.refine(self.features.cloud(), &self.model, view, &self.sensor_position, &coarse, &mut out.icp)?;
+        out.icp = self.icp.refine(self.features.cloud(), view, &self.sensor_position, &coarse)?;
+        let mut refined = out.icp.refined;
         // A rectangular tray is nearly symmetric under a half turn about its z axis, a square
         // one under quarter turns too: only a small feature (a chamfer, a tab) tells the
         // turned poses apart, and RANSAC's inlier count often cannot. So the pose turned by
@@ -288,16 +289,8 @@ impl Stages {
         }
         if best_explained > ours {
             let turned_view = self.model.closest_view(&best_turn, &self.sensor_position);
-            let mut other = IcpResult::default();
-            let other_refined = self.icp.refine(
-                self.features.cloud(),
-                &self.model,
-                turned_view,
-                &self.sensor_position,
-                &best_turn,
-                &mut other,
-            )?;
-            if other_refined && self.icp.explained(self.features.cloud(), &other.t_world_tray, reach) > ours {
+            let other = self.icp.refine(self.features.cloud(), turned_view, &self.sensor_position, &best_turn)?;
+            if other.refined && self.icp.explained(self.features.cloud(), &other.t_world_tray, reach) > ours {
                 out.icp = other;
                 refined = true;
             }
@@ -306,6 +299,6 @@ impl Stages {
         out.found = true;
         out.inliers = out.ransac.inliers;
         out.t_world_tray = if refined { out.icp.t_world_tray } else { coarse };
-        Ok(())
+        Ok(out)
     }
 }

@@ -15,7 +15,7 @@ use std::time::Instant;
 
 use camplace_config::Cell;
 use camplace_estimator::{correct_matches, pose_errors};
-use camplace_estimator::{Estimator, Model, Neighbours, PoseEstimate};
+use camplace_estimator::{Estimator, Model, Neighbours};
 use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
 use nalgebra::{Isometry3, Point3};
 
@@ -99,7 +99,6 @@ fn main() {
     estimator.set_background(&frame.left, &frame.right).expect("background");
     let sensor = estimator.sensor_position();
     let reach = cell.estimator.inlier_distance as f32;
-    let mut pose = PoseEstimate::default();
     let mut grid = Neighbours::new();
     let (mut successes, mut no_pose, mut coarse_wrong, mut refine_lost) = (0, 0, 0, 0);
     let mut sums = [0.0f64; 6];
@@ -111,7 +110,7 @@ fn main() {
     for i in 0..a.count {
         let scenario = draw_scenario(&cell, a.seed, i);
         sim.render(&scenario.scene(), Method::OneShot, noise_key(a.seed, i, false), &mut frame);
-        estimator.process(&frame.left, &frame.right, &mut pose).expect("process");
+        let pose = estimator.process(&frame.left, &frame.right).expect("process");
         let truth = scenario.t_world_tray;
         let e = pose_errors(&pose.t_world_tray, &truth, &symmetries, &cell.metrics);
         let c = pose_errors(&pose.ransac.t_world_tray, &truth, &symmetries, &cell.metrics);

@@ -4,7 +4,7 @@
 use anyhow::Context;
 use camplace_config::formats::ply;
 use camplace_config::RigFile;
-use camplace_estimator::{Estimator, Method, Model, PoseEstimate, Rig};
+use camplace_estimator::{Estimator, Method, Model, Rig};
 use camplace_sim::study::{FrameRecord, Summary};
 use nalgebra::Point3;
 use std::path::{Path, PathBuf};
@@ -47,8 +47,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let cloud = ply::read_cloud(path)?;
     let points: Vec<Point3<f32>> = cloud.points.iter().map(|p| Point3::from(*p)).collect();
     let mut estimator = Estimator::new(&cell, &rig, model, Method::OneShot)?;
-    let mut pose = PoseEstimate::default();
-    estimator.process_cloud(&points, &mut pose).with_context(|| path.display().to_string())?;
+    let pose = estimator.process_cloud(&points).with_context(|| path.display().to_string())?;
     println!("{}", FrameRecord::new(path.display().to_string(), &pose).to_line());
     Ok(ExitCode::SUCCESS)
 }

@@ -79,10 +79,9 @@ pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> anyhow::Result
     let mut estimator = estimator_for(cell, model, &rig, &dir.join("rig.json"), method, background)?;
     let mut lines = String::new();
     let mut records = Vec::with_capacity(source.frame_dirs().len());
-    let mut pose = PoseEstimate::default();
     for i in 0..source.frame_dirs().len() {
         let info = source.read_into(i, &mut frames)?;
-        estimator.process(&frames.left, &frames.right, &mut pose).with_context(|| format!("frame {}", info.name))?;
+        let pose = estimator.process(&frames.left, &frames.right).with_context(|| format!("frame {}", info.name))?;
         let record = record(cell, &estimator, &pose, &info.name, source.truth_path(i).as_deref())?;
         lines.push_str(&record.to_line());
         lines.push('\n');

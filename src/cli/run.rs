@@ -15,7 +15,7 @@ use anyhow::{bail, Context};
 use camplace_config::formats::dataset::image_name;
 use camplace_config::formats::png::read_gray;
 use camplace_config::{Cell, RigFile};
-use camplace_estimator::{GrayImage, PoseEstimate, Rig};
+use camplace_estimator::{GrayImage, Rig};
 use camplace_hwio::{
     open_source, parse_source, Capture, FrameSource, Frames, Paced, RecordedSource, SourceSpec, WhenBehind,
 };
@@ -114,11 +114,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let stopping = stop.clone();
     let estimator_thread =
         std::thread::Builder::new().name("camplace-estimator".into()).spawn(move || -> anyhow::Result<u64> {
-            let mut pose = PoseEstimate::default();
             while !stopping.load(Ordering::SeqCst) {
                 let Some(c) = capture.recv()? else { break };
-                estimator
-                    .process(&c.frames.left, &c.frames.right, &mut pose)
+                let pose = estimator
+                    .process(&c.frames.left, &c.frames.right)
                     .with_context(|| format!("frame {}", c.info.name))?;
                 if !delay.is_zero() {
                     std::thread::sleep(delay);

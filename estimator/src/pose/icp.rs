@@ -6,6 +6,8 @@
 //! farthest `icp_trim` share of the rest is dropped, so clutter and items absent from the
 //! model do not drag the pose. Each step solves the linearised 6×6 normal equations.
 
+use std::sync::Arc;
+
 use camplace_config::EstimatorParams;
 use nalgebra::{Isometry3, Matrix6, Point3, Vector3, Vector6};
 use rayon::prelude::*;
@@ -25,6 +27,9 @@ const MIN_PAIRS: usize = 12;
 /// The outcome of [`Icp::refine`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct IcpResult {
+    /// Whether enough scene points lay near the model to fit; when false `t_world_tray` is
+    /// the start pose.
+    pub refined: bool,
     /// Refined pose of the tray in the world.
     pub t_world_tray: Isometry3<f64>,
     /// Iterations run.
@@ -40,6 +45,7 @@ pub struct IcpResult {
 impl Default for IcpResult {
     fn default() -> Self {
         IcpResult {
+            refined: false,
             t_world_tray: Isometry3::identity(),
             iterations: 0,
             correspondences: 0,
@@ -58,8 +64,9 @@ struct Pair {
     distance2: f32,
 }
 
-/// Point-to-plane ICP with its kd-trees and buffers, built once per model.
+/// Point-to-plane ICP with its lookup grids and buffers, built for one model, which it keeps.
 pub struct Icp {
+    model: Arc<Model>,
     iterations: u32,
     max_distance: f32,
     trim: f32,
@@ -83,7 +90,7 @@ impl std::fmt::Debug for Icp {
 
 impl Icp {
     /// Builds a lookup grid over every view of `model`; fails when a view has too few points.
-    pub fn new(params: &EstimatorParams, model: &Model) -> Result<Self> {
+    pub fn new(params: &EstimatorParams, model: Arc<Model>) -> Result<Self> {
         model.validate()?;
         let mut bounds = Vec::with_capacity(model.views.len());
         for (k, view) in model.views.iter().enumerate() {
@@ -119,6 +126,7 @@ impl Icp {
         );
         let capacity = 1 << 15;
         Ok(Icp {
+            model,
             whole_points,
             whole,
             iterations: params.icp_iterations,
@@ -132,28 +140,25 @@ impl Icp {
         })
     }
 
-    /// Refines `start` (the tray's pose in the world) against `view` of `model`, using the
-    /// scene cloud `scene_points` seen from `sensor_position_world` (world frame). Returns `Ok(false)`, with `out` holding the
-    /// start pose, when too few scene points lie near the model to fit.
+    /// Refines `start` (the tray's pose in the world) against `view` of the model, using the
+    /// scene cloud `scene_points` seen from `sensor_position_world` (world frame). The
+    /// result's `refined` is false, with the start pose, when too few scene points lie near
+    /// the model to fit.
     pub fn refine(
         &mut self,
         scene_points: &[Point3<f32>],
-        model: &Model,
         view: usize,
         sensor_position_world: &Point3<f32>,
         start: &Isometry3<f64>,
-        out: &mut IcpResult,
-    ) -> Result<bool> {
-        *out = IcpResult { t_world_tray: *start, ..IcpResult::default() };
-        let Some(model_view) = model.views.get(view).filter(|_| view < self.grids.len()) else {
+    ) -> Result<IcpResult> {
+        let mut out = IcpResult { t_world_tray: *start, ..IcpResult::default() };
+        let model = Arc::clone(&self.model);
+        let Some(model_view) = model.views.get(view) else {
             return Err(Error::new(
                 ErrorKind::Input,
                 format!("icp: expected a view index below {}, found {view}", self.grids.len()),
             ));
         };
-        if model_view.points.len() != self.grids[view].points {
-            return Err(Error::new(ErrorKind::Input, "icp: expected the model it was built for"));
-        }
 
         // Only points that could pair with the model at the start pose take part; a pose
         // that moves far enough to need others has not converged on this tray anyway.
@@ -211,7 +216,8 @@ impl Icp {
             out.correspondences = used as u32;
             out.rms_mm = if used > 0 { (sum2 / used as f64).sqrt() as f32 } else { 0.0 };
             if used < MIN_PAIRS {
-                return Ok(iteration > 1);
+                out.refined = iteration > 1;
+                return Ok(out);
             }
             // A direction no pair constrains (a view that shows no wall across it) gets a tiny
             // damping term instead of a singular system, so the pose simply stays put along it.
@@ -220,7 +226,8 @@ impl Icp {
                 jtj[(k, k)] += damping;
             }
             let Some(step) = jtj.cholesky().map(|c| c.solve(&(-jtr))) else {
-                return Ok(iteration > 1);
+                out.refined = iteration > 1;
+                return Ok(out);
             };
             let rotation = Vector3::new(step[0], step[1], step[2]);
             let translation = Vector3::new(step[3], step[4], step[5]);
@@ -231,7 +238,8 @@ impl Icp {
                 break;
             }
         }
-        Ok(true)
+        out.refined = true;
+        Ok(out)
     }
 }
 
@@ -263,8 +271,6 @@ struct NearestGrid {
     dims: [usize; 3],
     /// Model point index per cell, `u32::MAX` where none lies within reach.
     cells: Vec<u32>,
-    /// Points the grid was built from, to recognise its model.
-    points: usize,
 }
 
 /// Cells per view above which the grid coarsens, bounding memory (4 bytes a cell) on big trays.
@@ -324,7 +330,7 @@ impl NearestGrid {
                 }
             }
         }
-        NearestGrid { origin, cell, dims, cells, points: points.len() }
+        NearestGrid { origin, cell, dims, cells }
     }
 
     fn lookup(&self, q: &Point3<f32>) -> Option<u32> {
@@ -358,7 +364,7 @@ fn trim_threshold(pairs: &[Pair], distances: &mut Vec<f32>, trim: f32) -> f32 {
 mod tests {
     use super::*;
     use crate::testing::{self, Scene, SceneSpec};
-    use crate::{Ransac, RansacResult};
+    use crate::Ransac;
     use camplace_config::Cell;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -370,13 +376,13 @@ mod tests {
     /// From a start a few mm and degrees off, ICP lands within a fraction of a mm.
     #[test]
     fn converges_from_a_perturbed_start() {
-        let model = testing::tray(false, 1);
+        let model = Arc::new(testing::tray(false, 1));
         let params = Cell::default().estimator;
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         for seed in 0..8 {
             let mut params = params.clone();
             params.icp_trim = if seed % 2 == 0 { 0.0 } else { 0.1 };
-            let mut icp = Icp::new(&params, &model).unwrap();
+            let mut icp = Icp::new(&params, model.clone()).unwrap();
             let scene = Scene::generate(&model, false, &SceneSpec { seed, ..SceneSpec::default() });
             let nudge = Isometry3::new(
                 Vector3::new(rng.random_range(-2.5..2.5), rng.random_range(-2.5..2.5), rng.random_range(-1.5..1.5)),
@@ -385,8 +391,8 @@ mod tests {
             );
             let start = scene.t_world_tray * nudge;
             let view = model.closest_view(&start, &scene.sensor_position);
-            let mut out = IcpResult::default();
-            assert!(icp.refine(&scene.points, &model, view, &scene.sensor_position, &start, &mut out).unwrap());
+            let out = icp.refine(&scene.points, view, &scene.sensor_position, &start).unwrap();
+            assert!(out.refined);
             let (dt, dr) = pose_error(&out.t_world_tray, &scene.t_world_tray);
             assert!(dt < 0.5 && dr < 0.25, "seed {seed}: {dt} mm {dr} deg {out:?}");
             assert!(out.converged, "{out:?}");
@@ -397,29 +403,20 @@ mod tests {
     /// matches: within 1 mm and 0.5 degree of the truth.
     #[test]
     fn ransac_then_icp_recovers_the_pose() {
-        let model = testing::tray(false, 1);
+        let model = Arc::new(testing::tray(false, 1));
         let params = Cell::default().estimator;
-        let mut ransac = Ransac::new(&params, &model).unwrap();
-        let mut icp = Icp::new(&params, &model).unwrap();
+        let mut ransac = Ransac::new(&params, model.clone()).unwrap();
+        let mut icp = Icp::new(&params, model.clone()).unwrap();
         for seed in 10..14 {
             let spec =
                 SceneSpec { seed, noise_mm: 0.5, correct_share: 0.5, matches_per_keypoint: 5, ..SceneSpec::default() };
             let scene = Scene::generate(&model, false, &spec);
-            let mut coarse = RansacResult::default();
-            assert!(ransac
-                .estimate(
-                    &scene.points,
-                    &scene.keypoints,
-                    &scene.correspondences,
-                    &model,
-                    &scene.sensor_position,
-                    &mut coarse
-                )
-                .unwrap());
-            let mut fine = IcpResult::default();
-            assert!(icp
-                .refine(&scene.points, &model, coarse.view, &scene.sensor_position, &coarse.t_world_tray, &mut fine)
-                .unwrap());
+            let coarse = ransac
+                .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position)
+                .unwrap();
+            assert!(coarse.found);
+            let fine = icp.refine(&scene.points, coarse.view, &scene.sensor_position, &coarse.t_world_tray).unwrap();
+            assert!(fine.refined);
             let (dt, dr) = pose_error(&fine.t_world_tray, &scene.t_world_tray);
             assert!(dt < 1.0 && dr < 0.5, "seed {seed}: {dt} mm {dr} deg {fine:?}");
         }
@@ -427,7 +424,7 @@ mod tests {
 
     #[test]
     fn grid_lookup_is_within_a_cell_diagonal_of_brute_force() {
-        let model = testing::tray(false, 1);
+        let model = Arc::new(testing::tray(false, 1));
         let points = &model.views[2].points;
         let grid = NearestGrid::new(points, 2.0, 6.0);
         let mut rng = ChaCha8Rng::seed_from_u64(8);
@@ -445,16 +442,13 @@ mod tests {
 
     #[test]
     fn too_few_scene_points_keep_the_start() {
-        let model = testing::tray(false, 1);
-        let mut icp = Icp::new(&Cell::default().estimator, &model).unwrap();
+        let model = Arc::new(testing::tray(false, 1));
+        let mut icp = Icp::new(&Cell::default().estimator, model.clone()).unwrap();
         let start = Isometry3::translation(10.0, 0.0, 0.0);
-        let mut out = IcpResult::default();
         let far = [Point3::new(900.0, 900.0, 0.0); 50];
-        assert!(!icp.refine(&far, &model, 0, &Point3::new(0.0, 0.0, 800.0), &start, &mut out).unwrap());
+        let out = icp.refine(&far, 0, &Point3::new(0.0, 0.0, 800.0), &start).unwrap();
+        assert!(!out.refined);
         assert_eq!(out.t_world_tray, start);
-        assert_eq!(
-            icp.refine(&far, &model, 6, &Point3::new(0.0, 0.0, 800.0), &start, &mut out).unwrap_err().kind(),
-            ErrorKind::Input
-        );
+        assert_eq!(icp.refine(&far, 6, &Point3::new(0.0, 0.0, 800.0), &start).unwrap_err().kind(), ErrorKind::Input);
     }
 }

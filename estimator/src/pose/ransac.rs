@@ -22,6 +22,8 @@
 //! A pose is returned only when its inliers reach `min_inlier_share` of the view's points:
 //! a scene without the tray then yields no pose rather than the least bad wrong one.
 
+use std::sync::Arc;
+
 use camplace_config::EstimatorParams;
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::seq::SliceRandom;
@@ -60,6 +62,10 @@ const REFITS: usize = 1;
 /// The outcome of [`Ransac::estimate`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RansacResult {
+    /// Whether the pose passed every check with `min_inlier_share` of its view's points as
+    /// inliers. When false the other fields hold the best hypothesis seen, if any, for
+    /// diagnosis only.
+    pub found: bool,
     /// Pose of the tray in the world (the best hypothesis re-fitted on its consensus set).
     pub t_world_tray: Isometry3<f64>,
     /// Points of the view's ICP cloud with a scene point within `inlier_distance`.
@@ -72,13 +78,14 @@ pub struct RansacResult {
 
 impl Default for RansacResult {
     fn default() -> Self {
-        RansacResult { t_world_tray: Isometry3::identity(), inliers: 0, iterations: 0, view: 0 }
+        RansacResult { found: false, t_world_tray: Isometry3::identity(), inliers: 0, iterations: 0, view: 0 }
     }
 }
 
-/// The prerejective RANSAC with every buffer it needs, built once per model.
+/// The prerejective RANSAC with every buffer it needs, built for one model, which it keeps.
 #[derive(Debug, Clone)]
 pub struct Ransac {
+    model: Arc<Model>,
     iterations: u32,
     sample: u32,
     edge_similarity: f32,
@@ -101,7 +108,7 @@ pub struct Ransac {
 
 impl Ransac {
     /// Prepares RANSAC for `model`; fails when the model has no usable viewpoint.
-    pub fn new(params: &EstimatorParams, model: &Model) -> Result<Self> {
+    pub fn new(params: &EstimatorParams, model: Arc<Model>) -> Result<Self> {
         model.validate()?;
         if model.views.is_empty() || model.views.iter().any(|v| v.points.len() < 3) {
             return Err(Error::new(ErrorKind::Model, "model: expected viewpoints of at least 3 points each"));
@@ -118,6 +125,7 @@ impl Ransac {
             .collect();
         let inlier_distance = params.inlier_distance as f32;
         Ok(Ransac {
+            model,
             iterations: params.ransac_iterations,
             sample: params.ransac_sample,
             edge_similarity: params.edge_similarity as f32,
@@ -140,25 +148,19 @@ impl Ransac {
 
     /// Finds the tray's pose from matches of `scene_keypoints` (indexed by
     /// `Correspondence::scene`) to the model's features, scoring against the scene cloud
-    /// `scene_points` (world frame). Returns `Ok(false)` when no hypothesis passes the checks
-    /// with `min_inlier_share` of its view's points as inliers; `out` then holds the best
-    /// hypothesis seen, if any, for diagnosis only.
+    /// `scene_points` (world frame). The result's `found` is false when no hypothesis passes
+    /// the checks with `min_inlier_share` of its view's points as inliers; it then holds the
+    /// best hypothesis seen, if any, for diagnosis only.
     /// The same inputs give the same result: sampling restarts from `seed` on every call.
     pub fn estimate(
         &mut self,
         scene_points: &[Point3<f32>],
         scene_keypoints: &[Point3<f32>],
         correspondences: &[Correspondence],
-        model: &Model,
         sensor_position_world: &Point3<f32>,
-        out: &mut RansacResult,
-    ) -> Result<bool> {
-        *out = RansacResult::default();
-        if model.views.len() != self.views.len()
-            || model.views.iter().zip(&self.views).any(|(a, b)| a.points.len() != b.len())
-        {
-            return Err(Error::new(ErrorKind::Input, "ransac: expected the model it was built for"));
-        }
+    ) -> Result<RansacResult> {
+        let model = Arc::clone(&self.model);
+        let model: &Model = &model;
         let n_features = model.feature_points.len();
         if let Some(c) =
             correspondences.iter().find(|c| c.scene as usize >= scene_keypoints.len() || c.model as usize >= n_features)
@@ -183,7 +185,7 @@ impl Ransac {
             ));
         }
         if self.matched.len() < self.sample as usize || scene_points.is_empty() {
-            return Ok(false);
+            return Ok(RansacResult::default());
         }
         self.grid.rebuild(scene_points);
 
@@ -251,8 +253,9 @@ impl Ransac {
                 }
             }
         }
-        out.iterations = iterations;
-        let Some((mut pose, mut view)) = best else { return Ok(false) };
+        let Some((mut pose, mut view)) = best else {
+            return Ok(RansacResult { iterations, ..RansacResult::default() });
+        };
         best_inliers = self.count(&pose, view);
 
         for _ in 0..REFITS {
@@ -271,8 +274,8 @@ impl Ransac {
                 break;
             }
         }
-        *out = RansacResult { t_world_tray: pose, inliers: best_inliers, iterations, view };
-        Ok(best_inliers >= self.required(view))
+        let found = best_inliers >= self.required(view);
+        Ok(RansacResult { found, t_world_tray: pose, inliers: best_inliers, iterations, view })
     }
 
     /// One 2-match hypothesis of a tray resting on the table, or `None` when the sample is
@@ -728,8 +731,8 @@ mod tests {
 
     #[test]
     fn matches_are_grouped_by_key_point() {
-        let model = testing::tray(false, 1);
-        let mut ransac = Ransac::new(&params(), &model).unwrap();
+        let model = Arc::new(testing::tray(false, 1));
+        let mut ransac = Ransac::new(&params(), model.clone()).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(6);
         for keypoints in [1, 7, 300] {
             let matches: Vec<Correspondence> = (0..rng.random_range(0..2000))
@@ -770,41 +773,25 @@ mod tests {
     /// with 90 % wrong matches, partial visibility, noise and clutter.
     #[test]
     fn recovers_the_pose_through_mostly_wrong_matches() {
-        let model = testing::tray(false, 1);
+        let model = Arc::new(testing::tray(false, 1));
         for (seed, sample) in (0..4).flat_map(|seed| [(seed, 2), (seed, 3)]) {
             let mut p = params();
             p.ransac_sample = sample;
-            let mut ransac = Ransac::new(&p, &model).unwrap();
+            let mut ransac = Ransac::new(&p, model.clone()).unwrap();
             let spec = SceneSpec { seed, correct_share: 0.5, matches_per_keypoint: 5, ..SceneSpec::default() };
             let scene = Scene::generate(&model, false, &spec);
             let wrong = 1.0 - scene.correct as f64 / scene.correspondences.len() as f64;
             assert!(wrong > 0.85, "{wrong}");
-            let mut out = RansacResult::default();
-            let found = ransac
-                .estimate(
-                    &scene.points,
-                    &scene.keypoints,
-                    &scene.correspondences,
-                    &model,
-                    &scene.sensor_position,
-                    &mut out,
-                )
+            let out = ransac
+                .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position)
                 .unwrap();
-            assert!(found, "seed {seed}, sample {sample}: {out:?}");
+            assert!(out.found, "seed {seed}, sample {sample}: {out:?}");
             let (dt, dr) = pose_error(&out.t_world_tray, &scene.t_world_tray);
             // A coarse pose: ICP refines it; a 2-match hypothesis is re-fitted once only.
             assert!(dt < 4.0 && dr < 2.0, "seed {seed}, sample {sample}: {dt} mm {dr} deg");
             assert_eq!(out.view, model.closest_view(&out.t_world_tray, &scene.sensor_position));
-            let mut again = RansacResult::default();
-            ransac
-                .estimate(
-                    &scene.points,
-                    &scene.keypoints,
-                    &scene.correspondences,
-                    &model,
-                    &scene.sensor_position,
-                    &mut again,
-                )
+            let again = ransac
+                .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position)
                 .unwrap();
             assert_eq!(out, again);
         }
@@ -814,65 +801,53 @@ mod tests {
     /// table check. Loosening the check lets the same scene through.
     #[test]
     fn poses_off_the_table_are_rejected() {
-        let model = testing::tray(false, 1);
+        let model = Arc::new(testing::tray(false, 1));
         let spec =
             SceneSpec { seed: 3, tilt_deg: 25.0, correct_share: 1.0, matches_per_keypoint: 1, ..SceneSpec::default() };
         let scene = Scene::generate(&model, false, &spec);
-        let mut out = RansacResult::default();
         let mut p = params();
         p.ransac_iterations = 5000;
         // A 2-match sample assumes a level tray and would not even propose this pose.
         p.ransac_sample = 3;
-        let mut strict = Ransac::new(&p, &model).unwrap();
-        let found = strict
-            .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &model, &scene.sensor_position, &mut out)
-            .unwrap();
-        assert!(!found && out.inliers == 0, "{out:?}");
+        let mut strict = Ransac::new(&p, model.clone()).unwrap();
+        let out =
+            strict.estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position).unwrap();
+        assert!(!out.found && out.inliers == 0, "{out:?}");
         p.table_tilt = 40.0;
         p.table_height = 60.0;
-        let mut loose = Ransac::new(&p, &model).unwrap();
-        let found = loose
-            .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &model, &scene.sensor_position, &mut out)
-            .unwrap();
+        let mut loose = Ransac::new(&p, model.clone()).unwrap();
+        let out =
+            loose.estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position).unwrap();
         let (dt, dr) = pose_error(&out.t_world_tray, &scene.t_world_tray);
-        assert!(found && dt < 3.0 && dr < 2.0, "{out:?} {dt} {dr}");
+        assert!(out.found && dt < 3.0 && dr < 2.0, "{out:?} {dt} {dr}");
     }
 
     #[test]
     fn a_scene_without_the_tray_gives_no_pose() {
-        let model = testing::tray(false, 1);
+        let model = Arc::new(testing::tray(false, 1));
         let mut p = params();
         p.ransac_iterations = 20_000;
-        let mut ransac = Ransac::new(&p, &model).unwrap();
+        let mut ransac = Ransac::new(&p, model.clone()).unwrap();
         for seed in 0..3 {
             let spec = SceneSpec { seed, with_tray: false, clutter_points: 8000, ..SceneSpec::default() };
             let scene = Scene::generate(&model, false, &spec);
-            let mut out = RansacResult::default();
-            let found = ransac
-                .estimate(
-                    &scene.points,
-                    &scene.keypoints,
-                    &scene.correspondences,
-                    &model,
-                    &scene.sensor_position,
-                    &mut out,
-                )
+            let out = ransac
+                .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position)
                 .unwrap();
-            assert!(!found, "seed {seed}: {out:?}");
+            assert!(!out.found, "seed {seed}: {out:?}");
             assert!(out.inliers < ransac.required(out.view));
         }
     }
 
     #[test]
     fn bad_indices_are_input_errors() {
-        let model = testing::tray(false, 1);
-        let mut ransac = Ransac::new(&params(), &model).unwrap();
+        let model = Arc::new(testing::tray(false, 1));
+        let mut ransac = Ransac::new(&params(), model.clone()).unwrap();
         let scene = [Point3::origin(); 4];
         let bad = [Correspondence { scene: 9, model: 0, distance2: 0.0 }; 3];
-        let mut out = RansacResult::default();
-        let e = ransac.estimate(&scene, &scene, &bad, &model, &Point3::new(0.0, 0.0, 800.0), &mut out).unwrap_err();
+        let e = ransac.estimate(&scene, &scene, &bad, &Point3::new(0.0, 0.0, 800.0)).unwrap_err();
         assert_eq!(e.kind(), ErrorKind::Input);
         let empty = Model { surface_resolution: 2.0, ..Model::default() };
-        assert_eq!(Ransac::new(&params(), &empty).unwrap_err().kind(), ErrorKind::Model);
+        assert_eq!(Ransac::new(&params(), Arc::new(empty)).unwrap_err().kind(), ErrorKind::Model);
     }
 }

@@ -89,7 +89,7 @@ impl Worker<'_> {
         let Evaluator { cell, method, seed, .. } = self.evaluator;
         let scenario = draw_scenario(cell, *seed, index);
         self.sim.render(&scenario.scene(), *method, noise_key(*seed, index, false), &mut self.frame);
-        self.estimator.process(&self.frame.left, &self.frame.right, &mut self.pose)?;
+        self.pose = self.estimator.process(&self.frame.left, &self.frame.right)?;
         let mut record = FrameRecord::new(frame_name(index), &self.pose);
         // The truth as a dataset's truth.json carries it (a 4x4 matrix, not a quaternion),
         // so replaying the rendered dataset scores to the last bit alike.
