@@ -1,84 +1,12 @@
 //! Voxel-grid down-sampling to the surface resolution SRes: one point per occupied voxel,
-//! the centroid of the points in it. Also owns the voxel hash table that key point
-//! selection reuses; neither allocates once it has seen a cloud as large as the current one.
+//! the centroid of the points in it. The voxel table it fills (which key point selection
+//! uses too) lives in `spatial`; neither allocates once it has seen a cloud as large as the
+//! current one.
 
 use nalgebra::{Point3, Vector3};
 
-use crate::{Error, ErrorKind, Result};
-
-/// Voxel coordinates are limited to +-2^20 voxels so three pack into one `u64`; points
-/// farther out (over 2 km at SRes 2 mm) are dropped as bad data.
-const VOXEL_LIMIT: i64 = 1 << 20;
-
-const EMPTY: u64 = u64::MAX;
-
-/// Packed voxel key of `p` for voxels of side `1 / inv_size`, or `None` for a non-finite
-/// point or one beyond the packable range.
-#[inline]
-pub(crate) fn voxel_key(p: &Point3<f32>, inv_size: f32) -> Option<u64> {
-    let mut key = 0u64;
-    for (axis, v) in [p.x, p.y, p.z].into_iter().enumerate() {
-        let c = (v * inv_size).floor();
-        if !(c >= -(VOXEL_LIMIT as f32) && c < VOXEL_LIMIT as f32) {
-            return None;
-        }
-        key |= ((c as i64 + VOXEL_LIMIT) as u64) << (21 * axis);
-    }
-    Some(key)
-}
-
-/// Open-addressing map from packed voxel key to a dense slot number given out in order of
-/// first appearance, which makes every output order a function of the input order alone.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct VoxelTable {
-    keys: Vec<u64>,
-    slots: Vec<u32>,
-    occupied: u32,
-    shift: u32,
-}
-
-impl VoxelTable {
-    /// Empties the table, sized for up to `points` distinct voxels.
-    pub(crate) fn reset(&mut self, points: usize) {
-        let len = (2 * points).next_power_of_two().max(16);
-        self.shift = 64 - len.trailing_zeros();
-        self.keys.clear();
-        self.keys.resize(len, EMPTY);
-        self.slots.clear();
-        self.slots.resize(len, 0);
-        self.occupied = 0;
-    }
-
-    /// Slot of `key`, and whether it was new.
-    #[inline]
-    pub(crate) fn slot(&mut self, key: u64) -> (u32, bool) {
-        let mask = self.keys.len() - 1;
-        let mut at = (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize;
-        loop {
-            let k = self.keys[at];
-            if k == key {
-                return (self.slots[at], false);
-            }
-            if k == EMPTY {
-                // reset() sized the table at twice the point count, so it never fills.
-                self.keys[at] = key;
-                self.slots[at] = self.occupied;
-                self.occupied += 1;
-                return (self.slots[at], true);
-            }
-            at = (at + 1) & mask;
-        }
-    }
-}
-
-/// Checks a voxel size given in mm.
-pub(crate) fn check_voxel_size(what: &str, size: f32) -> Result<f32> {
-    if size.is_finite() && size > 0.0 {
-        Ok(1.0 / size)
-    } else {
-        Err(Error::new(ErrorKind::Input, format!("{what}: expected a positive voxel size in mm, got {size}")))
-    }
-}
+use crate::spatial::{check_voxel_size, voxel_key, VoxelTable};
+use crate::Result;
 
 /// Down-samples clouds to voxel centroids, reusing its buffers from frame to frame.
 #[derive(Debug, Clone, Default)]

@@ -5,9 +5,9 @@
 
 use nalgebra::{Point3, Vector3};
 
-use super::downsample::{check_voxel_size, voxel_key, VoxelTable};
 use super::ecsad::{relief_deg, Descriptor};
 use super::normals::is_valid_normal;
+use crate::spatial::{check_voxel_size, voxel_key, VoxelTable};
 use crate::{Error, ErrorKind, Result};
 
 /// Picks key points, reusing its buffers from frame to frame.

@@ -5,16 +5,16 @@
 
 use nalgebra::Point3;
 
+use super::{bucket, pack_cell, table_size, CELL_LIMIT};
 use crate::{Error, ErrorKind, Result};
-
-/// Cell coordinates are clamped to +-2^20 cells so three fit one `u64` key.
-const CELL_LIMIT: i64 = 1 << 20;
 
 /// A query touching more cells than this scans the whole cloud instead.
 const MAX_QUERY_CELLS: usize = 1 << 16;
 
 /// Hashed uniform grid over a cloud: points are counting-sorted by the hash bucket of their
-/// cell, so a query reads a few contiguous runs of points.
+/// cell, so a query reads a few contiguous runs of points. Keys and buckets are the shared
+/// [`pack_cell`] and [`bucket`]; cell coordinates are clamped rather than rejected (as the
+/// voxel table does), so a far point lands in an edge cell instead of being dropped.
 #[derive(Debug, Clone, Default)]
 pub struct Neighbours {
     cell: f32,
@@ -36,14 +36,6 @@ fn cell_coord(v: f32, inv_cell: f32) -> i64 {
     ((v * inv_cell).floor() as i64).clamp(-CELL_LIMIT, CELL_LIMIT - 1)
 }
 
-#[inline]
-fn pack(c: [i64; 3]) -> u64 {
-    let m = (1u64 << 21) - 1;
-    (((c[0] + CELL_LIMIT) as u64) & m)
-        | ((((c[1] + CELL_LIMIT) as u64) & m) << 21)
-        | ((((c[2] + CELL_LIMIT) as u64) & m) << 42)
-}
-
 impl Neighbours {
     /// An empty structure; buffers grow on the first `build`.
     pub fn new() -> Self {
@@ -52,7 +44,7 @@ impl Neighbours {
 
     /// An empty structure with room for clouds of up to `points` points.
     pub fn with_capacity(points: usize) -> Self {
-        let table = Self::table_len(points);
+        let (table, _) = table_size(points);
         Neighbours {
             starts: Vec::with_capacity(table + 1),
             keys: Vec::with_capacity(points),
@@ -63,13 +55,9 @@ impl Neighbours {
         }
     }
 
-    fn table_len(points: usize) -> usize {
-        (2 * points).next_power_of_two().max(16)
-    }
-
     #[inline]
     fn bucket(&self, key: u64) -> usize {
-        (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize
+        bucket(key, self.shift)
     }
 
     /// Indexes `cloud` with cubic cells of side `cell_size` mm (best near the query radius
@@ -86,8 +74,8 @@ impl Neighbours {
         }
         self.cell = cell_size;
         self.inv_cell = 1.0 / cell_size;
-        let table = Self::table_len(cloud.len());
-        self.shift = 64 - table.trailing_zeros();
+        let (table, shift) = table_size(cloud.len());
+        self.shift = shift;
         self.starts.clear();
         self.starts.resize(table + 1, 0);
         self.buckets.clear();
@@ -133,7 +121,7 @@ impl Neighbours {
 
     #[inline]
     fn key_of(&self, p: &Point3<f32>) -> u64 {
-        pack([cell_coord(p.x, self.inv_cell), cell_coord(p.y, self.inv_cell), cell_coord(p.z, self.inv_cell)])
+        pack_cell([cell_coord(p.x, self.inv_cell), cell_coord(p.y, self.inv_cell), cell_coord(p.z, self.inv_cell)])
     }
 
     /// Side of a grid cell, mm.
@@ -183,7 +171,7 @@ impl Neighbours {
         for cz in lo[2]..=hi[2] {
             for cy in lo[1]..=hi[1] {
                 for cx in lo[0]..=hi[0] {
-                    let key = pack([cx, cy, cz]);
+                    let key = pack_cell([cx, cy, cz]);
                     let b = self.bucket(key);
                     let (s, e) = (self.starts[b] as usize, self.starts[b + 1] as usize);
                     for j in s..e {

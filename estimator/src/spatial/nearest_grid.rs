@@ -1,0 +1,116 @@
+//! ICP's model index: a dense grid over one fixed model view whose cells store their
+//! nearest model point, an approximate nearest-neighbour lookup in O(1).
+
+use nalgebra::{Point3, Vector3};
+
+/// A dense grid over one view (tray frame) whose cells hold the model point nearest to the
+/// cell's centre: an O(1) approximate nearest neighbour, off by at most half a cell diagonal,
+/// which the point-to-plane residual hardly feels on the tray's flat faces.
+#[derive(Debug, Clone)]
+pub(crate) struct NearestGrid {
+    origin: Point3<f32>,
+    cell: f32,
+    dims: [usize; 3],
+    /// Model point index per cell, `u32::MAX` where none lies within reach.
+    cells: Vec<u32>,
+}
+
+/// Cells per view above which the grid coarsens, bounding memory (4 bytes a cell) on big trays.
+const MAX_GRID_CELLS: usize = 1 << 23;
+
+impl NearestGrid {
+    /// A grid of cells about `surface_resolution` wide covering every query within
+    /// `max_distance` of `points`.
+    pub(crate) fn new(points: &[Point3<f32>], surface_resolution: f32, max_distance: f32) -> Self {
+        let (mut lo, mut hi) = (points[0], points[0]);
+        for p in points {
+            lo = lo.inf(p);
+            hi = hi.sup(p);
+        }
+        let mut cell = surface_resolution;
+        let (mut reach, mut dims, mut origin);
+        loop {
+            // A query within max_distance of a point has its cell centre within this of it.
+            reach = max_distance + cell * 0.87;
+            origin = lo - Vector3::repeat(reach);
+            let extent = hi - lo + Vector3::repeat(2.0 * reach);
+            dims = [0, 1, 2].map(|a| (extent[a] / cell).ceil() as usize + 1);
+            if dims.iter().product::<usize>() <= MAX_GRID_CELLS {
+                break;
+            }
+            cell *= 1.25;
+        }
+        let n = dims.iter().product::<usize>();
+        let mut cells = vec![u32::MAX; n];
+        let mut best = vec![f32::INFINITY; n];
+        let span = (reach / cell).ceil() as isize;
+        for (i, p) in points.iter().enumerate() {
+            let c = [0, 1, 2].map(|a| ((p[a] - origin[a]) / cell).floor() as isize);
+            for dz in -span..=span {
+                let z = c[2] + dz;
+                if z < 0 || z >= dims[2] as isize {
+                    continue;
+                }
+                for dy in -span..=span {
+                    let y = c[1] + dy;
+                    if y < 0 || y >= dims[1] as isize {
+                        continue;
+                    }
+                    for dx in -span..=span {
+                        let x = c[0] + dx;
+                        if x < 0 || x >= dims[0] as isize {
+                            continue;
+                        }
+                        let centre = origin + Vector3::new(x as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5) * cell;
+                        let d2 = (centre - p).norm_squared();
+                        let k = (z as usize * dims[1] + y as usize) * dims[0] + x as usize;
+                        if d2 < best[k] && d2 <= reach * reach {
+                            best[k] = d2;
+                            cells[k] = i as u32;
+                        }
+                    }
+                }
+            }
+        }
+        NearestGrid { origin, cell, dims, cells }
+    }
+
+    pub(crate) fn lookup(&self, q: &Point3<f32>) -> Option<u32> {
+        let mut k = 0;
+        for a in (0..3).rev() {
+            let c = ((q[a] - self.origin[a]) / self.cell).floor();
+            if !(c >= 0.0 && (c as usize) < self.dims[a]) {
+                return None;
+            }
+            k = k * self.dims[a] + c as usize;
+        }
+        let item = self.cells[k];
+        (item != u32::MAX).then_some(item)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    #[test]
+    fn grid_lookup_is_within_a_cell_diagonal_of_brute_force() {
+        let model = testing::tray(false, 1);
+        let points = &model.views[2].points;
+        let grid = NearestGrid::new(points, 2.0, 6.0);
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        for _ in 0..3000 {
+            let base = points[rng.random_range(0..points.len())];
+            let q = base
+                + Vector3::new(rng.random_range(-8.0..8.0), rng.random_range(-8.0..8.0), rng.random_range(-8.0..8.0));
+            let exact = points.iter().map(|p| (p - q).norm()).fold(f32::INFINITY, f32::min);
+            match grid.lookup(&q) {
+                Some(i) => assert!((points[i as usize] - q).norm() <= exact + 2.0 * 3f32.sqrt() + 1e-4),
+                None => assert!(exact > 6.0, "missed a point {exact} mm away"),
+            }
+        }
+    }
+}
