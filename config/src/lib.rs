@@ -6,6 +6,7 @@ pub mod cell;
 mod error;
 pub mod formats;
 pub mod placement;
+mod raster;
 pub mod rig;
 pub mod truth;
 
@@ -15,5 +16,6 @@ pub use cell::{
 };
 pub use error::{Error, ErrorKind};
 pub use placement::{Placement, Vergence};
+pub use raster::{FloatImage, GrayImage, Image};
 pub use rig::{CameraFile, RectifiedFile, RigFile};
 pub use truth::{LightingTruth, TruthFile};

@@ -14,14 +14,15 @@ mod camera;
 mod depth;
 mod error;
 mod features;
-mod image;
 mod method;
 mod pipeline;
 mod pose;
 mod rig;
 mod spatial;
 
+// The image buffers are camplace-config's: image files hold them too.
 pub use camera::{isometry_from_matrix, isometry_from_rows, isometry_to_rows, Camera};
+pub use camplace_config::{FloatImage, GrayImage, Image};
 pub use depth::{
     Background, Cloud, CloudBuilder, DisparityMatcher, Elas, PhaseDecoder, ReconstructTimings, Reconstruction,
     Reconstructor, Rectification, RectifiedCamera,
@@ -31,7 +32,6 @@ pub use features::{
     is_valid_normal, Correspondence, Descriptor, Downsampler, Ecsad, FeatureExtractor, FeatureMatcher, FeatureTimings,
     KeypointSelector, NormalEstimator, ECSAD_DIM, MIN_NORMAL_NEIGHBOURS,
 };
-pub use image::{FloatImage, GrayImage, Image};
 pub use method::Method;
 pub use pipeline::{Estimator, PoseEstimate, StageTimings};
 pub use pose::{

@@ -3,15 +3,7 @@
 
 use std::path::Path;
 
-use crate::{Error, ErrorKind};
-
-/// A one-channel float image read from a file, rows top to bottom.
-#[derive(Debug, Clone, PartialEq)]
-pub struct FloatImage {
-    pub width: usize,
-    pub height: usize,
-    pub data: Vec<f32>,
-}
+use crate::{Error, ErrorKind, FloatImage};
 
 /// Encodes a one-channel PFM (little-endian).
 pub fn encode(width: usize, height: usize, data: &[f32]) -> Vec<u8> {

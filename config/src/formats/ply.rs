@@ -5,9 +5,9 @@ use std::path::Path;
 
 use crate::{Error, ErrorKind};
 
-/// A point cloud, optionally with normals, mm.
+/// A PLY point cloud's contents: points, optionally with normals, mm.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct Cloud {
+pub struct PlyCloud {
     pub points: Vec<[f32; 3]>,
     pub normals: Option<Vec<[f32; 3]>>,
 }
@@ -53,9 +53,9 @@ pub fn write_cloud(path: &Path, points: &[[f32; 3]], normals: Option<&[[f32; 3]]
 }
 
 /// Reads a point cloud (faces, if any, are ignored).
-pub fn read_cloud(path: &Path) -> Result<Cloud, Error> {
+pub fn read_cloud(path: &Path) -> Result<PlyCloud, Error> {
     let d = read(path)?;
-    Ok(Cloud { points: d.vertices, normals: d.normals })
+    Ok(PlyCloud { points: d.vertices, normals: d.normals })
 }
 
 /// Reads a PLY file.

@@ -12,8 +12,8 @@ use rayon::prelude::*;
 
 use crate::camera::Camera;
 use crate::error::{Error, ErrorKind, Result};
-use crate::image::{FloatImage, GrayImage};
 use crate::rig::Rig;
+use crate::{FloatImage, GrayImage};
 
 /// Fixed-point resolution of the bilinear weights: 1/256 px is far below the matcher's
 /// sub-pixel noise and keeps the blend in 32-bit integers.

@@ -19,7 +19,7 @@
 
 use rayon::prelude::*;
 
-use crate::image::GrayImage;
+use crate::GrayImage;
 
 /// One pixel's descriptor.
 pub type Descriptor = [u8; LEN];

@@ -17,7 +17,7 @@ use super::support::{SupportGrid, SupportParams, SupportPoint};
 use super::triangulation::{CandidateGrid, Prior};
 use super::DisparityMatcher;
 use crate::error::{Error, ErrorKind, Result};
-use crate::image::{FloatImage, GrayImage};
+use crate::{FloatImage, GrayImage};
 
 /// The ELAS matcher with all its buffers.
 #[derive(Debug)]

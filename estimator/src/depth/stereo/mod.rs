@@ -15,7 +15,7 @@ mod tests;
 pub use elas::Elas;
 
 use crate::error::Result;
-use crate::image::{FloatImage, GrayImage};
+use crate::{FloatImage, GrayImage};
 
 /// Computes a disparity image from a rectified pair.
 pub trait DisparityMatcher {

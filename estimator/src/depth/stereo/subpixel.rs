@@ -7,7 +7,7 @@
 
 use rayon::prelude::*;
 
-use crate::image::GrayImage;
+use crate::GrayImage;
 
 /// Gauss-Newton steps (the second removes the bias of the first on curved cost).
 const STEPS: usize = 2;

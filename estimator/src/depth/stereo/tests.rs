@@ -8,7 +8,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::{DisparityMatcher, Elas};
-use crate::image::{FloatImage, GrayImage};
+use crate::{FloatImage, GrayImage};
 
 /// A disparity plane d = c + a x + b y in left-image pixels.
 #[derive(Clone, Copy)]

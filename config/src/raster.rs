@@ -1,6 +1,7 @@
-//! Row-major image buffers owned by the caller and reused frame after frame. `resize`
-//! keeps the allocation when the size does not grow, which is how the per-frame path
-//! stays free of allocation.
+//! Row-major image buffers: what the image files hold (a PFM is a [`FloatImage`]) and what
+//! the estimator works on, owned by the caller and reused frame after frame. `reset`
+//! keeps the allocation when the size does not grow, which is how the estimator's
+//! per-frame path stays free of allocation.
 
 /// A row-major image of `T`, origin top-left.
 #[derive(Debug, Clone, PartialEq, Default)]
