@@ -6,6 +6,9 @@ use nalgebra::{Point3, Vector3};
 /// A dense grid over one view (tray frame) whose cells hold the model point nearest to the
 /// cell's centre: an O(1) approximate nearest neighbour, off by at most half a cell diagonal,
 /// which the point-to-plane residual hardly feels on the tray's flat faces.
+///
+/// Why not a hash: the model view is fixed and small, so the answer is computed once per
+/// cell when the model loads, and a query is one array read instead of a search.
 #[derive(Debug, Clone)]
 pub(crate) struct NearestGrid {
     origin: Point3<f32>,

@@ -12,9 +12,9 @@ use crate::{Error, ErrorKind, Result};
 const MAX_QUERY_CELLS: usize = 1 << 16;
 
 /// Hashed uniform grid over a cloud: points are counting-sorted by the hash bucket of their
-/// cell, so a query reads a few contiguous runs of points. Keys and buckets are the shared
-/// [`pack_cell`] and [`bucket`]; cell coordinates are clamped rather than rejected (as the
-/// voxel table does), so a far point lands in an edge cell instead of being dropped.
+/// cell, so a query reads a few contiguous runs of points. Cells are keyed and hashed as the
+/// down-sampling voxels are, but their coordinates are clamped rather than rejected, so a far
+/// point lands in an edge cell instead of being dropped.
 #[derive(Debug, Clone, Default)]
 pub struct Neighbours {
     cell: f32,

@@ -6,6 +6,11 @@ use nalgebra::Point3;
 /// A spatial hash of the scene cloud with cells twice the query radius, so a radius query
 /// visits 8 cells. Rebuilt every frame into buffers that only grow when a scene is larger
 /// than any before; hash collisions only add candidates, which the distance test removes.
+///
+/// Why not [`super::Neighbours`]: a query here is always "within half a cell", so it reads
+/// 8 fixed cells without comparing keys, and it keeps its own bucket hash because its
+/// nearest query keeps the last of equally distant points in visiting order, which the
+/// hash sets.
 #[derive(Debug, Clone)]
 pub(crate) struct SceneGrid {
     inv_cell: f32,
