@@ -20,9 +20,7 @@ mod pose;
 mod rig;
 mod spatial;
 
-// The image buffers are camplace-config's: image files hold them too.
 pub use camera::{isometry_from_matrix, isometry_from_rows, isometry_to_rows, Camera};
-pub use camplace_config::{FloatImage, GrayImage, Image};
 pub use depth::{
     Background, Cloud, CloudBuilder, DisparityMatcher, Elas, PhaseDecoder, ReconstructTimings, Reconstruction,
     Reconstructor, Rectification, RectifiedCamera,
@@ -40,6 +38,9 @@ pub use pose::{
 };
 pub use rig::Rig;
 pub use spatial::Neighbours;
+
+// The image buffers are camplace-config's: image files hold them too.
+pub use camplace_config::{FloatImage, GrayImage, Image};
 
 #[cfg(any(test, feature = "testing"))]
 pub mod testing;
