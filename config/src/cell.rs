@@ -232,14 +232,14 @@ impl Cell {
     pub fn from_toml_str(text: &str, base: &Path) -> Result<Cell, Error> {
         let user: toml::Table = text.parse().map_err(|e: toml::de::Error| {
             let msg = e.message().to_string();
-            Error::new(ErrorKind::Format, "", format!("not a valid TOML cell file: {msg}"))
+            Error::new(ErrorKind::Format, "", format!("not a valid TOML cell file: {msg}")).with_source(e)
         })?;
         let mut merged: toml::Table = DEFAULT_CELL_TOML.parse().expect("built-in cell parses");
         merge(&mut merged, user);
         let mut cell: Cell = serde_path_to_error::deserialize(toml::Value::Table(merged)).map_err(|e| {
             let key = e.path().to_string();
-            let inner = e.into_inner().to_string();
-            Error::value(key, explain(&inner))
+            let inner = e.into_inner();
+            Error::value(key, explain(&inner.to_string())).with_source(inner)
         })?;
         for p in [&mut cell.tray.mesh, &mut cell.items.mesh] {
             if !p.as_os_str().is_empty() && p.is_relative() {

@@ -1,6 +1,6 @@
 //! camplace's files: the cell file (with the paper's defaults), `rig.json`, and the
-//! interchange formats of DESIGN.md §3. This crate is the leaf: it knows nothing of the
-//! estimator or the simulator, only what the user writes and reads.
+//! interchange formats of docs/architecture.md §3. This crate is the leaf: it knows
+//! nothing of the estimator or the simulator, only what the user writes and reads.
 
 pub mod cell;
 mod error;

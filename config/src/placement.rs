@@ -62,7 +62,7 @@ impl<'de> Deserialize<'de> for Vergence {
     }
 }
 
-/// Where the rig sits: see DESIGN.md §2.
+/// Where the rig sits: see docs/architecture.md §2.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Placement {
@@ -124,8 +124,9 @@ impl Placement {
             let name = name.trim();
             let value = value.trim();
             let number = || {
-                value.parse::<f64>().map_err(|_| {
+                value.parse::<f64>().map_err(|e| {
                     Error::value(format!("placement.{name}"), format!("expected a number, got \"{value}\""))
+                        .with_source(e)
                 })
             };
             match name {

@@ -1,5 +1,6 @@
-//! `rig.json`: the calibration of the two cameras and the projector (DESIGN.md §3), plus
-//! the optional `rectified` section that reconstruction adds.
+//! `rig.json`: the calibration of the two cameras and the projector
+//! (docs/architecture.md §3), plus the optional `rectified` section that reconstruction
+//! adds.
 
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -62,7 +63,7 @@ impl RigFile {
             let key = if key == "." { String::new() } else { key };
             let msg = inner.to_string();
             let msg = msg.split(" at line").next().unwrap_or(&msg).to_string();
-            Error::new(kind, key, msg)
+            Error::new(kind, key, msg).with_source(inner)
         })?;
         rig.left.check("left")?;
         rig.right.check("right")?;

@@ -1,5 +1,6 @@
-//! `truth.json`: what the simulator knows of one scene (DESIGN.md §3): the tray's pose,
-//! the filled slots, the lighting and the seed, so any tool can score an estimate.
+//! `truth.json`: what the simulator knows of one scene (docs/architecture.md §3): the
+//! tray's pose, the filled slots, the lighting and the seed, so any tool can score an
+//! estimate.
 
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -51,9 +52,10 @@ impl TruthFile {
         serde_path_to_error::deserialize(de)
             .map_err(|e| {
                 let key = e.path().to_string();
-                let msg = e.into_inner().to_string();
+                let inner = e.into_inner();
+                let msg = inner.to_string();
                 let msg = msg.split(" at line").next().unwrap_or(&msg).to_string();
-                Error::new(ErrorKind::Value, if key == "." { String::new() } else { key }, msg)
+                Error::new(ErrorKind::Value, if key == "." { String::new() } else { key }, msg).with_source(inner)
             })
             .map_err(|e| e.in_file(path))
     }

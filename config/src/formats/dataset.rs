@@ -1,6 +1,6 @@
-//! Names inside a recorded dataset (DESIGN.md §3): `frames/NNNN/` folders and the camera
-//! images `left.png` (one shot) or `left_00.png` ... `left_11.png`. The simulator writes
-//! them and hwio reads them, so both take the names from here.
+//! Names inside a recorded dataset (docs/architecture.md §3): `frames/NNNN/` folders and
+//! the camera images `left.png` (one shot) or `left_00.png` ... `left_11.png`. The
+//! simulator writes them and hwio reads them, so both take the names from here.
 
 /// Name of frame `index`'s folder inside `frames/` (`7` -> `"0007"`).
 pub fn frame_name(index: u64) -> String {

@@ -54,8 +54,9 @@ pub fn decode_stl(bytes: &[u8]) -> Result<Mesh, Error> {
             return Ok(m);
         }
     }
-    let text = std::str::from_utf8(bytes)
-        .map_err(|_| Error::new(ErrorKind::Format, "", "not an STL mesh: neither binary nor ASCII STL"))?;
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        Error::new(ErrorKind::Format, "", "not an STL mesh: neither binary nor ASCII STL").with_source(e)
+    })?;
     if !text.trim_start().starts_with("solid") {
         return Err(Error::new(ErrorKind::Format, "", "not an STL mesh: expected binary STL or \"solid\""));
     }
@@ -82,8 +83,8 @@ pub fn decode_stl(bytes: &[u8]) -> Result<Mesh, Error> {
 
 /// Decodes a Wavefront OBJ (`v` and `f` lines; polygons are fanned into triangles).
 pub fn decode_obj(bytes: &[u8]) -> Result<Mesh, Error> {
-    let text =
-        std::str::from_utf8(bytes).map_err(|_| Error::new(ErrorKind::Format, "", "not an OBJ mesh: not text"))?;
+    let text = std::str::from_utf8(bytes)
+        .map_err(|e| Error::new(ErrorKind::Format, "", "not an OBJ mesh: not text").with_source(e))?;
     let mut m = Mesh::default();
     for (n, line) in text.lines().enumerate() {
         let mut t = line.split_whitespace();

@@ -15,8 +15,9 @@ pub struct Gray {
 /// Reads a PNG (or any image the `image` crate decodes) as 8-bit grey.
 pub fn read_gray(path: &Path) -> Result<Gray, Error> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
-    let img = image::load_from_memory(&bytes)
-        .map_err(|e| Error::new(ErrorKind::Format, "", format!("not a readable image: {e}")).in_file(path))?;
+    let img = image::load_from_memory(&bytes).map_err(|e| {
+        Error::new(ErrorKind::Format, "", format!("not a readable image: {e}")).in_file(path).with_source(e)
+    })?;
     let g = img.to_luma8();
     Ok(Gray { width: g.width() as usize, height: g.height() as usize, data: g.into_raw() })
 }
@@ -31,7 +32,7 @@ pub fn write_gray(path: &Path, width: usize, height: usize, data: &[u8]) -> Resu
         image::codecs::png::FilterType::Sub,
     )
     .write_image_checked(data, width as u32, height as u32, image::ExtendedColorType::L8)
-    .map_err(|e| Error::new(ErrorKind::Format, "", e.to_string()).in_file(path))?;
+    .map_err(|e| Error::new(ErrorKind::Format, "", e.to_string()).in_file(path).with_source(e))?;
     super::write_atomic(path, &out)
 }
 
@@ -41,7 +42,7 @@ pub fn write_rgb(path: &Path, width: usize, height: usize, data: &[u8]) -> Resul
     let mut out = Vec::new();
     image::codecs::png::PngEncoder::new(&mut out)
         .write_image_checked(data, width as u32, height as u32, image::ExtendedColorType::Rgb8)
-        .map_err(|e| Error::new(ErrorKind::Format, "", e.to_string()).in_file(path))?;
+        .map_err(|e| Error::new(ErrorKind::Format, "", e.to_string()).in_file(path).with_source(e))?;
     super::write_atomic(path, &out)
 }
 
