@@ -2,6 +2,8 @@
 //! clouds, meshes), STL and OBJ (meshes). Readers check what they read and say which file
 //! and which field is wrong; writers write atomically where results could be lost.
 
+#[cfg(test)]
+mod corruption_tests;
 pub mod dataset;
 pub mod mesh;
 pub mod pfm;
