@@ -355,8 +355,21 @@ impl Cell {
         range("work_volume.y", w.y, -1e5, 1e5)?;
         range("work_volume.z", w.z, -1e5, 1e5)?;
         let st = &self.stereo;
-        if st.support_step == 0 {
-            return Err(Error::value("stereo.support_step", "expected at least 1 pixel"));
+        if !(1..=64).contains(&st.support_step) {
+            return Err(Error::value(
+                "stereo.support_step",
+                format!("expected 1 to 64 pixels, got {}", st.support_step),
+            ));
+        }
+        // A descriptor is 16 bytes, so its texture (sum of absolute Sobel bytes) is at most 16 x 255.
+        if st.min_texture > MAX_TEXTURE {
+            return Err(Error::value(
+                "stereo.min_texture",
+                format!("expected 0 to {MAX_TEXTURE} (16 descriptor bytes x 255), got {}", st.min_texture),
+            ));
+        }
+        if st.gap_width > 1000 {
+            return Err(Error::value("stereo.gap_width", format!("expected 0 to 1000 pixels, got {}", st.gap_width)));
         }
         unit("stereo.support_uniqueness", st.support_uniqueness)?;
         nonneg("stereo.lr_tolerance", st.lr_tolerance)?;
@@ -380,8 +393,25 @@ impl Cell {
             return Err(Error::value("reconstruction.background_dilation", "expected 0 to 64 pixels"));
         }
         let e = &self.estimator;
-        pos("estimator.surface_resolution", e.surface_resolution)?;
+        if !(e.surface_resolution.is_finite() && (0.1..=50.0).contains(&e.surface_resolution)) {
+            return Err(Error::value(
+                "estimator.surface_resolution",
+                format!("expected 0.1 to 50 mm, got {}", e.surface_resolution),
+            ));
+        }
         pos("estimator.normal_radius", e.normal_radius)?;
+        // Radii are counted in voxels of the down-sampled cloud: far beyond these a stage
+        // gathers the whole cloud for every point and a frame takes minutes.
+        if e.normal_radius > 20.0 * e.surface_resolution {
+            return Err(Error::value(
+                "estimator.normal_radius",
+                format!(
+                    "expected at most 20 x surface_resolution ({} mm), got {}",
+                    20.0 * e.surface_resolution,
+                    e.normal_radius
+                ),
+            ));
+        }
         if e.normal_radius < e.surface_resolution {
             return Err(Error::value(
                 "estimator.normal_radius",
@@ -389,6 +419,12 @@ impl Cell {
             ));
         }
         pos("estimator.keypoint_spacing", e.keypoint_spacing)?;
+        if e.keypoint_spacing > 1000.0 {
+            return Err(Error::value(
+                "estimator.keypoint_spacing",
+                format!("expected at most 1000 mm, got {}", e.keypoint_spacing),
+            ));
+        }
         if !(e.min_relief.is_finite() && (0.0..90.0).contains(&e.min_relief)) {
             return Err(Error::value(
                 "estimator.min_relief",
@@ -396,12 +432,31 @@ impl Cell {
             ));
         }
         pos("estimator.feature_radius", e.feature_radius)?;
+        if e.feature_radius > 50.0 * e.surface_resolution {
+            return Err(Error::value(
+                "estimator.feature_radius",
+                format!(
+                    "expected at most 50 x surface_resolution ({} mm), got {}",
+                    50.0 * e.surface_resolution,
+                    e.feature_radius
+                ),
+            ));
+        }
         if e.k == 0 || e.k > 64 {
             return Err(Error::value("estimator.k", format!("expected 1 to 64 nearest neighbours, got {}", e.k)));
         }
         pos("estimator.height_band", e.height_band)?;
-        if e.ransac_iterations == 0 {
-            return Err(Error::value("estimator.ransac_iterations", "expected at least 1 iteration"));
+        if !(1..=MAX_ITERATIONS).contains(&e.ransac_iterations) {
+            return Err(Error::value(
+                "estimator.ransac_iterations",
+                format!("expected 1 to {MAX_ITERATIONS} iterations, got {}", e.ransac_iterations),
+            ));
+        }
+        if e.icp_iterations > 10_000 {
+            return Err(Error::value(
+                "estimator.icp_iterations",
+                format!("expected 0 to 10000 iterations, got {}", e.icp_iterations),
+            ));
         }
         if !(2..=3).contains(&e.ransac_sample) {
             return Err(Error::value(
@@ -428,6 +483,12 @@ impl Cell {
         Ok(())
     }
 }
+
+/// The largest `stereo.min_texture`: 16 descriptor bytes of at most 255 each.
+pub const MAX_TEXTURE: u32 = 16 * 255;
+
+/// The most RANSAC iterations a cell may ask for (the paper's RIt is 100 000).
+pub const MAX_ITERATIONS: u32 = 10_000_000;
 
 /// Lays `user` over `base`, table by table.
 fn merge(base: &mut toml::Table, user: toml::Table) {

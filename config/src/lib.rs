@@ -6,6 +6,7 @@ pub mod cell;
 mod error;
 pub mod formats;
 pub mod placement;
+pub mod pose;
 mod raster;
 pub mod rig;
 pub mod truth;

@@ -78,6 +78,9 @@ pub struct Placement {
     pub azimuth: f64,
 }
 
+/// The largest distance (r, baseline) a placement may give, mm: 100 m.
+pub const MAX_DISTANCE_MM: f64 = 100_000.0;
+
 /// The four parameters the study varies, by name.
 pub const PARAMETERS: [&str; 4] = ["r", "alpha", "baseline", "vergence"];
 
@@ -100,12 +103,37 @@ impl Placement {
                 format!("expected a positive baseline in mm, got {}", self.baseline),
             ));
         }
-        if let Vergence::Degrees(v) = self.vergence {
-            if !(v.is_finite() && (-45.0..45.0).contains(&v)) {
-                return Err(Error::value(
-                    k("vergence"),
-                    format!("expected a toe-in in (-45, 45) degrees or \"auto\", got {v}"),
-                ));
+        if self.r > MAX_DISTANCE_MM {
+            return Err(Error::value(k("r"), format!("expected at most {MAX_DISTANCE_MM} mm, got {}", self.r)));
+        }
+        if self.baseline > MAX_DISTANCE_MM {
+            return Err(Error::value(
+                k("baseline"),
+                format!("expected at most {MAX_DISTANCE_MM} mm, got {}", self.baseline),
+            ));
+        }
+        match self.vergence {
+            Vergence::Degrees(v) => {
+                if !(v.is_finite() && (-45.0..45.0).contains(&v)) {
+                    return Err(Error::value(
+                        k("vergence"),
+                        format!("expected a toe-in in (-45, 45) degrees or \"auto\", got {v}"),
+                    ));
+                }
+            }
+            Vergence::Auto => {
+                // "auto" obeys the same range as a number: a rig closer than half its
+                // baseline would turn its cameras more than 45 degrees inward.
+                let v = self.vergence.degrees(self.r, self.baseline);
+                if v.is_nan() || v >= 45.0 {
+                    return Err(Error::value(
+                        k("vergence"),
+                        format!(
+                            "\"auto\" gives a toe-in of {v:.1} degrees at r {} mm and baseline {} mm; expected under 45 (r larger than half the baseline)",
+                            self.r, self.baseline
+                        ),
+                    ));
+                }
             }
         }
         if !self.azimuth.is_finite() {
@@ -212,6 +240,16 @@ mod tests {
         assert_eq!(e.key(), "placement.height");
         let e = base().with_overrides("vergence=left").unwrap_err();
         assert_eq!(e.key(), "placement.vergence");
+    }
+
+    #[test]
+    fn auto_vergence_and_sizes_obey_the_same_ranges() {
+        let e = base().with_overrides("vergence=auto,r=1e-6").unwrap_err();
+        assert_eq!(e.key(), "placement.vergence", "{e}");
+        assert!(e.to_string().contains("auto"), "{e}");
+        assert!(base().with_overrides("vergence=auto,r=605,baseline=81").is_ok());
+        assert_eq!(base().with_overrides("r=1e12").unwrap_err().key(), "placement.r");
+        assert_eq!(base().with_overrides("baseline=1e12").unwrap_err().key(), "placement.baseline");
     }
 
     #[test]

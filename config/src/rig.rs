@@ -70,6 +70,9 @@ impl RigFile {
         if let Some(p) = &rig.projector {
             p.check("projector")?;
         }
+        if let Some(r) = &rig.rectified {
+            r.check()?;
+        }
         Ok(rig)
     }
 
@@ -84,36 +87,53 @@ impl RigFile {
     }
 }
 
+/// The largest image side a `rig.json` may give, pixels: buffers are sized from it.
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+
+fn check_size(key: &str, width: u32, height: u32) -> Result<(), Error> {
+    if width == 0 || height == 0 || width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
+        return Err(Error::value(
+            format!("{key}.width"),
+            format!("expected an image size from 1 to {MAX_IMAGE_SIDE} pixels a side, got {width} x {height}"),
+        ));
+    }
+    Ok(())
+}
+
+fn check_k(key: &str, k: &[[f64; 3]; 3]) -> Result<(), Error> {
+    if !(k.iter().flatten().all(|v| v.is_finite())
+        && k[0][0] > 0.0
+        && k[1][1] > 0.0
+        && k[1][0] == 0.0
+        && k[2] == [0.0, 0.0, 1.0])
+    {
+        return Err(Error::value(
+            format!("{key}.K"),
+            "expected [[fx, s, cx], [0, fy, cy], [0, 0, 1]] of finite numbers with fx, fy > 0",
+        ));
+    }
+    Ok(())
+}
+
 impl CameraFile {
     fn check(&self, key: &str) -> Result<(), Error> {
-        if self.width == 0 || self.height == 0 {
-            return Err(Error::value(format!("{key}.width"), "expected a positive image size"));
+        check_size(key, self.width, self.height)?;
+        check_k(key, &self.k)?;
+        if self.dist.iter().any(|v| !v.is_finite()) {
+            return Err(Error::value(format!("{key}.dist"), "expected five finite numbers k1 k2 p1 p2 k3"));
         }
-        let k = &self.k;
-        if !(k[0][0] > 0.0 && k[1][1] > 0.0 && k[2] == [0.0, 0.0, 1.0]) {
-            return Err(Error::value(
-                format!("{key}.K"),
-                "expected [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0",
-            ));
+        crate::pose::check_rigid(&self.t_world_camera).map_err(|m| Error::value(format!("{key}.T_world_camera"), m))
+    }
+}
+
+impl RectifiedFile {
+    fn check(&self) -> Result<(), Error> {
+        check_size("rectified", self.width, self.height)?;
+        check_k("rectified", &self.k)?;
+        if !(self.baseline.is_finite() && self.baseline > 0.0) {
+            return Err(Error::value("rectified.baseline", "expected a positive distance in mm"));
         }
-        let t = &self.t_world_camera;
-        if t[3] != [0.0, 0.0, 0.0, 1.0] || t.iter().flatten().any(|v| !v.is_finite()) {
-            return Err(Error::value(
-                format!("{key}.T_world_camera"),
-                "expected a 4x4 rigid transform, last row [0, 0, 0, 1]",
-            ));
-        }
-        // The rotation part must be orthonormal (to 1e-6).
-        for i in 0..3 {
-            for j in 0..3 {
-                let dot: f64 = (0..3).map(|r| t[r][i] * t[r][j]).sum();
-                let want = if i == j { 1.0 } else { 0.0 };
-                if (dot - want).abs() > 1e-6 {
-                    return Err(Error::value(format!("{key}.T_world_camera"), "expected an orthonormal rotation part"));
-                }
-            }
-        }
-        Ok(())
+        crate::pose::check_rigid(&self.t_world_rectified).map_err(|m| Error::value("rectified.T_world_rectified", m))
     }
 }
 
@@ -144,5 +164,28 @@ mod tests {
         v.as_object_mut().unwrap().remove("right");
         let e = RigFile::from_json(&v.to_string()).unwrap_err();
         assert!(e.to_string().contains("right"), "{e}");
+    }
+
+    fn with_left(f: impl FnOnce(&mut CameraFile)) -> String {
+        let mut rig = RigFile { left: cam(), right: cam(), projector: None, rectified: None };
+        f(&mut rig.left);
+        RigFile::from_json(&rig.to_json()).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn a_reflected_camera_pose_is_refused() {
+        let e = with_left(|c| {
+            for row in c.t_world_camera.iter_mut().take(3) {
+                row[0] = -row[0];
+            }
+        });
+        assert!(e.starts_with("left.T_world_camera: ") && e.contains("determinant"), "{e}");
+    }
+
+    #[test]
+    fn sizes_and_intrinsics_out_of_range_are_named() {
+        assert!(with_left(|c| c.width = 1 << 20).starts_with("left.width: "));
+        assert!(with_left(|c| c.k[0][2] = f64::INFINITY).contains("left.K"));
+        assert!(with_left(|c| c.dist[4] = f64::NAN).contains("left.dist"));
     }
 }

@@ -48,21 +48,78 @@ impl TruthFile {
     /// Reads a `truth.json`.
     pub fn load(path: &Path) -> Result<TruthFile, Error> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, &e))?;
-        let de = &mut serde_json::Deserializer::from_str(&text);
-        serde_path_to_error::deserialize(de)
-            .map_err(|e| {
-                let key = e.path().to_string();
-                let inner = e.into_inner();
-                let msg = inner.to_string();
-                let msg = msg.split(" at line").next().unwrap_or(&msg).to_string();
-                Error::new(ErrorKind::Value, if key == "." { String::new() } else { key }, msg).with_source(inner)
-            })
-            .map_err(|e| e.in_file(path))
+        Self::from_json(&text).map_err(|e| e.in_file(path))
+    }
+
+    /// Parses and checks truth JSON text: the tray pose must be rigid, every number finite.
+    pub fn from_json(text: &str) -> Result<TruthFile, Error> {
+        let de = &mut serde_json::Deserializer::from_str(text);
+        let truth: TruthFile = serde_path_to_error::deserialize(de).map_err(|e| {
+            let key = e.path().to_string();
+            let inner = e.into_inner();
+            let msg = inner.to_string();
+            let msg = msg.split(" at line").next().unwrap_or(&msg).to_string();
+            Error::new(ErrorKind::Value, if key == "." { String::new() } else { key }, msg).with_source(inner)
+        })?;
+        crate::pose::check_rigid(&truth.t_world_tray).map_err(|m| Error::value("T_world_tray", m))?;
+        let l = &truth.lighting;
+        if !(l.ambient.is_finite() && l.lamp_strength.is_finite() && l.lamp_position.iter().all(|v| v.is_finite())) {
+            return Err(Error::value("lighting", "expected finite numbers"));
+        }
+        if let Some(i) = truth.symmetries.iter().position(|v| !v.is_finite()) {
+            return Err(Error::value(format!("symmetries[{i}]"), "expected an angle in degrees"));
+        }
+        if let Some(p) = &truth.placement {
+            p.validate("placement")?;
+        }
+        Ok(truth)
     }
 
     /// Writes it atomically as pretty JSON.
     pub fn save(&self, path: &Path) -> Result<(), Error> {
         let text = serde_json::to_string_pretty(self).expect("truth always serialises");
         crate::formats::write_atomic(path, text.as_bytes())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn truth() -> TruthFile {
+        TruthFile {
+            t_world_tray: [[0.0, -1.0, 0.0, 5.0], [1.0, 0.0, 0.0, -3.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+            filled: vec![0, 2],
+            lighting: LightingTruth { ambient: 0.3, lamp_strength: 0.5, lamp_position: [100.0, 0.0, 900.0] },
+            seed: 1,
+            scenario: 4,
+            symmetries: vec![],
+            placement: None,
+            method: None,
+        }
+    }
+
+    #[test]
+    fn round_trip() {
+        let t = truth();
+        assert_eq!(TruthFile::from_json(&serde_json::to_string(&t).unwrap()).unwrap(), t);
+    }
+
+    #[test]
+    fn reflected_scaled_and_zero_tray_poses_are_refused() {
+        let mut reflected = truth();
+        for row in reflected.t_world_tray.iter_mut().take(3) {
+            row[1] = -row[1];
+        }
+        let mut scaled = truth();
+        scaled.t_world_tray[2][2] = 3.0;
+        let mut zero = truth();
+        for row in zero.t_world_tray.iter_mut().take(3) {
+            row[..3].fill(0.0);
+        }
+        for t in [reflected, scaled, zero] {
+            let e = TruthFile::from_json(&serde_json::to_string(&t).unwrap()).unwrap_err().to_string();
+            assert!(e.starts_with("T_world_tray: expected"), "{e}");
+        }
     }
 }

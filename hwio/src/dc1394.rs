@@ -285,7 +285,12 @@ impl FrameSource for Dc1394Source {
             let f = &*frame;
             let (w, h) = (f.size[0] as usize, f.size[1] as usize);
             let stride = if f.stride == 0 { 2 * w } else { f.stride as usize };
-            let len = (f.image_bytes as usize).max(stride * h.saturating_sub(1) + 2 * w);
+            // The slice is exactly what the driver says it filled; `deinterleave16` then
+            // refuses a frame whose rows do not fit in it, so a short buffer is an error,
+            // never a read past its end.
+            let len = f.image_bytes as usize;
+            // SAFETY: libdc1394 documents `image` as pointing to `image_bytes` bytes of the
+            // dequeued frame, valid until the enqueue below; a null image reads as empty.
             let bytes: &[u8] = if f.image.is_null() { &[] } else { std::slice::from_raw_parts(f.image, len) };
             let r = pixels::deinterleave16(bytes, w, h, stride, self.order, &mut frames.left[0], &mut frames.right[0]);
             (r, f.timestamp)

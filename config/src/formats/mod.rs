@@ -3,6 +3,8 @@
 //! which file and which field is wrong; writers write atomically where results could be
 //! lost.
 
+#[cfg(test)]
+mod corruption_tests;
 pub mod dataset;
 pub mod mesh;
 pub mod pfm;

@@ -53,11 +53,22 @@ pub fn decode(bytes: &[u8]) -> Result<FloatImage, Error> {
     let height: usize =
         token(&mut pos).and_then(|t| t.parse().ok()).ok_or_else(|| bad("height", "expected a whole number"))?;
     let scale: f32 = token(&mut pos).and_then(|t| t.parse().ok()).ok_or_else(|| bad("scale", "expected a number"))?;
+    if !(scale.is_finite() && scale != 0.0) {
+        return Err(bad("scale", "expected a non-zero number (negative: little-endian)"));
+    }
+    if width == 0 || height == 0 {
+        return Err(bad("width", &format!("expected a positive image size, got {width} x {height}")));
+    }
     pos += 1; // the single whitespace byte after the scale
-    let need = width * height * channels * 4;
     let body = bytes.get(pos..).unwrap_or(&[]);
-    if body.len() < need {
-        return Err(bad("data", &format!("expected {need} bytes of floats, found {}", body.len())));
+    // Sizes come from the file: compare them with what the file holds before allocating,
+    // in arithmetic that cannot wrap.
+    let need = (width as u128) * (height as u128) * (channels as u128) * 4;
+    if (body.len() as u128) < need {
+        return Err(bad(
+            "data",
+            &format!("expected {need} bytes of floats for {width} x {height}, found {}", body.len()),
+        ));
     }
     let little = scale < 0.0;
     let mut data = vec![0f32; width * height];

@@ -189,6 +189,44 @@ pub fn decode(bytes: &[u8]) -> Result<PlyData, Error> {
     if reader.enc == Encoding::Ascii {
         reader.ascii = Some(String::from_utf8_lossy(body).split_whitespace().map(str::to_string).collect::<Vec<_>>());
     }
+    // Every count in the header is bounded by what the body can hold before anything is
+    // allocated or looped over: a record takes at least one byte per scalar (one token in
+    // ascii), so a header that promises more than the file has is refused at once.
+    let available = match &reader.ascii {
+        Some(tokens) => tokens.len() as u128,
+        None => body.len() as u128,
+    };
+    let mut needed: u128 = 0;
+    for el in &elements {
+        let min_record: u128 = el
+            .props
+            .iter()
+            .map(|p| {
+                let s = match p {
+                    Property::Scalar(_, s) | Property::List(_, s, _) => *s,
+                };
+                if reader.ascii.is_some() {
+                    1
+                } else {
+                    s.size() as u128
+                }
+            })
+            .sum();
+        if el.count > 0 && min_record == 0 {
+            return Err(bad(&el.name, format!("element declares {} records but no properties", el.count)));
+        }
+        needed += el.count as u128 * min_record;
+        if needed > available {
+            let unit = if reader.ascii.is_some() { "numbers" } else { "bytes" };
+            return Err(bad(
+                &el.name,
+                format!(
+                    "the header declares {} {} records, more than the file holds (at least {needed} {unit} needed, {available} present)",
+                    el.count, el.name
+                ),
+            ));
+        }
+    }
     for el in &elements {
         let idx = |n: &str| el.props.iter().position(|p| matches!(p, Property::Scalar(name, _) if name == n));
         let (ix, iy, iz) = (idx("x"), idx("y"), idx("z"));
@@ -208,15 +246,20 @@ pub fn decode(bytes: &[u8]) -> Result<PlyData, Error> {
             let mut face: Vec<u32> = Vec::new();
             for (k, p) in el.props.iter().enumerate() {
                 match p {
-                    Property::Scalar(_, s) => {
-                        vals[k] = reader.next(*s).ok_or_else(|| bad(&el.name, "file ends early".into()))?
-                    }
+                    Property::Scalar(_, s) => vals[k] = reader.next(*s).map_err(|m| bad(&el.name, m))?,
                     Property::List(name, c, i) => {
-                        let n = reader.next(*c).ok_or_else(|| bad(&el.name, "file ends early".into()))? as usize;
+                        let n = reader.next(*c).map_err(|m| bad(&el.name, m))?;
+                        if !(n >= 0.0 && n.fract() == 0.0) {
+                            return Err(bad(&el.name, format!("expected a list length of 0 or more, got {n}")));
+                        }
                         let keep = el.name == "face" && (name == "vertex_indices" || name == "vertex_index");
-                        for _ in 0..n {
-                            let v = reader.next(*i).ok_or_else(|| bad(&el.name, "file ends early".into()))?;
+                        // The reader stops at the end of the file, so a huge length ends there.
+                        for _ in 0..n as u64 {
+                            let v = reader.next(*i).map_err(|m| bad(&el.name, m))?;
                             if keep {
+                                if !(v >= 0.0 && v.fract() == 0.0 && v <= u32::MAX as f64) {
+                                    return Err(bad(&el.name, format!("expected a vertex index, got {v}")));
+                                }
                                 face.push(v as u32);
                             }
                         }
@@ -250,15 +293,16 @@ struct Reader<'a> {
 }
 
 impl Reader<'_> {
-    fn next(&mut self, s: Scalar) -> Option<f64> {
+    /// The next value, or what is wrong: the end of the file, or a token that is no number.
+    fn next(&mut self, s: Scalar) -> Result<f64, String> {
         if let Some(tokens) = &self.ascii {
-            let t = tokens.get(self.pos)?;
+            let t = tokens.get(self.pos).ok_or("file ends early")?;
             self.pos += 1;
-            return t.parse().ok();
+            return t.parse().map_err(|_| format!("expected a number, got \"{t}\""));
         }
-        let b = self.body.get(self.pos..self.pos + s.size())?;
+        let b = self.body.get(self.pos..self.pos + s.size()).ok_or("file ends early")?;
         self.pos += s.size();
-        Some(s.read(b, self.enc == Encoding::Little))
+        Ok(s.read(b, self.enc == Encoding::Little))
     }
 }
 
