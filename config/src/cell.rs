@@ -231,8 +231,9 @@ impl Cell {
     /// Parses cell text laid over the default; mesh paths are resolved against `base`.
     pub fn from_toml_str(text: &str, base: &Path) -> Result<Cell, Error> {
         let user: toml::Table = text.parse().map_err(|e: toml::de::Error| {
+            let (key, line) = toml_error_place(text, e.span().map_or(0, |s| s.start));
             let msg = e.message().to_string();
-            Error::new(ErrorKind::Format, "", format!("not a valid TOML cell file: {msg}")).with_source(e)
+            Error::new(ErrorKind::Format, key, format!("line {line}: not valid TOML: {msg}")).with_source(e)
         })?;
         let mut merged: toml::Table = DEFAULT_CELL_TOML.parse().expect("built-in cell parses");
         merge(&mut merged, user);
@@ -490,6 +491,36 @@ pub const MAX_TEXTURE: u32 = 16 * 255;
 /// The most RANSAC iterations a cell may ask for (the paper's RIt is 100 000).
 pub const MAX_ITERATIONS: u32 = 10_000_000;
 
+/// Where a TOML syntax error sits: the dotted key being written there (the table header
+/// above it and the key on its line, as far as they can be read) and the 1-based line.
+fn toml_error_place(text: &str, at: usize) -> (String, usize) {
+    let before = text.get(..at.min(text.len())).unwrap_or(text);
+    let line_no = before.matches('\n').count() + 1;
+    let line = text.lines().nth(line_no - 1).unwrap_or("").trim();
+    let table = before
+        .lines()
+        .rev()
+        // The last piece of `before` is the start of the error's own line, unless the error
+        // sits at a line's first byte.
+        .skip(usize::from(!before.is_empty() && !before.ends_with('\n')))
+        .map(str::trim)
+        .find(|l| l.starts_with('['))
+        .map(|l| l.trim_matches(|c| c == '[' || c == ']').trim().to_string());
+    let on_line = line
+        .split('=')
+        .next()
+        .map(str::trim)
+        .filter(|k| line.contains('=') && !k.is_empty() && !k.starts_with('[') && !k.starts_with('#'));
+    let key = match (line.starts_with('['), table, on_line) {
+        (true, _, _) => line.trim_matches(|c| c == '[' || c == ']').trim().to_string(),
+        (false, Some(t), Some(k)) => format!("{t}.{k}"),
+        (false, None, Some(k)) => k.to_string(),
+        (false, Some(t), None) => t,
+        (false, None, None) => String::new(),
+    };
+    (key, line_no)
+}
+
 /// Lays `user` over `base`, table by table.
 fn merge(base: &mut toml::Table, user: toml::Table) {
     for (key, value) in user {
@@ -609,6 +640,16 @@ mod tests {
         let c = Cell::default();
         let back = Cell::from_toml_str(&c.to_toml_string(), Path::new(".")).unwrap();
         assert_eq!(back, c);
+    }
+
+    #[test]
+    fn toml_syntax_errors_name_the_line_and_key() {
+        let e =
+            Cell::from_toml_str("[scenarios]\ncount = 4\n\n[stereo]\nmin_texture = = 3\n", Path::new(".")).unwrap_err();
+        assert_eq!(e.key(), "stereo.min_texture", "{e}");
+        assert!(e.to_string().contains("line 5"), "{e}");
+        let e = Cell::from_toml_str("[stereo\nmin_texture = 3\n", Path::new(".")).unwrap_err();
+        assert!(e.to_string().contains("line 1"), "{e}");
     }
 
     #[test]
