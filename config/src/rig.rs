@@ -5,7 +5,7 @@
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-use crate::{Error, ErrorKind};
+use crate::Error;
 
 /// One camera (or the projector): intrinsics, distortion and pose in the world.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -55,16 +55,7 @@ impl RigFile {
 
     /// Parses and checks rig JSON text.
     pub fn from_json(text: &str) -> Result<RigFile, Error> {
-        let de = &mut serde_json::Deserializer::from_str(text);
-        let rig: RigFile = serde_path_to_error::deserialize(de).map_err(|e| {
-            let key = e.path().to_string();
-            let inner = e.into_inner();
-            let kind = if inner.is_syntax() || inner.is_eof() { ErrorKind::Format } else { ErrorKind::Value };
-            let key = if key == "." { String::new() } else { key };
-            let msg = inner.to_string();
-            let msg = msg.split(" at line").next().unwrap_or(&msg).to_string();
-            Error::new(kind, key, msg).with_source(inner)
-        })?;
+        let rig: RigFile = crate::formats::json::decode(text)?;
         rig.left.check("left")?;
         rig.right.check("right")?;
         if let Some(p) = &rig.projector {

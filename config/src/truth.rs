@@ -5,7 +5,7 @@
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-use crate::{Error, ErrorKind, Placement};
+use crate::{Error, Placement};
 
 /// The lighting of one scene.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -53,14 +53,7 @@ impl TruthFile {
 
     /// Parses and checks truth JSON text: the tray pose must be rigid, every number finite.
     pub fn from_json(text: &str) -> Result<TruthFile, Error> {
-        let de = &mut serde_json::Deserializer::from_str(text);
-        let truth: TruthFile = serde_path_to_error::deserialize(de).map_err(|e| {
-            let key = e.path().to_string();
-            let inner = e.into_inner();
-            let msg = inner.to_string();
-            let msg = msg.split(" at line").next().unwrap_or(&msg).to_string();
-            Error::new(ErrorKind::Value, if key == "." { String::new() } else { key }, msg).with_source(inner)
-        })?;
+        let truth: TruthFile = crate::formats::json::decode(text)?;
         crate::pose::check_rigid(&truth.t_world_tray).map_err(|m| Error::value("T_world_tray", m))?;
         let l = &truth.lighting;
         if !(l.ambient.is_finite() && l.lamp_strength.is_finite() && l.lamp_position.iter().all(|v| v.is_finite())) {

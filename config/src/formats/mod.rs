@@ -6,6 +6,7 @@
 #[cfg(test)]
 mod corruption_tests;
 pub mod dataset;
+pub(crate) mod json;
 pub mod mesh;
 pub mod pfm;
 pub mod ply;
