@@ -12,11 +12,12 @@ pub use camplace_estimator::Method;
 use camplace_estimator::{Camera, FloatImage, GrayImage, Rig};
 use nalgebra::Point3;
 
-use crate::noise::{image_key, mean_filter_to_u8};
+use crate::noise::mean_filter_to_u8;
 use crate::pattern::{fringe_set, one_shot, ProjectorImage};
 use crate::placement_rig::{look_at, rig_for};
 use crate::raster::{View, ZBuffer};
 use crate::scene::{Objects, SceneSpec, SceneTriangle, ID_TABLE};
+use crate::seeds::image_key;
 use crate::shade::{Lights, ShadingTerms};
 use crate::{Error, Result};
 
