@@ -27,12 +27,14 @@ pub enum ErrorKind {
 pub struct Error {
     kind: ErrorKind,
     message: String,
+    /// The cell, rig or image file error this one reports, when it is one.
+    source: Option<camplace_config::Error>,
 }
 
 impl Error {
     /// An error of `kind` with a message naming the file or device.
     pub fn new(kind: ErrorKind, message: impl Into<String>) -> Self {
-        Error { kind, message: message.into() }
+        Error { kind, message: message.into(), source: None }
     }
 
     /// A format error about `path`: `path: message`.
@@ -80,7 +82,11 @@ impl fmt::Display for Error {
     }
 }
 
-impl std::error::Error for Error {}
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        self.source.as_ref().map(|e| e as &(dyn std::error::Error + 'static))
+    }
+}
 
 impl From<camplace_config::Error> for Error {
     fn from(e: camplace_config::Error) -> Self {
@@ -88,7 +94,7 @@ impl From<camplace_config::Error> for Error {
             camplace_config::ErrorKind::Io => ErrorKind::Io,
             _ => ErrorKind::Format,
         };
-        Error::new(kind, e.to_string())
+        Error { kind, message: e.to_string(), source: Some(e) }
     }
 }
 

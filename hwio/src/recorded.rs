@@ -1,4 +1,4 @@
-//! A recorded dataset folder (DESIGN.md §3) as a frame source: `rig.json`, an optional
+//! A recorded dataset folder (docs/architecture.md §3) as a frame source: `rig.json`, an optional
 //! `background/`, and `frames/NNNN/` with `left.png` + `right.png` (one shot) or
 //! `left_00.png` ... `right_11.png` (N shots), each frame with an optional `truth.json`.
 //! Simulated and real recordings take this one path.

@@ -25,7 +25,15 @@ impl fmt::Display for Error {
     }
 }
 
-impl std::error::Error for Error {}
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::Config(e) => Some(e),
+            Error::Estimator(e) => Some(e),
+            Error::Other(_) => None,
+        }
+    }
+}
 
 impl From<camplace_config::Error> for Error {
     fn from(e: camplace_config::Error) -> Self {

@@ -1,4 +1,4 @@
-//! Writes rendered frames to disk in the layout of DESIGN.md §3: a single render folder, or
+//! Writes rendered frames to disk in the layout of docs/architecture.md §3: a single render folder, or
 //! a recorded dataset (`rig.json` and `background/` at the top, `frames/NNNN/` below), so
 //! simulated and real data take one path. Reading them back is hwio's job.
 
