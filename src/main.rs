@@ -7,7 +7,7 @@ mod cli;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    match cli::run() {
+    match cli::dispatch() {
         Ok(code) => code,
         Err(e) => {
             // One line: the chain joined, the innermost cause last; a cause its error's

@@ -9,7 +9,7 @@ use camplace_config::Cell;
 use camplace_sim::study::{Evaluator, FrameRecord, Summary};
 use camplace_sim::Method;
 
-use crate::cli::{camplace, stderr};
+use crate::camplace_cmd::{camplace, stderr};
 
 const OPTIMUM: &str = "r=605,alpha=32,baseline=81,vergence=3.5";
 const SEED: u64 = 1;

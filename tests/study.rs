@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use serde_json::Value;
 
-use crate::cli::{camplace, stderr};
+use crate::camplace_cmd::{camplace, stderr};
 
 const SCENES: &str = "6";
 

@@ -5,14 +5,16 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::bail;
+use camplace_sim::study::jobs::{shard_jobs, JobEvaluator};
 use camplace_sim::study::results::ResultsStore;
-use camplace_sim::study::run::{shard_jobs, SceneRunner};
 use camplace_sim::study::shard::Shard;
 use camplace_sim::study::Summary;
 use camplace_sim::Method;
 
 use super::cell_args::CellArgs;
-use super::run_args::{check_scenarios, open_folder};
+use camplace_sim::study::folder::open_folder;
+
+use super::study_args::check_scenarios;
 
 /// Flags of `camplace accept`.
 #[derive(clap::Args, Debug)]
@@ -49,11 +51,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         None => ResultsStore::in_memory(),
     };
     let jobs = shard_jobs(&[placement], seed, scenarios, Shard::WHOLE);
-    let mut runner = SceneRunner::new(&cell, a.method, &store);
+    let mut runner = JobEvaluator::new(&cell, a.method, &store);
     if let Some(dir) = &a.out {
         runner = runner.with_model_cache(&dir.join("models"));
     }
-    runner.run(&jobs, "accept")?;
+    runner.evaluate(&jobs, "accept")?;
     let s = Summary::from_records(&store.records(&placement, a.method, seed, scenarios));
     let low = s.success_interval[0];
     let pass = low >= a.min_success;

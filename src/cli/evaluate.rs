@@ -5,11 +5,13 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use camplace_sim::report::table::{write_summary_csv, write_summary_json, SummaryRow};
-use camplace_sim::study::run::{shard_jobs, SceneRunner};
+use camplace_sim::study::jobs::{shard_jobs, JobEvaluator};
 use camplace_sim::study::Summary;
 
 use super::cell_args::CellArgs;
-use super::run_args::{check_scenarios, open_folder, RunArgs};
+use camplace_sim::study::folder::open_folder;
+
+use super::study_args::{check_scenarios, StudyArgs};
 
 /// Flags of `camplace evaluate`.
 #[derive(clap::Args, Debug)]
@@ -17,7 +19,7 @@ pub struct Args {
     #[command(flatten)]
     cell: CellArgs,
     #[command(flatten)]
-    run: RunArgs,
+    run: StudyArgs,
     /// Scenarios 0..N-1 of the seed.
     #[arg(long, default_value_t = 250)]
     scenarios: u64,
@@ -35,7 +37,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let shard = a.run.shard()?;
     let store = open_folder(&a.out, &cell, method, seed)?;
     let jobs = shard_jobs(&[placement], seed, scenarios, shard);
-    SceneRunner::new(&cell, method, &store).with_model_cache(&a.out.join("models")).run(&jobs, "evaluate")?;
+    JobEvaluator::new(&cell, method, &store).with_model_cache(&a.out.join("models")).evaluate(&jobs, "evaluate")?;
     let summary = Summary::from_records(&store.records(&placement, method, seed, scenarios));
     let rows =
         [SummaryRow { placement: placement.to_string(), method: method.to_string(), seed, summary: summary.clone() }];
