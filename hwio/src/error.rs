@@ -20,6 +20,8 @@ pub enum ErrorKind {
     NotBuilt,
     /// The projector window could not be shown.
     Display,
+    /// The estimator refused a frame, or its thread ended unexpectedly.
+    Estimate,
 }
 
 /// A hardware I/O error with a one-line message.
