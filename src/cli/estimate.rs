@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use super::cell_args::CellArgs;
-use super::recording::{estimate_dataset, load_model};
+use camplace_sim::study::recording::{estimate_dataset, load_model};
 
 /// Flags of `camplace estimate`.
 #[derive(clap::Args, Debug)]

@@ -11,7 +11,6 @@ mod model;
 mod optimize;
 mod project;
 mod reconstruct;
-mod recording;
 mod render;
 mod replay;
 mod run;

@@ -9,7 +9,7 @@ use camplace_sim::study::Summary;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use super::recording::{estimate_dataset, load_model};
+use camplace_sim::study::recording::{estimate_dataset, load_model};
 
 /// Flags of `camplace replay`.
 #[derive(clap::Args, Debug)]

@@ -16,7 +16,7 @@ use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
-use super::recording::{estimator_for, load_model, method_for, record, truth_path};
+use camplace_sim::study::recording::{estimator_for, load_model, method_for, record, truth_path};
 
 /// Flags of `camplace run`.
 #[derive(clap::Args, Debug)]
@@ -97,7 +97,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let stats = deployment.run(
         move |estimator, pose, info| -> anyhow::Result<FrameRecord> {
             let truth = dataset.as_deref().and_then(|d| truth_path(d, &info.name));
-            record(&cell, estimator, pose, &info.name, truth.as_deref())
+            Ok(record(&cell, estimator, pose, &info.name, truth.as_deref())?)
         },
         |e| {
             let line = RunLine {

@@ -16,6 +16,7 @@ pub mod optimize;
 pub mod placement_search;
 pub mod placement_study;
 mod record;
+pub mod recording;
 pub mod results;
 pub mod settings;
 pub mod shard;
