@@ -4,7 +4,7 @@
 
 use camplace_config::{Cell, TrayKind};
 use camplace_estimator::{Estimator, PoseEstimate};
-use camplace_sim::study::Evaluator;
+use camplace_sim::Evaluator;
 use camplace_sim::{background_scene, build_model, noise_key, Frame, Method, Simulator};
 
 use crate::camplace_cmd::{camplace, stderr};

@@ -5,14 +5,14 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::bail;
-use camplace_sim::study::jobs::{shard_jobs, JobEvaluator};
-use camplace_sim::study::results::ResultsStore;
-use camplace_sim::study::shard::Shard;
-use camplace_sim::study::Summary;
 use camplace_sim::Method;
+use camplace_sim::ResultsStore;
+use camplace_sim::Shard;
+use camplace_sim::Summary;
+use camplace_sim::{shard_jobs, JobEvaluator};
 
 use super::cell_args::CellArgs;
-use camplace_sim::study::folder::open_folder;
+use camplace_sim::open_folder;
 
 use super::study_args::check_scenarios;
 

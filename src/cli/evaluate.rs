@@ -4,12 +4,12 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use camplace_sim::report::table::{write_summary_csv, write_summary_json, SummaryRow};
-use camplace_sim::study::jobs::{shard_jobs, JobEvaluator};
-use camplace_sim::study::Summary;
+use camplace_sim::Summary;
+use camplace_sim::{shard_jobs, JobEvaluator};
+use camplace_sim::{write_summary_csv, write_summary_json, SummaryRow};
 
 use super::cell_args::CellArgs;
-use camplace_sim::study::folder::open_folder;
+use camplace_sim::open_folder;
 
 use super::study_args::{check_scenarios, StudyArgs};
 

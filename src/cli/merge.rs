@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::bail;
-use camplace_sim::study::merge::merge;
+use camplace_sim::merge;
 
 /// Flags of `camplace merge`.
 #[derive(clap::Args, Debug)]

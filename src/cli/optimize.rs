@@ -10,9 +10,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Context};
-use camplace_sim::search::test_functions::{run_test_function, test_function};
-use camplace_sim::study::optimize::{SearchParameter, SearchPlan};
-use camplace_sim::study::placement_search::optimize;
+use camplace_sim::optimize;
+use camplace_sim::{run_test_function, test_function};
+use camplace_sim::{SearchParameter, SearchPlan};
 
 use super::cell_args::CellArgs;
 use super::study_args::{check_scenarios, StudyArgs};

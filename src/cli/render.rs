@@ -4,8 +4,8 @@
 use anyhow::Context;
 use camplace_config::formats::pfm;
 use camplace_estimator::{FloatImage, Rectification};
-use camplace_sim::frame_files::{self, DatasetLayout};
 use camplace_sim::{draw_scenario, Frame, Method, Simulator};
+use camplace_sim::{write_frame, write_images, write_rig, DatasetLayout};
 use rayon::prelude::*;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -49,8 +49,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         let scenario = draw_scenario(&cell, seed, a.scenario);
         let mut frame = Frame::default();
         sim.render(&scenario.scene(), a.method, camplace_sim::noise_key(seed, a.scenario, false), &mut frame);
-        frame_files::write_rig(&a.out.join("rig.json"), sim.rig())?;
-        frame_files::write_frame(&a.out, &frame, &scenario, &placement, a.method, &symmetries)?;
+        write_rig(&a.out.join("rig.json"), sim.rig())?;
+        write_frame(&a.out, &frame, &scenario, &placement, a.method, &symmetries)?;
         write_disparity_truth(&a.out, &rectification, sim.rig(), &frame)?;
         println!(
             "rendered scenario {} of seed {seed} at {placement} ({}) into {}",
@@ -61,18 +61,18 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
     let layout = DatasetLayout::new(&a.out);
-    frame_files::write_rig(&layout.rig(), sim.rig())?;
+    write_rig(&layout.rig(), sim.rig())?;
     let mut frame = Frame::default();
     let background = camplace_sim::background_scene(&cell, seed);
     sim.render(&background, a.method, camplace_sim::noise_key(seed, 0, true), &mut frame);
-    frame_files::write_images(&layout.background(), &frame)?;
+    write_images(&layout.background(), &frame)?;
     (0..a.count).into_par_iter().try_for_each_init(
         || (Simulator::new(&cell, &placement, seed), Frame::default()),
         |(sim, frame), i| -> anyhow::Result<()> {
             let sim = sim.as_mut().map_err(|e| anyhow::anyhow!("{e}"))?;
             let scenario = draw_scenario(&cell, seed, i);
             sim.render(&scenario.scene(), a.method, camplace_sim::noise_key(seed, i, false), frame);
-            frame_files::write_frame(&layout.frame(i), frame, &scenario, &placement, a.method, &symmetries)?;
+            write_frame(&layout.frame(i), frame, &scenario, &placement, a.method, &symmetries)?;
             write_disparity_truth(&layout.frame(i), &rectification, sim.rig(), frame)?;
             Ok(())
         },

@@ -8,7 +8,7 @@ use anyhow::{bail, Context};
 use camplace_config::Cell;
 use camplace_estimator::Rig;
 use camplace_hwio::{parse_source, DeploySource, Deployment};
-use camplace_sim::study::{FrameRecord, Summary};
+use camplace_sim::{FrameRecord, Summary};
 use serde::Serialize;
 use std::io::Write;
 use std::path::PathBuf;
@@ -16,7 +16,7 @@ use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
-use camplace_sim::study::recording::{estimator_for, load_model, method_for, record, truth_path};
+use camplace_sim::{estimator_for, frame_record, load_model, method_for, truth_path};
 
 /// Flags of `camplace run`.
 #[derive(clap::Args, Debug)]
@@ -97,7 +97,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let stats = deployment.run(
         move |estimator, pose, info| -> anyhow::Result<FrameRecord> {
             let truth = dataset.as_deref().and_then(|d| truth_path(d, &info.name));
-            Ok(record(&cell, estimator, pose, &info.name, truth.as_deref())?)
+            Ok(frame_record(&cell, estimator, pose, &info.name, truth.as_deref())?)
         },
         |e| {
             let line = RunLine {

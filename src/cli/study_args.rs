@@ -2,8 +2,8 @@
 
 use anyhow::bail;
 use camplace_config::Cell;
-use camplace_sim::study::shard::Shard;
 use camplace_sim::Method;
+use camplace_sim::Shard;
 
 /// `--method`, `--seed`, `--shard` / `--shards`.
 #[derive(clap::Args, Debug, Clone)]

@@ -4,10 +4,10 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use camplace_sim::report::sweep_panels::SweepResult;
-use camplace_sim::study::grid::{Axis, Grid};
-use camplace_sim::study::shard::Shard;
-use camplace_sim::study::sweep::sweep;
+use camplace_sim::sweep;
+use camplace_sim::Shard;
+use camplace_sim::SweepResult;
+use camplace_sim::{Axis, Grid};
 
 use super::cell_args::CellArgs;
 use super::study_args::{check_scenarios, StudyArgs};

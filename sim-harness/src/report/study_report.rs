@@ -11,17 +11,17 @@ use super::convergence::{Convergence, Curve};
 use super::html::HtmlPage;
 use super::rig_sketch::RigSketch;
 use super::save_plot;
-use crate::frame_files::write_preview;
-use crate::placement_rig::rig_for;
+use crate::render::frame_files::write_preview;
 use crate::render::{Frame, Method, Simulator};
-use crate::scenario::draw_scenario;
+use crate::scene::placement_rig::rig_for;
+use crate::scene::scenario::draw_scenario;
+use crate::scene::tray::TrayModel;
 use crate::seeds::noise_key;
 use crate::study::findings::{compare, Rate, Verdict};
 use crate::study::grid::{Axis, Grid};
 use crate::study::optimize::recheck_seed;
 use crate::study::placement_study::{Combination, Preset};
 use crate::study::Summary;
-use crate::tray::TrayModel;
 use crate::{Error, Result};
 
 /// A rate as a percentage with one decimal.

@@ -11,8 +11,8 @@ use camplace_estimator::{Estimator, Model, PoseEstimate};
 use super::record::{score, FrameRecord};
 use crate::model_builder::build_model;
 use crate::render::{Frame, Method, Simulator};
-use crate::scenario::background_scene;
-use crate::scenario::draw_scenario;
+use crate::scene::scenario::background_scene;
+use crate::scene::scenario::draw_scenario;
 use crate::seeds::noise_key;
 use crate::Result;
 

@@ -9,9 +9,9 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use crate::scene::tray::slot_count;
 use crate::scene::SceneSpec;
 use crate::seeds::scenario_key;
-use crate::tray::slot_count;
 
 /// One drawn scene, as `truth.json` stores it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

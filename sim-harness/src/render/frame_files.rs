@@ -11,7 +11,7 @@ use camplace_estimator::camera::isometry_to_rows;
 use camplace_estimator::{FloatImage, GrayImage, Rig};
 
 use crate::render::{Frame, Method};
-use crate::scenario::Scenario;
+use crate::scene::scenario::Scenario;
 use crate::Result;
 
 /// Writes the camera images of a frame (and nothing else) into `dir`.
