@@ -8,8 +8,7 @@ use std::sync::OnceLock;
 
 use camplace_config::Cell;
 use camplace_hwio::{parse_source, DeploySource, Deployment, WhenBehind};
-use camplace_sim::Method;
-use camplace_sim::{Evaluator, FrameRecord, Summary};
+use camplace_sim::{Evaluator, FrameRecord, Method, Summary};
 
 use crate::camplace_cmd::{camplace, stderr};
 

@@ -4,8 +4,7 @@
 
 use camplace_config::{Cell, TrayKind};
 use camplace_estimator::{Estimator, PoseEstimate};
-use camplace_sim::Evaluator;
-use camplace_sim::{background_scene, build_model, noise_key, Frame, Method, Simulator};
+use camplace_sim::{background_scene, build_model, noise_key, Evaluator, Frame, Method, Simulator};
 
 use crate::camplace_cmd::{camplace, stderr};
 

@@ -38,6 +38,7 @@ pub use study::folder::open_folder;
 pub use study::grid::{Axis, Grid};
 pub use study::jobs::{shard_jobs, JobEvaluator, PlacementJob};
 pub use study::merge::merge;
+pub use study::one_placement::{acceptance_summary, evaluate_placement};
 pub use study::optimize::{SearchParameter, SearchPlan};
 pub use study::placement_search::optimize;
 pub use study::placement_study::{run_study, Preset};

@@ -5,13 +5,12 @@ use anyhow::Context;
 use camplace_config::formats::ply;
 use camplace_config::RigFile;
 use camplace_estimator::{Estimator, Method, Model, PoseEstimate, Rig};
-use camplace_sim::{FrameRecord, Summary};
+use camplace_sim::{estimate_dataset, load_model, FrameRecord, Summary};
 use nalgebra::Point3;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use super::cell_args::CellArgs;
-use camplace_sim::{estimate_dataset, load_model};
 
 /// Flags of `camplace estimate`.
 #[derive(clap::Args, Debug)]

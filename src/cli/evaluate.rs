@@ -4,13 +4,9 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use camplace_sim::Summary;
-use camplace_sim::{shard_jobs, JobEvaluator};
-use camplace_sim::{write_summary_csv, write_summary_json, SummaryRow};
+use camplace_sim::evaluate_placement;
 
 use super::cell_args::CellArgs;
-use camplace_sim::open_folder;
-
 use super::study_args::{check_scenarios, StudyArgs};
 
 /// Flags of `camplace evaluate`.
@@ -35,14 +31,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let method = a.run.method;
     let scenarios = check_scenarios(a.scenarios)?;
     let shard = a.run.shard()?;
-    let store = open_folder(&a.out, &cell, method, seed)?;
-    let jobs = shard_jobs(&[placement], seed, scenarios, shard);
-    JobEvaluator::new(&cell, method, &store).with_model_cache(&a.out.join("models")).evaluate(&jobs, "evaluate")?;
-    let summary = Summary::from_records(&store.records(&placement, method, seed, scenarios));
-    let rows =
-        [SummaryRow { placement: placement.to_string(), method: method.to_string(), seed, summary: summary.clone() }];
-    write_summary_json(&a.out.join("summary.json"), &rows)?;
-    write_summary_csv(&a.out.join("summary.csv"), &rows)?;
+    let summary = evaluate_placement(&a.out, &cell, &placement, method, seed, scenarios, shard)?;
     let part =
         if shard.is_whole() { String::new() } else { format!(" (shard {shard}: {} scenes here)", summary.frames) };
     println!("{placement} ({method}, seed {seed}){part}: {}", summary.line());

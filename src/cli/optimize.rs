@@ -10,9 +10,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Context};
-use camplace_sim::optimize;
-use camplace_sim::{run_test_function, test_function};
-use camplace_sim::{SearchParameter, SearchPlan};
+use camplace_sim::{optimize, run_test_function, test_function, SearchParameter, SearchPlan};
 
 use super::cell_args::CellArgs;
 use super::study_args::{check_scenarios, StudyArgs};

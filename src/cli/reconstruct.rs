@@ -4,7 +4,7 @@
 use anyhow::{bail, Context};
 use camplace_config::formats::{pfm, ply, png};
 use camplace_config::RigFile;
-use camplace_estimator::stereo::DisparityMatcher;
+use camplace_estimator::DisparityMatcher;
 use camplace_estimator::{Elas, FloatImage, GrayImage, Method, Reconstruction, Reconstructor, RectifiedCamera, Rig};
 use camplace_hwio::{FrameSource, Frames, RecordedSource};
 use rayon::prelude::*;

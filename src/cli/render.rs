@@ -4,8 +4,7 @@
 use anyhow::Context;
 use camplace_config::formats::pfm;
 use camplace_estimator::{FloatImage, Rectification};
-use camplace_sim::{draw_scenario, Frame, Method, Simulator};
-use camplace_sim::{write_frame, write_images, write_rig, DatasetLayout};
+use camplace_sim::{draw_scenario, write_frame, write_images, write_rig, DatasetLayout, Frame, Method, Simulator};
 use rayon::prelude::*;
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -8,15 +8,13 @@ use anyhow::{bail, Context};
 use camplace_config::Cell;
 use camplace_estimator::Rig;
 use camplace_hwio::{parse_source, DeploySource, Deployment};
-use camplace_sim::{FrameRecord, Summary};
+use camplace_sim::{estimator_for, frame_record, load_model, method_for, truth_path, FrameRecord, Summary};
 use serde::Serialize;
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
-
-use camplace_sim::{estimator_for, frame_record, load_model, method_for, truth_path};
 
 /// Flags of `camplace run`.
 #[derive(clap::Args, Debug)]

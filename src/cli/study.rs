@@ -6,8 +6,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use camplace_config::Cell;
-use camplace_sim::Shard;
-use camplace_sim::{run_study, Preset};
+use camplace_sim::{run_study, Preset, Shard};
 
 /// Flags of `camplace study`.
 #[derive(clap::Args, Debug)]

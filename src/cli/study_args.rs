@@ -2,8 +2,7 @@
 
 use anyhow::bail;
 use camplace_config::Cell;
-use camplace_sim::Method;
-use camplace_sim::Shard;
+use camplace_sim::{Method, Shard};
 
 /// `--method`, `--seed`, `--shard` / `--shards`.
 #[derive(clap::Args, Debug, Clone)]

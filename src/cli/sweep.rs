@@ -4,10 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use camplace_sim::sweep;
-use camplace_sim::Shard;
-use camplace_sim::SweepResult;
-use camplace_sim::{Axis, Grid};
+use camplace_sim::{sweep, Axis, Grid, Shard, SweepResult};
 
 use super::cell_args::CellArgs;
 use super::study_args::{check_scenarios, StudyArgs};

@@ -12,6 +12,7 @@ pub mod folder;
 pub mod grid;
 pub mod jobs;
 pub mod merge;
+pub mod one_placement;
 pub mod optimize;
 pub mod placement_search;
 pub mod placement_study;
