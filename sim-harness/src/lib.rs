@@ -22,6 +22,7 @@ pub use model_builder::{build_model, model_points};
 pub use render::frame_files::{truth_of, write_frame, write_images, write_preview, write_rig, DatasetLayout};
 pub use render::pattern::{fringe_set, one_shot};
 pub use render::raster::{GBuffer, MapPixel, View, ZBuffer};
+pub use render::render_files::{render_dataset, render_scene};
 pub use render::shade::{Lights, ShadingTerms};
 pub use render::{Frame, Method, Simulator, LAMP_MAP_SIZE};
 pub use report::sweep_panels::SweepResult;

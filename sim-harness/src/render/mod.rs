@@ -6,6 +6,7 @@ pub mod frame_files;
 pub mod noise;
 pub mod pattern;
 pub mod raster;
+pub mod render_files;
 pub mod shade;
 mod simulator;
 
