@@ -3,7 +3,7 @@
 
 use camplace_config::Cell;
 use camplace_estimator::{Camera, DisparityMatcher, Elas, FloatImage, GrayImage, Rectification};
-use camplace_sim::placement_rig::rig_for;
+use camplace_sim::rig_for;
 use criterion::{criterion_group, Criterion};
 use nalgebra::{Point3, Vector3};
 use std::hint::black_box;

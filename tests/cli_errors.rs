@@ -1,6 +1,6 @@
 //! Bad input ends with one line naming the file, the key and what was expected, exit 2.
 
-use crate::cli::{camplace, stderr};
+use crate::camplace_cmd::{camplace, stderr};
 
 fn render_with_cell(cell_text: &str, extra: &[(&str, &[u8])]) -> (i32, String) {
     let dir = tempfile::tempdir().unwrap();

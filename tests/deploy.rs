@@ -1,15 +1,16 @@
 //! Deployment end to end: a dataset written by `render --dataset` replayed equals the
 //! evaluation of the same scenarios, `run` on it equals `replay`, a slow estimator behind a
-//! paced source drops frames and says how many, and missing hardware is a clear error.
+//! paced source drops frames and says how many, the deployed loop driven in process gives
+//! the evaluation's poses, and missing hardware is a clear error.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use camplace_config::Cell;
-use camplace_sim::study::{Evaluator, FrameRecord, Summary};
-use camplace_sim::Method;
+use camplace_hwio::{parse_source, DeploySource, Deployment, WhenBehind};
+use camplace_sim::{Evaluator, FrameRecord, Method, Summary};
 
-use crate::cli::{camplace, stderr};
+use crate::camplace_cmd::{camplace, stderr};
 
 const OPTIMUM: &str = "r=605,alpha=32,baseline=81,vergence=3.5";
 const SEED: u64 = 1;
@@ -100,6 +101,54 @@ fn replay_equals_the_evaluation_and_run_equals_replay() {
     }
     assert!(err.contains(&format!("{SCENES} frames estimated, 0 dropped")), "{err}");
     assert!(err.contains("p50") && err.contains("p90") && err.contains("p99"), "{err}");
+}
+
+/// The evaluator's records of the fixture's scenes.
+fn evaluated(f: &Fixture) -> Vec<FrameRecord> {
+    let cell = Cell::default();
+    let placement = cell.placement.with_overrides(OPTIMUM).unwrap();
+    let bytes = std::fs::read(f.root.join("tray.model")).unwrap();
+    let model = camplace_estimator::Model::from_bytes(&bytes).unwrap();
+    let evaluator = Evaluator::with_model(&cell, &placement, Method::OneShot, SEED, model).unwrap();
+    let mut worker = evaluator.worker().unwrap();
+    (0..SCENES).map(|i| worker.scene(i).unwrap()).collect()
+}
+
+#[test]
+fn the_deployed_loop_in_process_gives_the_evaluations_poses() {
+    let f = fixture();
+    let spec = parse_source(&format!("dir:{}", f.root.join("data").display())).unwrap();
+    let opened = DeploySource::open(&spec, None, None, None).unwrap();
+    assert_eq!(opened.when_behind, WhenBehind::Wait, "an unpaced recording drops nothing");
+    let cell = Cell::default();
+    let rig = camplace_estimator::Rig::from_file(&opened.rig);
+    let bytes = std::fs::read(f.root.join("tray.model")).unwrap();
+    let model = camplace_estimator::Model::from_bytes(&bytes).unwrap();
+    let mut estimator = camplace_estimator::Estimator::new(&cell, &rig, model, Method::OneShot).unwrap();
+    let background = opened.background.as_ref().expect("render --dataset writes the background");
+    estimator.set_background(&background.left, &background.right).unwrap();
+
+    let mut got = Vec::new();
+    let stats = Deployment::new(opened.source, opened.when_behind, estimator)
+        .run(
+            |_, pose, info| Ok::<_, camplace_hwio::Error>(FrameRecord::new(info.name.as_str(), pose)),
+            |e| {
+                got.push(e);
+                Ok(())
+            },
+        )
+        .unwrap();
+
+    assert_eq!(stats.dropped, 0);
+    assert_eq!(stats.latencies_ms.len(), SCENES as usize);
+    assert!(stats.line().starts_with(&format!("{SCENES} frames estimated, 0 dropped")), "{}", stats.line());
+    let evaluated = evaluated(f);
+    assert_eq!(got.len(), evaluated.len(), "one pose per frame");
+    for (i, (g, e)) in got.iter().zip(&evaluated).enumerate() {
+        assert_eq!(g.sequence, i as u64);
+        assert!(g.latency_ms > 0.0);
+        assert_eq!(untimed(&g.record), FrameRecord { score: None, ..untimed(e) }, "frame {}", e.frame);
+    }
 }
 
 #[test]

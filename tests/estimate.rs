@@ -4,10 +4,9 @@
 
 use camplace_config::{Cell, TrayKind};
 use camplace_estimator::Estimator;
-use camplace_sim::study::Evaluator;
-use camplace_sim::{background_scene, build_model, noise_key, Frame, Method, Simulator};
+use camplace_sim::{background_scene, build_model, noise_key, Evaluator, Frame, Method, Simulator};
 
-use crate::cli::{camplace, stderr};
+use crate::camplace_cmd::{camplace, stderr};
 
 const OPTIMUM: &str = "r=605,alpha=32,baseline=81,vergence=3.5";
 

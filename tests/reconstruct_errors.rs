@@ -5,7 +5,7 @@ use std::path::Path;
 
 use camplace_config::formats::png;
 
-use crate::cli::{camplace, stderr};
+use crate::camplace_cmd::{camplace, stderr};
 
 /// A rendered pair with its `rig.json` in `dir` (left.png, right.png, rig.json).
 fn rendered_pair(dir: &Path) {

@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use serde_json::Value;
 
-use crate::cli::{camplace, stderr};
+use crate::camplace_cmd::{camplace, stderr};
 
 const SCENES: &str = "6";
 
@@ -178,7 +178,7 @@ fn optimize_on_a_test_function_prints_one_json_line() {
     assert!(o.status.success(), "{}", stderr(&o));
     let v: Value = serde_json::from_str(String::from_utf8_lossy(&o.stdout).trim()).unwrap();
     // The search's own runner gives the same numbers (the same seed, the same function).
-    let run = camplace_sim::search::test_functions::run_test_function("goldstein_price", 2, 300);
+    let run = camplace_sim::run_test_function("goldstein_price", 2, 300);
     assert_eq!(v["evaluations_to_within_1pct"].as_u64().map(|n| n as usize), run.evaluations_to_within_1pct);
     assert_eq!(v["best_value"].as_f64().unwrap(), run.best_value);
 }

@@ -1,6 +1,6 @@
 //! camplace's end-to-end tests: the CLI and the crates together, in one test binary.
 
-mod cli;
+mod camplace_cmd;
 mod cli_errors;
 mod deploy;
 mod estimate;

@@ -20,6 +20,8 @@ pub enum ErrorKind {
     NotBuilt,
     /// The projector window could not be shown.
     Display,
+    /// The estimator refused a frame, or its thread ended unexpectedly.
+    Estimate,
 }
 
 /// A hardware I/O error with a one-line message.
@@ -27,12 +29,16 @@ pub enum ErrorKind {
 pub struct Error {
     kind: ErrorKind,
     message: String,
+    /// The cell, rig or image file error this one reports, when it is one.
+    // Boxed: a config error names a file and a key, and would make every `Result` of
+    // this crate large.
+    source: Option<Box<camplace_config::Error>>,
 }
 
 impl Error {
     /// An error of `kind` with a message naming the file or device.
     pub fn new(kind: ErrorKind, message: impl Into<String>) -> Self {
-        Error { kind, message: message.into() }
+        Error { kind, message: message.into(), source: None }
     }
 
     /// A format error about `path`: `path: message`.
@@ -80,7 +86,11 @@ impl fmt::Display for Error {
     }
 }
 
-impl std::error::Error for Error {}
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        self.source.as_deref().map(|e| e as &(dyn std::error::Error + 'static))
+    }
+}
 
 impl From<camplace_config::Error> for Error {
     fn from(e: camplace_config::Error) -> Self {
@@ -88,7 +98,7 @@ impl From<camplace_config::Error> for Error {
             camplace_config::ErrorKind::Io => ErrorKind::Io,
             _ => ErrorKind::Format,
         };
-        Error::new(kind, e.to_string())
+        Error { kind, message: e.to_string(), source: Some(Box::new(e)) }
     }
 }
 

@@ -1,4 +1,4 @@
-//! A recorded dataset folder (DESIGN.md §3) as a frame source: `rig.json`, an optional
+//! A recorded dataset folder (docs/architecture.md §3) as a frame source: `rig.json`, an optional
 //! `background/`, and `frames/NNNN/` with `left.png` + `right.png` (one shot) or
 //! `left_00.png` ... `right_11.png` (N shots), each frame with an optional `truth.json`.
 //! Simulated and real recordings take this one path.
@@ -112,37 +112,52 @@ impl RecordedSource {
     /// Reads the shots of one folder into `frames` and checks every size; returns the
     /// left image's modification time in microseconds (0 when the file system has none).
     fn read_folder(&self, dir: &Path, frames: &mut Frames) -> Result<u64> {
-        frames.set_shots(self.shots);
-        let want = [
-            ("left", (self.rig.left.width as usize, self.rig.left.height as usize)),
-            ("right", (self.rig.right.width as usize, self.rig.right.height as usize)),
-        ];
-        let mut timestamp_us = 0;
-        for shot in 0..self.shots {
-            for (side, (w, h)) in want {
-                let path = dir.join(image_name(side, shot, self.shots));
-                if !path.is_file() {
-                    return Err(Error::format(&path, format!("missing {side} image (expected {w}x{h} 8-bit PNG)")));
-                }
-                let img = read_gray(&path)?;
-                if (img.width, img.height) != (w, h) {
-                    return Err(Error::format(
-                        &path,
-                        format!(
-                            "image is {}x{}, expected {w}x{h} as rig.json says for the {side} camera",
-                            img.width, img.height
-                        ),
-                    ));
-                }
-                let out = if side == "left" { &mut frames.left[shot] } else { &mut frames.right[shot] };
-                copy_into(&img.data, w, h, out);
-                if shot == 0 && side == "left" {
-                    timestamp_us = modified_us(&path);
-                }
+        read_shots(dir, &self.rig, self.shots, frames)
+    }
+}
+
+/// The images of a folder named as a frame's (`shots` per side, e.g. the empty cell's
+/// background), each checked to be the size `rig` says.
+pub fn read_background(dir: &Path, rig: &RigFile, shots: usize) -> Result<Frames> {
+    let mut frames = Frames::new(shots);
+    read_shots(dir, rig, shots, &mut frames)?;
+    Ok(frames)
+}
+
+/// Reads `shots` images per side from `dir` into `frames`, checking each is the size `rig`
+/// says; returns the left image's modification time in microseconds (0 when the file system
+/// has none).
+fn read_shots(dir: &Path, rig: &RigFile, shots: usize, frames: &mut Frames) -> Result<u64> {
+    frames.set_shots(shots);
+    let want = [
+        ("left", (rig.left.width as usize, rig.left.height as usize)),
+        ("right", (rig.right.width as usize, rig.right.height as usize)),
+    ];
+    let mut timestamp_us = 0;
+    for shot in 0..shots {
+        for (side, (w, h)) in want {
+            let path = dir.join(image_name(side, shot, shots));
+            if !path.is_file() {
+                return Err(Error::format(&path, format!("missing {side} image (expected {w}x{h} 8-bit PNG)")));
+            }
+            let img = read_gray(&path)?;
+            if (img.width, img.height) != (w, h) {
+                return Err(Error::format(
+                    &path,
+                    format!(
+                        "image is {}x{}, expected {w}x{h} as rig.json says for the {side} camera",
+                        img.width, img.height
+                    ),
+                ));
+            }
+            let out = if side == "left" { &mut frames.left[shot] } else { &mut frames.right[shot] };
+            copy_into(&img.data, w, h, out);
+            if shot == 0 && side == "left" {
+                timestamp_us = modified_us(&path);
             }
         }
-        Ok(timestamp_us)
     }
+    Ok(timestamp_us)
 }
 
 impl FrameSource for RecordedSource {

@@ -1,5 +1,6 @@
-//! The simulator's error type: bad cell content found while building a scene, and the
-//! errors of the files it reads and writes.
+//! The simulator's error type: bad cell content found while building a scene, the
+//! estimator's and a recorded dataset's errors, and the errors of the files it reads and
+//! writes.
 
 use std::fmt;
 
@@ -11,6 +12,8 @@ pub enum Error {
     Config(camplace_config::Error),
     /// The estimator refused its inputs.
     Estimator(camplace_estimator::Error),
+    /// A recorded dataset could not be read.
+    Recording(camplace_hwio::Error),
     /// Anything else, said in words.
     Other(String),
 }
@@ -20,12 +23,22 @@ impl fmt::Display for Error {
         match self {
             Error::Config(e) => e.fmt(f),
             Error::Estimator(e) => e.fmt(f),
+            Error::Recording(e) => e.fmt(f),
             Error::Other(s) => f.write_str(s),
         }
     }
 }
 
-impl std::error::Error for Error {}
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::Config(e) => Some(e),
+            Error::Estimator(e) => Some(e),
+            Error::Recording(e) => Some(e),
+            Error::Other(_) => None,
+        }
+    }
+}
 
 impl From<camplace_config::Error> for Error {
     fn from(e: camplace_config::Error) -> Self {
@@ -36,6 +49,12 @@ impl From<camplace_config::Error> for Error {
 impl From<camplace_estimator::Error> for Error {
     fn from(e: camplace_estimator::Error) -> Self {
         Error::Estimator(e)
+    }
+}
+
+impl From<camplace_hwio::Error> for Error {
+    fn from(e: camplace_hwio::Error) -> Self {
+        Error::Recording(e)
     }
 }
 

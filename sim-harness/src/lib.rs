@@ -1,27 +1,52 @@
 //! camplace's simulator and placement study: the scene, a CPU renderer of the stereo
 //! camera and projector, scenarios with common random numbers, model building, evaluation,
 //! search and reports. It feeds rendered frames to the same estimator the cell PC runs.
+//!
+//! The stages are private modules — `scene` (scene, trays, scenarios, placement geometry),
+//! `render` (rasterizer, shading, patterns, noise, frame files), `study` (evaluation, jobs,
+//! results, sweep, search, merge, the study), `search` (the surrogate optimizer) and
+//! `report` (plots, tables, report.html) — with `seeds` keying every random stream; what
+//! other crates use is exported here.
 
-pub mod capture;
 mod error;
-pub mod frame_files;
-pub mod model_builder;
-pub mod noise;
-pub mod pattern;
-pub mod placement_rig;
-pub mod raster;
-pub mod render;
-pub mod report;
-pub mod scenario;
-pub mod scene;
-pub mod search;
-pub mod shade;
-pub mod study;
-pub mod tray;
+mod model_builder;
+mod render;
+mod report;
+mod scene;
+mod search;
+mod seeds;
+mod study;
 
-pub use capture::{background_scene, noise_key};
 pub use error::{Error, Result};
 pub use model_builder::{build_model, model_points};
-pub use render::{Frame, Method, Simulator};
-pub use scenario::{draw_scenario, Scenario};
-pub use scene::SceneSpec;
+pub use render::frame_files::{truth_of, write_frame, write_images, write_preview, write_rig, DatasetLayout};
+pub use render::pattern::{fringe_set, one_shot};
+pub use render::raster::{GBuffer, MapPixel, View, ZBuffer};
+pub use render::render_files::{render_dataset, render_scene};
+pub use render::shade::{Lights, ShadingTerms};
+pub use render::{Frame, Method, Simulator, LAMP_MAP_SIZE};
+pub use report::sweep_panels::SweepResult;
+pub use report::table::{write_summary_csv, write_summary_json, SummaryRow};
+pub use report::{save_plot, Plot, SavedPlot};
+pub use scene::placement_rig::rig_for;
+pub use scene::scenario::{background_scene, draw_scenario, Scenario};
+pub use scene::{Objects, SceneSpec, SceneTriangle, ID_FIRST_ITEM, ID_TABLE, ID_TRAY};
+pub use search::rbf::Surrogate;
+pub use search::test_functions::{run_test_function, test_function, TEST_FUNCTIONS};
+pub use search::{RbfOptimizer, RbfSettings, SearchStep};
+pub use seeds::noise_key;
+pub use study::folder::open_folder;
+pub use study::grid::{Axis, Grid};
+pub use study::jobs::{shard_jobs, JobEvaluator, PlacementJob};
+pub use study::merge::merge;
+pub use study::one_placement::{acceptance_summary, evaluate_placement};
+pub use study::optimize::{SearchParameter, SearchPlan};
+pub use study::placement_search::optimize;
+pub use study::placement_study::{run_study, Preset};
+pub use study::recording::{
+    estimate_dataset, estimator_for, load_model, method_for, record as frame_record, truth_path,
+};
+pub use study::results::ResultsStore;
+pub use study::shard::Shard;
+pub use study::sweep::sweep;
+pub use study::{median, score, wilson_interval, Evaluator, FrameRecord, Score, Summary, Timings};

@@ -14,9 +14,9 @@ use camplace_estimator::{
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
-use crate::capture::noise_key;
 use crate::render::{Frame, Simulator};
 use crate::scene::SceneSpec;
+use crate::seeds::noise_key;
 use crate::{Error, Result};
 
 /// Turns of the tray about z, 360° / VIEWPOINTS apart.

@@ -5,14 +5,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::bail;
-use camplace_sim::study::results::ResultsStore;
-use camplace_sim::study::run::{shard_jobs, SceneRunner};
-use camplace_sim::study::shard::Shard;
-use camplace_sim::study::Summary;
-use camplace_sim::Method;
+use camplace_sim::{acceptance_summary, Method};
 
 use super::cell_args::CellArgs;
-use super::run_args::{check_scenarios, open_folder};
+use super::study_args::check_scenarios;
 
 /// Flags of `camplace accept`.
 #[derive(clap::Args, Debug)]
@@ -44,17 +40,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (cell, placement) = a.cell.load()?;
     let seed = a.seed.unwrap_or(cell.scenarios.seed);
     let scenarios = check_scenarios(a.scenarios)?;
-    let store = match &a.out {
-        Some(dir) => open_folder(dir, &cell, a.method, seed)?,
-        None => ResultsStore::in_memory(),
-    };
-    let jobs = shard_jobs(&[placement], seed, scenarios, Shard::WHOLE);
-    let mut runner = SceneRunner::new(&cell, a.method, &store);
-    if let Some(dir) = &a.out {
-        runner = runner.with_model_cache(&dir.join("models"));
-    }
-    runner.run(&jobs, "accept")?;
-    let s = Summary::from_records(&store.records(&placement, a.method, seed, scenarios));
+    let s = acceptance_summary(a.out.as_deref(), &cell, &placement, a.method, seed, scenarios)?;
     let low = s.success_interval[0];
     let pass = low >= a.min_success;
     println!("{placement} ({}, seed {seed}): {}", a.method, s.line());

@@ -5,13 +5,12 @@ use anyhow::Context;
 use camplace_config::formats::ply;
 use camplace_config::RigFile;
 use camplace_estimator::{Estimator, Method, Model, Rig};
-use camplace_sim::study::{FrameRecord, Summary};
+use camplace_sim::{estimate_dataset, load_model, FrameRecord, Summary};
 use nalgebra::Point3;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use super::cell_args::CellArgs;
-use super::recording::{estimate_dataset, load_model};
 
 /// Flags of `camplace estimate`.
 #[derive(clap::Args, Debug)]
@@ -42,7 +41,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let path = a.cloud.as_ref().context("give --dataset DIR or --cloud FILE")?;
     let rig = match &a.rig {
         Some(p) => Rig::from_file(&RigFile::load(p)?),
-        None => camplace_sim::placement_rig::rig_for(&placement, &cell.sensor),
+        None => camplace_sim::rig_for(&placement, &cell.sensor),
     };
     let cloud = ply::read_cloud(path)?;
     let points: Vec<Point3<f32>> = cloud.points.iter().map(|p| Point3::from(*p)).collect();

@@ -4,12 +4,10 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use camplace_sim::report::table::{write_summary_csv, write_summary_json, SummaryRow};
-use camplace_sim::study::run::{shard_jobs, SceneRunner};
-use camplace_sim::study::Summary;
+use camplace_sim::evaluate_placement;
 
 use super::cell_args::CellArgs;
-use super::run_args::{check_scenarios, open_folder, RunArgs};
+use super::study_args::{check_scenarios, StudyArgs};
 
 /// Flags of `camplace evaluate`.
 #[derive(clap::Args, Debug)]
@@ -17,7 +15,7 @@ pub struct Args {
     #[command(flatten)]
     cell: CellArgs,
     #[command(flatten)]
-    run: RunArgs,
+    run: StudyArgs,
     /// Scenarios 0..N-1 of the seed.
     #[arg(long, default_value_t = 250)]
     scenarios: u64,
@@ -33,14 +31,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let method = a.run.method;
     let scenarios = check_scenarios(a.scenarios)?;
     let shard = a.run.shard()?;
-    let store = open_folder(&a.out, &cell, method, seed)?;
-    let jobs = shard_jobs(&[placement], seed, scenarios, shard);
-    SceneRunner::new(&cell, method, &store).with_model_cache(&a.out.join("models")).run(&jobs, "evaluate")?;
-    let summary = Summary::from_records(&store.records(&placement, method, seed, scenarios));
-    let rows =
-        [SummaryRow { placement: placement.to_string(), method: method.to_string(), seed, summary: summary.clone() }];
-    write_summary_json(&a.out.join("summary.json"), &rows)?;
-    write_summary_csv(&a.out.join("summary.csv"), &rows)?;
+    let summary = evaluate_placement(&a.out, &cell, &placement, method, seed, scenarios, shard)?;
     let part =
         if shard.is_whole() { String::new() } else { format!(" (shard {shard}: {} scenes here)", summary.frames) };
     println!("{placement} ({method}, seed {seed}){part}: {}", summary.line());

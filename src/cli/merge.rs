@@ -1,19 +1,11 @@
 //! `camplace merge`: joins the folders of shards (or of any runs with the same settings)
-//! into one: the union of their results (a scene found twice is kept once), then the
-//! summaries and plots computed again. A study's folder tree is merged folder by folder.
+//! into one and computes the summaries and plots again.
 
-use std::collections::{BTreeMap, BTreeSet};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{bail, Context};
-use camplace_sim::report::sweep_panels::write_sweep_outputs;
-use camplace_sim::report::table::{write_summary_csv, write_summary_json, SummaryRow};
-use camplace_sim::study::results::{read_lines, write_lines, ResultLine, ResultsStore};
-use camplace_sim::study::settings::RunSettings;
-use camplace_sim::study::Summary;
-
-use super::sweep::load_sweep;
+use anyhow::bail;
+use camplace_sim::merge;
 
 /// Flags of `camplace merge`.
 #[derive(clap::Args, Debug)]
@@ -39,96 +31,4 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     println!("merged {} folders: {n} scenes into {}", a.dirs.len(), a.out.display());
     Ok(ExitCode::SUCCESS)
-}
-
-/// Merges `dirs` into `out`, recursing where no settings are found; returns scenes joined.
-pub fn merge(dirs: &[PathBuf], out: &Path) -> anyhow::Result<usize> {
-    let with_settings: Vec<&PathBuf> = dirs.iter().filter(|d| d.join("settings.json").exists()).collect();
-    if !with_settings.is_empty() {
-        return merge_leaf(&with_settings, out);
-    }
-    let mut names = BTreeSet::new();
-    for d in dirs {
-        for entry in std::fs::read_dir(d).with_context(|| format!("{}: cannot list", d.display()))? {
-            let entry = entry.with_context(|| format!("{}: cannot list", d.display()))?;
-            if entry.path().is_dir() {
-                names.insert(entry.file_name());
-            }
-        }
-    }
-    let mut total = 0;
-    for name in names {
-        let subs: Vec<PathBuf> = dirs.iter().map(|d| d.join(&name)).filter(|p| p.is_dir()).collect();
-        total += merge(&subs, &out.join(&name))?;
-    }
-    Ok(total)
-}
-
-fn merge_leaf(dirs: &[&PathBuf], out: &Path) -> anyhow::Result<usize> {
-    let mut settings: Option<RunSettings> = None;
-    let mut sweep = None;
-    let mut lines: BTreeMap<_, ResultLine> = BTreeMap::new();
-    let mut sources: Vec<PathBuf> = dirs.iter().map(|d| d.to_path_buf()).collect();
-    if out.join("settings.json").exists() && !sources.iter().any(|s| same(s, out)) {
-        sources.push(out.to_path_buf());
-    }
-    for d in &sources {
-        let s = RunSettings::load(d)?.with_context(|| format!("{}: expected settings.json", d.display()))?;
-        match &settings {
-            None => settings = Some(s),
-            Some(first) => {
-                if let Err(what) = s.agrees_with(first) {
-                    bail!("{}: {what} (the folders were run with other settings)", d.join("settings.json").display());
-                }
-            }
-        }
-        if sweep.is_none() {
-            sweep = load_sweep(d)?;
-        }
-        let path = d.join("results.jsonl");
-        if path.exists() {
-            for l in read_lines(&path)? {
-                lines.entry(l.key()).or_insert(l);
-            }
-        }
-    }
-    let settings = settings.expect("at least one folder");
-    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the folder", out.display()))?;
-    let joined: Vec<ResultLine> = lines.into_values().collect();
-    write_lines(&out.join("results.jsonl"), &joined)?;
-    let text = serde_json::to_string_pretty(&settings).expect("plain data");
-    camplace_config::formats::write_atomic(&out.join("settings.json"), text.as_bytes())?;
-    let method = settings.method()?;
-    let store = ResultsStore::open(&out.join("results.jsonl"))?;
-    if let Some((grid, n, base)) = sweep {
-        let text = serde_json::to_string_pretty(&(&grid, n, base)).expect("plain data");
-        camplace_config::formats::write_atomic(&out.join("sweep.json"), text.as_bytes())?;
-        let placements = grid.placements(&base)?;
-        write_sweep_outputs(out, &grid, &placements, &store, method, settings.seed, n)?;
-    } else {
-        // One row per placement and seed, over every scene found.
-        let mut groups: BTreeMap<(String, u64), Vec<_>> = BTreeMap::new();
-        for l in &joined {
-            groups.entry((l.placement.clone(), l.seed)).or_default().push(l.record.clone());
-        }
-        let rows: Vec<SummaryRow> = groups
-            .into_iter()
-            .map(|((placement, seed), records)| SummaryRow {
-                placement,
-                method: method.to_string(),
-                seed,
-                summary: Summary::from_records(&records),
-            })
-            .collect();
-        write_summary_json(&out.join("summary.json"), &rows)?;
-        write_summary_csv(&out.join("summary.csv"), &rows)?;
-    }
-    Ok(joined.len())
-}
-
-fn same(a: &Path, b: &Path) -> bool {
-    match (a.canonicalize(), b.canonicalize()) {
-        (Ok(x), Ok(y)) => x == y,
-        _ => a == b,
-    }
 }

@@ -11,12 +11,11 @@ mod model;
 mod optimize;
 mod project;
 mod reconstruct;
-mod recording;
 mod render;
 mod replay;
 mod run;
-mod run_args;
 mod study;
+mod study_args;
 mod sweep;
 
 use clap::{Parser, Subcommand};
@@ -66,7 +65,7 @@ enum Command {
 }
 
 /// Parses the command line and runs the subcommand.
-pub fn run() -> anyhow::Result<ExitCode> {
+pub fn dispatch() -> anyhow::Result<ExitCode> {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         // --help and --version print as clap shows them.

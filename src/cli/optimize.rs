@@ -6,25 +6,14 @@
 //! Shards: each step of the search depends on the ones before, so optimize runs in one
 //! process and refuses `--shard`; shard the sweep instead (its scenes are independent).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Context};
-use camplace_config::formats::write_atomic;
-use camplace_config::{Cell, Placement};
-use camplace_sim::report::convergence::{Convergence, Curve};
-use camplace_sim::report::save_plot;
-use camplace_sim::report::table::{write_summary_csv, SummaryRow};
-use camplace_sim::search::test_functions::{run_test_function, test_function};
-use camplace_sim::study::optimize::{search_placement, SearchOutcome, SearchParameter, SearchPlan};
-use camplace_sim::study::results::ResultsStore;
-use camplace_sim::study::run::{PlacementJob, SceneRunner};
-use camplace_sim::study::Summary;
-use camplace_sim::Method;
+use camplace_sim::{optimize, run_test_function, test_function, SearchParameter, SearchPlan};
 
 use super::cell_args::CellArgs;
-use super::run_args::{check_scenarios, open_folder, RunArgs};
-use super::sweep::load_sweep;
+use super::study_args::{check_scenarios, StudyArgs};
 
 /// Flags of `camplace optimize`.
 #[derive(clap::Args, Debug)]
@@ -32,7 +21,7 @@ pub struct Args {
     #[command(flatten)]
     cell: CellArgs,
     #[command(flatten)]
-    run: RunArgs,
+    run: StudyArgs,
     /// Parameters searched, comma separated, each optionally with its box (baseline=40:200).
     #[arg(long, default_value = "r,alpha,baseline,vergence", value_delimiter = ',', value_parser = parse_param)]
     params: Vec<SearchParameter>,
@@ -104,61 +93,4 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         out.display()
     );
     Ok(ExitCode::SUCCESS)
-}
-
-/// Runs the search into `dir`: optimize.json, optimize.csv and the convergence plot.
-pub fn optimize(
-    dir: &Path,
-    cell: &Cell,
-    base: &Placement,
-    method: Method,
-    seed: u64,
-    plan: &SearchPlan,
-    label: &str,
-) -> anyhow::Result<SearchOutcome> {
-    let store = open_folder(dir, cell, method, seed)?;
-    let runner = SceneRunner::new(cell, method, &store);
-    let mut step = 0;
-    let outcome = search_placement(base, plan, seed, |p, s, n| {
-        step += 1;
-        let job = PlacementJob { placement: *p, seed: s, scenarios: (0..n).collect() };
-        runner.run(&[job], &format!("{label} {step}/{}", plan.budget))?;
-        Ok(Summary::from_records(&store.records(p, method, s, n)))
-    })?;
-    let text = serde_json::to_string_pretty(&(plan, &outcome)).expect("plain data");
-    write_atomic(&dir.join("optimize.json"), text.as_bytes())?;
-    let rows: Vec<SummaryRow> = outcome
-        .history
-        .iter()
-        .map(|e| SummaryRow {
-            placement: e.placement.clone(),
-            method: method.to_string(),
-            seed,
-            summary: e.summary.clone(),
-        })
-        .collect();
-    write_summary_csv(&dir.join("optimize.csv"), &rows)?;
-    let curve = Curve {
-        label: format!("{method}"),
-        rates: outcome.history.iter().map(|e| e.summary.success_rate).collect(),
-        sweep_best: sweep_best(dir, &store, method, seed)?,
-    };
-    let plot = Convergence { title: format!("search over {} parameters", plan.parameters.len()), curves: vec![curve] };
-    save_plot(&plot, dir, "convergence")?;
-    Ok(outcome)
-}
-
-/// The best success rate of the sweep held in `dir`, if one is there and complete.
-pub fn sweep_best(dir: &Path, store: &ResultsStore, method: Method, seed: u64) -> anyhow::Result<Option<f64>> {
-    let Some((grid, n, base)) = load_sweep(dir)? else { return Ok(None) };
-    let mut best: Option<f64> = None;
-    for p in grid.placements(&base)? {
-        let records = store.records(&p, method, seed, n);
-        if records.len() as u64 != n {
-            return Ok(None);
-        }
-        let rate = Summary::from_records(&records).success_rate;
-        best = Some(best.map_or(rate, |b: f64| b.max(rate)));
-    }
-    Ok(best)
 }

@@ -68,8 +68,8 @@ mod shown {
     use camplace_estimator::GrayImage;
     use camplace_hwio::display::Projector;
     use camplace_hwio::{open_source, parse_source, FrameSource, Frames};
-    use camplace_sim::pattern::{fringe_set, one_shot};
     use camplace_sim::Method;
+    use camplace_sim::{fringe_set, one_shot};
     use std::path::Path;
     use std::process::ExitCode;
     use std::sync::atomic::{AtomicBool, Ordering};

@@ -98,7 +98,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
 
 fn dataset(cell: &camplace_config::Cell, dir: &Path) -> anyhow::Result<ExitCode> {
     let source = RecordedSource::open(dir)?;
-    let method = super::recording::method_for(source.shots());
+    let method = camplace_sim::method_for(source.shots());
     let rig = Rig::from_file(source.rig());
     let mut background = Frames::new(source.shots());
     let has_background = source.background(&mut background)?;

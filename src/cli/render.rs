@@ -1,12 +1,7 @@
 //! `camplace render`: one simulated scene with its ground truth, or (`--dataset`) a
 //! recorded-dataset folder of scenarios 0..N-1 that `evaluate` and `replay` read alike.
 
-use anyhow::Context;
-use camplace_config::formats::pfm;
-use camplace_estimator::{FloatImage, Rectification};
-use camplace_sim::frame_files::{self, DatasetLayout};
-use camplace_sim::{draw_scenario, Frame, Method, Simulator};
-use rayon::prelude::*;
+use camplace_sim::{render_dataset, render_scene, Method};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -41,17 +36,8 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (cell, placement) = a.cell.load()?;
     let seed = a.seed.unwrap_or(cell.scenarios.seed);
-    std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create the folder", a.out.display()))?;
-    let symmetries = cell.tray.symmetries.clone();
-    let mut sim = Simulator::new(&cell, &placement, seed)?;
-    let rectification = Rectification::new(sim.rig(), &cell.work_volume)?;
     if !a.dataset {
-        let scenario = draw_scenario(&cell, seed, a.scenario);
-        let mut frame = Frame::default();
-        sim.render(&scenario.scene(), a.method, camplace_sim::noise_key(seed, a.scenario, false), &mut frame);
-        frame_files::write_rig(&a.out.join("rig.json"), sim.rig())?;
-        frame_files::write_frame(&a.out, &frame, &scenario, &placement, a.method, &symmetries)?;
-        write_disparity_truth(&a.out, &rectification, sim.rig(), &frame)?;
+        render_scene(&a.out, &cell, &placement, a.method, seed, a.scenario)?;
         println!(
             "rendered scenario {} of seed {seed} at {placement} ({}) into {}",
             a.scenario,
@@ -60,36 +46,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         );
         return Ok(ExitCode::SUCCESS);
     }
-    let layout = DatasetLayout::new(&a.out);
-    frame_files::write_rig(&layout.rig(), sim.rig())?;
-    let mut frame = Frame::default();
-    let background = camplace_sim::background_scene(&cell, seed);
-    sim.render(&background, a.method, camplace_sim::noise_key(seed, 0, true), &mut frame);
-    frame_files::write_images(&layout.background(), &frame)?;
-    (0..a.count).into_par_iter().try_for_each_init(
-        || (Simulator::new(&cell, &placement, seed), Frame::default()),
-        |(sim, frame), i| -> anyhow::Result<()> {
-            let sim = sim.as_mut().map_err(|e| anyhow::anyhow!("{e}"))?;
-            let scenario = draw_scenario(&cell, seed, i);
-            sim.render(&scenario.scene(), a.method, camplace_sim::noise_key(seed, i, false), frame);
-            frame_files::write_frame(&layout.frame(i), frame, &scenario, &placement, a.method, &symmetries)?;
-            write_disparity_truth(&layout.frame(i), &rectification, sim.rig(), frame)?;
-            Ok(())
-        },
-    )?;
+    render_dataset(&a.out, &cell, &placement, a.method, seed, a.count)?;
     println!("rendered {} scenarios of seed {seed} at {placement} ({}) into {}", a.count, a.method, a.out.display());
     Ok(ExitCode::SUCCESS)
-}
-
-/// `disparity_truth.pfm`: the true disparity in rectified-left pixels, so any matcher can be scored.
-fn write_disparity_truth(
-    dir: &std::path::Path,
-    rectification: &Rectification,
-    rig: &camplace_estimator::Rig,
-    frame: &Frame,
-) -> anyhow::Result<()> {
-    let mut truth = FloatImage::default();
-    rectification.disparity_truth(&rig.left, &frame.depth_left, &mut truth);
-    pfm::write(&dir.join("disparity_truth.pfm"), truth.width, truth.height, &truth.data)?;
-    Ok(())
 }

@@ -5,11 +5,9 @@
 use anyhow::Context;
 use camplace_config::formats::write_atomic;
 use camplace_config::Cell;
-use camplace_sim::study::Summary;
+use camplace_sim::{estimate_dataset, load_model, Summary};
 use std::path::PathBuf;
 use std::process::ExitCode;
-
-use super::recording::{estimate_dataset, load_model};
 
 /// Flags of `camplace replay`.
 #[derive(clap::Args, Debug)]

@@ -4,17 +4,10 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use anyhow::Context;
-use camplace_config::formats::write_atomic;
-use camplace_config::{Cell, Placement};
-use camplace_sim::report::sweep_panels::{write_sweep_outputs, SweepResult};
-use camplace_sim::study::grid::{Axis, Grid};
-use camplace_sim::study::run::{shard_jobs, SceneRunner};
-use camplace_sim::study::shard::Shard;
-use camplace_sim::Method;
+use camplace_sim::{sweep, Axis, Grid, Shard, SweepResult};
 
 use super::cell_args::CellArgs;
-use super::run_args::{check_scenarios, open_folder, RunArgs};
+use super::study_args::{check_scenarios, StudyArgs};
 
 /// Flags of `camplace sweep`.
 #[derive(clap::Args, Debug)]
@@ -22,7 +15,7 @@ pub struct Args {
     #[command(flatten)]
     cell: CellArgs,
     #[command(flatten)]
-    run: RunArgs,
+    run: StudyArgs,
     /// Horizontal axis: name=lo:hi:steps over r, alpha, baseline or vergence.
     #[arg(long, default_value = "r=400:900:5", value_parser = parse_axis)]
     x: Axis,
@@ -64,38 +57,4 @@ pub fn report(dir: &Path, r: &SweepResult, shard: Shard) {
         }
         _ => println!("sweep incomplete in {}", dir.display()),
     }
-}
-
-/// Runs (this shard of) the grid into `dir` and writes its outputs.
-#[allow(clippy::too_many_arguments)]
-pub fn sweep(
-    dir: &Path,
-    cell: &Cell,
-    base: &Placement,
-    method: Method,
-    seed: u64,
-    grid: &Grid,
-    scenarios: u64,
-    shard: Shard,
-    label: &str,
-) -> anyhow::Result<SweepResult> {
-    let placements = grid.placements(base).context("--x/--y")?;
-    let store = open_folder(dir, cell, method, seed)?;
-    let grid_text = serde_json::to_string_pretty(&(grid, scenarios, base)).expect("a grid is plain data");
-    write_atomic(&dir.join("sweep.json"), grid_text.as_bytes())?;
-    let jobs = shard_jobs(&placements, seed, scenarios, shard);
-    SceneRunner::new(cell, method, &store).run(&jobs, label)?;
-    Ok(write_sweep_outputs(dir, grid, &placements, &store, method, seed, scenarios)?)
-}
-
-/// The grid, scenario count and base placement of a sweep folder, if it holds one.
-pub fn load_sweep(dir: &Path) -> anyhow::Result<Option<(Grid, u64, Placement)>> {
-    let path = dir.join("sweep.json");
-    if !path.exists() {
-        return Ok(None);
-    }
-    let text = std::fs::read_to_string(&path).with_context(|| format!("{}: cannot read", path.display()))?;
-    let v = serde_json::from_str(&text)
-        .with_context(|| format!("{}: expected a sweep's grid, scenario count and base placement", path.display()))?;
-    Ok(Some(v))
 }

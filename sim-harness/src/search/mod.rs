@@ -1,4 +1,4 @@
-//! The placement search (DESIGN.md §6): a radial-basis-function surrogate optimizer in the
+//! The placement search (docs/architecture.md §6): a radial-basis-function surrogate optimizer in the
 //! spirit of RBFopt (Costa & Nannicini 2018) and Regis & Shoemaker's stochastic RBF method.
 //! It minimises over a box through an ask/tell interface; it never calls the objective.
 //!
@@ -36,6 +36,8 @@ pub mod test_functions;
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+
+use crate::seeds::search_step_seed;
 
 use rbf::{distance, Surrogate};
 
@@ -208,7 +210,7 @@ impl RbfOptimizer {
             0 => (dim + 1).max(6).min(2 * (dim + 1)),
             n => n,
         };
-        let mut rng = ChaCha8Rng::seed_from_u64(mix(seed, u64::MAX));
+        let mut rng = ChaCha8Rng::seed_from_u64(search_step_seed(seed, u64::MAX));
         let design = design::latin_hypercube_with_centre(n0, dim, settings.design_tries, &mut rng);
         RbfOptimizer {
             lower: bounds.iter().map(|b| b.0).collect(),
@@ -376,7 +378,7 @@ impl RbfOptimizer {
         self.failures = 0;
         self.last_improved = false;
         self.fit = None;
-        let mut rng = ChaCha8Rng::seed_from_u64(mix(self.seed, u64::MAX - self.epoch));
+        let mut rng = ChaCha8Rng::seed_from_u64(search_step_seed(self.seed, u64::MAX - self.epoch));
         self.design =
             design::latin_hypercube_with_centre(self.design.len(), self.dim(), self.settings.design_tries, &mut rng);
         // The box centre comes round again; having been evaluated, `ask` skips it.
@@ -446,7 +448,7 @@ impl RbfOptimizer {
             }
         }
         let k = self.told_values.len() + self.pending_unit.len();
-        let mut rng = ChaCha8Rng::seed_from_u64(mix(self.seed, k as u64));
+        let mut rng = ChaCha8Rng::seed_from_u64(search_step_seed(self.seed, k as u64));
         if self.fit.as_ref().map(|f| (f.from, f.told)) != Some((self.epoch_start, self.told_values.len())) {
             self.fit = self.fit_surrogate(self.epoch_start);
         }
@@ -708,14 +710,6 @@ fn reflect(v: f64) -> f64 {
     } else {
         m
     }
-}
-
-/// A seed for step `k` of the search seeded `seed` (splitmix64 finaliser on both).
-fn mix(seed: u64, k: u64) -> u64 {
-    let mut z = seed ^ k.wrapping_add(0x9E37_79B9_7F4A_7C15).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
 }
 
 fn min_max(it: impl Iterator<Item = f64>) -> (f64, f64) {

@@ -9,10 +9,11 @@ use camplace_estimator::{isometry_from_rows, isometry_to_rows};
 use camplace_estimator::{Estimator, Model, PoseEstimate};
 
 use super::record::{score, FrameRecord};
-use crate::capture::{background_scene, noise_key};
 use crate::model_builder::build_model;
 use crate::render::{Frame, Method, Simulator};
-use crate::scenario::draw_scenario;
+use crate::scene::scenario::background_scene;
+use crate::scene::scenario::draw_scenario;
+use crate::seeds::noise_key;
 use crate::Result;
 
 /// What every worker of one placement's evaluation shares: the settings, the model and the

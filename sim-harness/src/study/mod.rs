@@ -3,19 +3,26 @@
 //! ([`Summary`], with a Wilson interval), and how one placement's scenes are run
 //! ([`Evaluator`]). `estimate`, `replay`, `run` and `evaluate` all write and read these, so a
 //! rendered dataset replayed gives exactly the numbers its evaluation gave. On top: the
-//! results file, the scene runner, shards, the sweep's grid, the search and the comparisons
+//! results file, the job evaluator, shards, the sweep's grid, the search and the comparisons
 //! the report states.
 
 mod evaluate;
 pub mod findings;
+pub mod folder;
 pub mod grid;
+pub mod jobs;
+pub mod merge;
+pub mod one_placement;
 pub mod optimize;
+pub mod placement_search;
+pub mod placement_study;
 mod record;
+pub mod recording;
 pub mod results;
-pub mod run;
 pub mod settings;
 pub mod shard;
 mod summary;
+pub mod sweep;
 
 pub use evaluate::Evaluator;
 pub use record::{score, FrameRecord, Score, Timings};

@@ -9,8 +9,9 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use crate::scene::tray::slot_count;
 use crate::scene::SceneSpec;
-use crate::tray::slot_count;
+use crate::seeds::scenario_key;
 
 /// One drawn scene, as `truth.json` stores it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -78,13 +79,10 @@ pub fn draw_scenario(cell: &Cell, seed: u64, index: u64) -> Scenario {
     }
 }
 
-/// Mixes (seed, index) into one well-spread RNG seed (SplitMix64's finaliser), so nearby
-/// seeds and indices give unrelated streams.
-fn scenario_key(seed: u64, index: u64) -> u64 {
-    let mut z = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ index.wrapping_add(0xD1B5_4A32_D192_ED03);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
+/// The background capture of a study: scenario 0's lighting without tray and items. The
+/// background is captured once per placement, as on a real cell before the first tray.
+pub fn background_scene(cell: &Cell, seed: u64) -> SceneSpec {
+    draw_scenario(cell, seed, 0).scene().background()
 }
 
 mod pose_rows {

@@ -2,19 +2,22 @@
 //! `run --source dir:`: the estimator set up from the dataset's rig and background, each
 //! frame's record scored against its `truth.json`, and `poses.jsonl` written.
 
-use anyhow::{bail, Context};
+use std::path::{Path, PathBuf};
+
 use camplace_config::formats::write_atomic;
 use camplace_config::{Cell, TruthFile};
 use camplace_estimator::isometry_from_rows;
 use camplace_estimator::{Estimator, Method, Model, PoseEstimate, Rig};
 use camplace_hwio::{FrameSource, Frames, RecordedSource};
-use camplace_sim::study::{score, FrameRecord};
-use std::path::{Path, PathBuf};
+
+use super::record::{score, FrameRecord};
+use crate::{Error, Result};
 
 /// Reads a model file.
-pub fn load_model(path: &Path) -> anyhow::Result<Model> {
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read the model", path.display()))?;
-    Model::from_bytes(&bytes).with_context(|| format!("{}: not a usable model file", path.display()))
+pub fn load_model(path: &Path) -> Result<Model> {
+    let bytes =
+        std::fs::read(path).map_err(|e| Error::Other(format!("{}: cannot read the model: {e}", path.display())))?;
+    Model::from_bytes(&bytes).map_err(|e| Error::Other(format!("{}: not a usable model file: {e}", path.display())))
 }
 
 /// The method a source of `shots` images per side was captured with.
@@ -35,10 +38,11 @@ pub fn estimator_for(
     rig_path: &Path,
     method: Method,
     background: Option<&Frames>,
-) -> anyhow::Result<Estimator> {
-    let mut estimator = Estimator::new(cell, rig, model, method).with_context(|| rig_path.display().to_string())?;
+) -> Result<Estimator> {
+    let mut estimator =
+        Estimator::new(cell, rig, model, method).map_err(|e| Error::Other(format!("{}: {e}", rig_path.display())))?;
     if let Some(frames) = background {
-        estimator.set_background(&frames.left, &frames.right).context("background")?;
+        estimator.set_background(&frames.left, &frames.right).map_err(|e| Error::Other(format!("background: {e}")))?;
     }
     Ok(estimator)
 }
@@ -51,7 +55,7 @@ pub fn record(
     pose: &PoseEstimate,
     name: &str,
     truth: Option<&Path>,
-) -> anyhow::Result<FrameRecord> {
+) -> Result<FrameRecord> {
     let mut record = FrameRecord::new(name, pose);
     if let Some(path) = truth {
         let truth = TruthFile::load(path)?;
@@ -70,7 +74,7 @@ pub fn truth_path(dir: &Path, name: &str) -> Option<PathBuf> {
 
 /// Every frame of the dataset `dir` estimated in order; writes `dir/poses.jsonl` and
 /// returns the records and the method.
-pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> anyhow::Result<(Vec<FrameRecord>, Method)> {
+pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> Result<(Vec<FrameRecord>, Method)> {
     let source = RecordedSource::open(dir)?;
     let method = method_for(source.shots());
     let rig = Rig::from_file(source.rig());
@@ -81,14 +85,16 @@ pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> anyhow::Result
     let mut records = Vec::with_capacity(source.frame_dirs().len());
     for i in 0..source.frame_dirs().len() {
         let info = source.read_into(i, &mut frames)?;
-        let pose = estimator.process(&frames.left, &frames.right).with_context(|| format!("frame {}", info.name))?;
+        let pose = estimator
+            .process(&frames.left, &frames.right)
+            .map_err(|e| Error::Other(format!("frame {}: {e}", info.name)))?;
         let record = record(cell, &estimator, &pose, &info.name, source.truth_path(i).as_deref())?;
         lines.push_str(&record.to_line());
         lines.push('\n');
         records.push(record);
     }
     if records.is_empty() {
-        bail!("{}: the dataset has no frames", dir.display());
+        return Err(Error::Other(format!("{}: the dataset has no frames", dir.display())));
     }
     write_atomic(&dir.join("poses.jsonl"), lines.as_bytes())?;
     Ok((records, method))

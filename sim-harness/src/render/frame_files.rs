@@ -1,4 +1,4 @@
-//! Writes rendered frames to disk in the layout of DESIGN.md §3: a single render folder, or
+//! Writes rendered frames to disk in the layout of docs/architecture.md §3: a single render folder, or
 //! a recorded dataset (`rig.json` and `background/` at the top, `frames/NNNN/` below), so
 //! simulated and real data take one path. Reading them back is hwio's job.
 
@@ -11,7 +11,7 @@ use camplace_estimator::isometry_to_rows;
 use camplace_estimator::{FloatImage, GrayImage, Rig};
 
 use crate::render::{Frame, Method};
-use crate::scenario::Scenario;
+use crate::scene::scenario::Scenario;
 use crate::Result;
 
 /// Writes the camera images of a frame (and nothing else) into `dir`.

@@ -461,8 +461,8 @@ impl GBuffer<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::placement_rig::rig_for;
-    use crate::scenario::draw_scenario;
+    use crate::scene::placement_rig::rig_for;
+    use crate::scene::scenario::draw_scenario;
     use crate::scene::Objects;
     use camplace_config::{Cell, Vergence};
     use rand::{RngExt, SeedableRng};
@@ -568,7 +568,7 @@ mod tests {
             64,
             48,
             50.0,
-            crate::placement_rig::look_at(Point3::new(0.0, 0.0, 10.0), Point3::new(100.0, 0.0, 0.0), 0.0),
+            crate::scene::placement_rig::look_at(Point3::new(0.0, 0.0, 10.0), Point3::new(100.0, 0.0, 0.0), 0.0),
         );
         let view = View::new(&cam).unwrap();
         let tri = crate::scene::SceneTriangle {

@@ -5,26 +5,15 @@
 
 use rayon::prelude::*;
 
+use crate::seeds::pixel_hash;
+
 /// Rows per chunk of parallel work.
 const CHUNK_ROWS: usize = 16;
-
-/// SplitMix64's finaliser: a bijective mix with good avalanche.
-#[inline(always)]
-fn mix(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// The key of one image: a frame's noise key, the camera (0 left, 1 right) and the shot.
-pub fn image_key(noise_key: u64, camera: u64, shot: u64) -> u64 {
-    mix(mix(mix(noise_key) ^ camera.wrapping_mul(0x9E37_79B9_7F4A_7C15)) ^ shot.wrapping_add(0x632B_E59B_D9B4_E019))
-}
 
 /// The noise of `pixel` in the image of `key`: uniform over the integers -A ..= A.
 #[inline(always)]
 pub fn pixel_noise(key: u64, pixel: u64, amplitude: u32) -> i32 {
-    let h = mix(key ^ pixel.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    let h = pixel_hash(key, pixel);
     let n = 2 * amplitude as u64 + 1;
     // Multiply-shift maps the top 32 bits onto 0..n with a bias below 2^-32 * n.
     (((h >> 32) * n) >> 32) as i32 - amplitude as i32
@@ -129,6 +118,14 @@ fn column_means_body(sums: &[f32], width: usize, blur: usize, y0: usize, out: &m
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::seeds::image_key;
+
+    #[test]
+    fn noise_values_are_pinned() {
+        assert_eq!(pixel_noise(0x1234, 0, 4), 2);
+        assert_eq!(pixel_noise(0x1234, 1000, 4), -4);
+        assert_eq!(pixel_noise(0x1234, 7, 0), 0);
+    }
 
     #[test]
     fn noise_is_uniform_over_its_integers() {

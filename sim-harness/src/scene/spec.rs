@@ -5,7 +5,7 @@
 use camplace_config::{Cell, Table};
 use nalgebra::{Isometry3, Point3, Vector3};
 
-use crate::tray::{item_for, Solid, TrayModel};
+use crate::scene::tray::{item_for, Solid, TrayModel};
 use crate::Result;
 
 /// Object id of the table and of "nothing" in the id images.

@@ -1,18 +1,12 @@
-//! The flags the study commands share: method, seed, output folder and shard, and opening
-//! a study folder (its settings checked, its results read).
+//! The flags the study commands share: method, seed and shard.
 
-use std::path::Path;
-
-use anyhow::{bail, Context};
+use anyhow::bail;
 use camplace_config::Cell;
-use camplace_sim::study::results::ResultsStore;
-use camplace_sim::study::settings::RunSettings;
-use camplace_sim::study::shard::Shard;
-use camplace_sim::Method;
+use camplace_sim::{Method, Shard};
 
 /// `--method`, `--seed`, `--shard` / `--shards`.
 #[derive(clap::Args, Debug, Clone)]
-pub struct RunArgs {
+pub struct StudyArgs {
     /// one-shot (random dots) or phase-12 (12 phase-shift fringes).
     #[arg(long, default_value = "one-shot")]
     pub method: Method,
@@ -27,7 +21,7 @@ pub struct RunArgs {
     pub shards: Option<usize>,
 }
 
-impl RunArgs {
+impl StudyArgs {
     /// The seed: the flag, else the cell's.
     pub fn seed(&self, cell: &Cell) -> u64 {
         self.seed.unwrap_or(cell.scenarios.seed)
@@ -50,13 +44,6 @@ impl RunArgs {
             "--shards {count}: expected the shard index in SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX, neither is set"
         )
     }
-}
-
-/// Creates `dir`, checks (or writes) its settings and opens its results file.
-pub fn open_folder(dir: &Path, cell: &Cell, method: Method, seed: u64) -> anyhow::Result<ResultsStore> {
-    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create the folder", dir.display()))?;
-    RunSettings::new(cell, method, seed).check_or_write(dir)?;
-    Ok(ResultsStore::open(&dir.join("results.jsonl"))?)
 }
 
 /// `--scenarios` must be at least 1.

@@ -12,12 +12,13 @@ pub use camplace_estimator::Method;
 use camplace_estimator::{Camera, FloatImage, GrayImage, Rig};
 use nalgebra::Point3;
 
-use crate::noise::{image_key, mean_filter_to_u8};
-use crate::pattern::{fringe_set, one_shot, ProjectorImage};
-use crate::placement_rig::{look_at, rig_for};
-use crate::raster::{View, ZBuffer};
+use crate::render::noise::mean_filter_to_u8;
+use crate::render::pattern::{fringe_set, one_shot, ProjectorImage};
+use crate::render::raster::{View, ZBuffer};
+use crate::render::shade::{Lights, ShadingTerms};
+use crate::scene::placement_rig::{look_at, rig_for};
 use crate::scene::{Objects, SceneSpec, SceneTriangle, ID_TABLE};
-use crate::shade::{Lights, ShadingTerms};
+use crate::seeds::image_key;
 use crate::{Error, Result};
 
 /// Side of the lamp's square shadow map, pixels (about 0.5 mm per pixel on a tray seen
@@ -221,7 +222,7 @@ fn lamp_view(scene: &SceneSpec, triangles: &[SceneTriangle]) -> Option<View> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scenario::draw_scenario;
+    use crate::scene::scenario::draw_scenario;
     use crate::scene::{ID_FIRST_ITEM, ID_TRAY};
     use camplace_config::Vergence;
     use nalgebra::Point2;
@@ -329,7 +330,7 @@ mod tests {
             };
             let [hx, hy] = tray.outer.map(|v| v / 2.0);
             let body = corners([-hx, hx], [-hy, hy], [0.0, tray.rim_height]);
-            let [tx, ty, tz] = crate::tray::TAB_SIZE;
+            let [tx, ty, tz] = crate::scene::tray::TAB_SIZE;
             let tab = corners([hx, hx + tx], [-ty / 2.0, ty / 2.0], [0.0, tz]);
             let (mut inside, mut outside) = (0, 0);
             let ids = &frame.ids_left;

@@ -16,9 +16,9 @@ use camplace_estimator::{FloatImage, GrayImage};
 use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 
-use crate::noise::pixel_noise;
-use crate::pattern::ProjectorImage;
-use crate::raster::{MapPixel, View, ZBuffer, NO_TRIANGLE};
+use crate::render::noise::pixel_noise;
+use crate::render::pattern::ProjectorImage;
+use crate::render::raster::{MapPixel, View, ZBuffer, NO_TRIANGLE};
 use crate::scene::{SceneTriangle, ID_TABLE};
 
 /// A point is in shadow only when the occluder is nearer to the light than this, mm.

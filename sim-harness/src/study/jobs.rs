@@ -1,4 +1,4 @@
-//! Running scenes: for each placement of a plan, the model (built, or read from the
+//! Evaluating placement jobs: for each placement of a plan, the model (built, or read from the
 //! folder's model cache), then one [`Worker`](super::Worker) per rayon thread pulling the
 //! placement's unfinished scenario indices; each finished scene goes to the results file at
 //! once. Which thread ran a scene never changes its result.
@@ -45,9 +45,9 @@ pub fn shard_jobs(placements: &[Placement], seed: u64, count: u64, shard: Shard)
     jobs
 }
 
-/// Runs scenes of one cell and method into a results store.
+/// Evaluates the scenes of placement jobs for one cell and method into a results store.
 #[derive(Debug)]
-pub struct SceneRunner<'a> {
+pub struct JobEvaluator<'a> {
     cell: &'a Cell,
     method: Method,
     store: &'a ResultsStore,
@@ -55,10 +55,10 @@ pub struct SceneRunner<'a> {
     show_progress: bool,
 }
 
-impl<'a> SceneRunner<'a> {
-    /// A runner writing to `store`.
-    pub fn new(cell: &'a Cell, method: Method, store: &'a ResultsStore) -> SceneRunner<'a> {
-        SceneRunner { cell, method, store, model_cache: None, show_progress: true }
+impl<'a> JobEvaluator<'a> {
+    /// An evaluator writing to `store`.
+    pub fn new(cell: &'a Cell, method: Method, store: &'a ResultsStore) -> JobEvaluator<'a> {
+        JobEvaluator { cell, method, store, model_cache: None, show_progress: true }
     }
 
     /// Keeps built models in `dir` and reads them from there, so a resumed run of one
@@ -88,7 +88,7 @@ impl<'a> SceneRunner<'a> {
     }
 
     /// Runs every unfinished scene of `jobs`, `label` heading the progress bar.
-    pub fn run(&self, jobs: &[PlacementJob], label: &str) -> Result<()> {
+    pub fn evaluate(&self, jobs: &[PlacementJob], label: &str) -> Result<()> {
         let total = self.pending(jobs);
         if total == 0 {
             return Ok(());
@@ -101,13 +101,13 @@ impl<'a> SceneRunner<'a> {
         );
         bar.set_prefix(label.to_string());
         for job in jobs {
-            self.run_job(job, &bar)?;
+            self.evaluate_job(job, &bar)?;
         }
         bar.finish_and_clear();
         Ok(())
     }
 
-    fn run_job(&self, job: &PlacementJob, bar: &ProgressBar) -> Result<()> {
+    fn evaluate_job(&self, job: &PlacementJob, bar: &ProgressBar) -> Result<()> {
         let todo: Vec<u64> = job
             .scenarios
             .iter()

@@ -1,0 +1,13 @@
+//! The render stage: the simulated sensor turning a scene into the frames a real one would
+//! capture — rasterizing, shading, the projector's patterns and the camera noise — and the
+//! frame files written from them.
+
+pub mod frame_files;
+pub mod noise;
+pub mod pattern;
+pub mod raster;
+pub mod render_files;
+pub mod shade;
+mod simulator;
+
+pub use simulator::{Frame, Method, Simulator, LAMP_MAP_SIZE};

@@ -1,0 +1,9 @@
+//! The scene stage: what stands in front of the sensor (the scene and its triangles), the
+//! trays and items, the scenarios a study draws, and where a placement puts the rig.
+
+pub mod placement_rig;
+pub mod scenario;
+mod spec;
+pub mod tray;
+
+pub use spec::{Objects, SceneSpec, SceneTriangle, ID_FIRST_ITEM, ID_TABLE, ID_TRAY};
