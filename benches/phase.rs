@@ -1,8 +1,9 @@
 //! Benches of the 12-shot phase decoder and the point-cloud stage on a seeded synthetic
 //! frame: a slanted plane lit by fringes, with 8-bit noise.
 
+use camplace_config::{FloatImage, GrayImage};
 use camplace_config::{PhaseParams, ReconstructionParams, WorkVolume};
-use camplace_estimator::{Background, Cloud, CloudBuilder, FloatImage, GrayImage, PhaseDecoder, RectifiedCamera};
+use camplace_estimator::{Background, Cloud, CloudBuilder, PhaseDecoder, RectifiedCamera};
 use criterion::Criterion;
 use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion};
 use std::hint::black_box;

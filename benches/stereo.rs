@@ -2,7 +2,8 @@
 //! pair, and ELAS on the rectified pair (a ~110 px search range), buffers reused.
 
 use camplace_config::Cell;
-use camplace_estimator::{Camera, DisparityMatcher, Elas, FloatImage, GrayImage, Rectification};
+use camplace_config::{FloatImage, GrayImage};
+use camplace_estimator::{Camera, DisparityMatcher, Elas, Rectification};
 use camplace_sim::rig_for;
 use criterion::{criterion_group, Criterion};
 use nalgebra::{Point3, Vector3};

@@ -280,8 +280,8 @@ fn project_captures_a_frame_in_step_under_xvfb() {
     // Each call reads the recording from its start and adds the next frame folder.
     for frame in ["0000", "0001"] {
         for side in ["left.png", "right.png"] {
-            let want = camplace_config::formats::png::read_gray(&data.join("frames/0000").join(side)).unwrap();
-            let got = camplace_config::formats::png::read_gray(&rec.join("frames").join(frame).join(side)).unwrap();
+            let want = camplace_config::read_gray(&data.join("frames/0000").join(side)).unwrap();
+            let got = camplace_config::read_gray(&rec.join("frames").join(frame).join(side)).unwrap();
             assert_eq!((got.width, got.height, got.data), (want.width, want.height, want.data), "{frame}/{side}");
         }
     }

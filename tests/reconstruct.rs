@@ -30,7 +30,7 @@ fn score(text: &str, method: Method, n: u64) -> Score {
     sim.render(&background_scene(&cell, seed), method, noise_key(seed, 0, true), &mut frame);
     rec.set_background(&frame.left, &frame.right).unwrap();
     let mut out = Reconstruction::default();
-    let mut truth = camplace_estimator::FloatImage::default();
+    let mut truth = camplace_config::FloatImage::default();
     let (mut errors, mut pixels) = (Vec::new(), 0usize);
     for i in 0..n {
         let scenario = draw_scenario(&cell, seed, i);

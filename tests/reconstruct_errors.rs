@@ -3,8 +3,6 @@
 
 use std::path::Path;
 
-use camplace_config::formats::png;
-
 use crate::camplace_cmd::{camplace, stderr};
 
 /// A rendered pair with its `rig.json` in `dir` (left.png, right.png, rig.json).
@@ -30,11 +28,11 @@ fn assert_one_line_error(code: i32, err: &str, must_name: &[&str]) {
 fn images_of_different_sizes() {
     let dir = tempfile::tempdir().unwrap();
     rendered_pair(dir.path());
-    let right = png::read_gray(&dir.path().join("right.png")).unwrap();
+    let right = camplace_config::read_gray(&dir.path().join("right.png")).unwrap();
     // The right image cropped by one column.
     let (w, h) = (right.width - 1, right.height);
     let cropped: Vec<u8> = (0..h).flat_map(|y| right.data[y * right.width..y * right.width + w].to_vec()).collect();
-    png::write_gray(&dir.path().join("small.png"), w, h, &cropped).unwrap();
+    camplace_config::write_gray(&dir.path().join("small.png"), w, h, &cropped).unwrap();
     let (code, err) = reconstruct(dir.path(), "left.png", "small.png", "rig.json");
     assert_one_line_error(code, &err, &["small.png", &format!("{} x {h}", right.width), &format!("{w} x {h}")]);
 }

@@ -545,7 +545,7 @@ fn load_mesh_checked(key: &str, path: &Path) -> Result<(), Error> {
     if path.as_os_str().is_empty() {
         return Err(Error::value(key, "expected the path of an STL, OBJ or PLY mesh"));
     }
-    let m = mesh::load(path).map_err(|e| {
+    let m = mesh::load_mesh(path).map_err(|e| {
         let file = e.file().map(|f| f.display().to_string()).unwrap_or_else(|| path.display().to_string());
         Error::value(key, format!("{file}: {}", e.message()))
     })?;

@@ -2,21 +2,28 @@
 //! interchange formats of docs/architecture.md §3. This crate is the leaf: it knows
 //! nothing of the estimator or the simulator, only what the user writes and reads.
 
-pub mod cell;
+mod cell;
 mod error;
-pub mod formats;
-pub mod placement;
-pub mod pose;
+mod formats;
+mod placement;
+mod pose;
 mod raster;
-pub mod rig;
-pub mod truth;
+mod rig;
+mod truth;
 
 pub use cell::{
     Cell, EstimatorParams, Items, ItemsKind, Lighting, Metrics, PhaseParams, ReconstructionParams, Scenarios, Sensor,
-    StereoParams, Table, Tray, TrayKind, WorkVolume,
+    StereoParams, Table, Tray, TrayKind, WorkVolume, DEFAULT_CELL_TOML, MAX_ITERATIONS, MAX_TEXTURE,
 };
 pub use error::{Error, ErrorKind};
-pub use placement::{Placement, Vergence};
+pub use formats::dataset::{frame_name, image_name};
+pub use formats::mesh::{decode_obj, decode_stl, load_mesh, Mesh};
+pub use formats::pfm::{decode_pfm, encode_pfm, read_pfm, write_pfm};
+pub use formats::ply::{decode_ply, encode_cloud, read_cloud, read_ply, write_cloud, PlyCloud, PlyData};
+pub use formats::png::{read_gray, write_gray, write_rgb, Gray};
+pub use formats::write_atomic;
+pub use placement::{Placement, Vergence, MAX_DISTANCE_MM, PARAMETERS};
+pub use pose::{check_rigid, ROTATION_TOLERANCE};
 pub use raster::{FloatImage, GrayImage, Image};
-pub use rig::{CameraFile, RectifiedFile, RigFile};
+pub use rig::{CameraFile, RectifiedFile, RigFile, MAX_IMAGE_SIDE};
 pub use truth::{LightingTruth, TruthFile};

@@ -37,10 +37,10 @@ pub use pose::{
     MODEL_FORMAT_VERSION,
 };
 pub use rig::Rig;
+// The image buffers are camplace-config's (image files hold them too); callers name them
+// there, the stages here as `crate::GrayImage`.
+use camplace_config::{FloatImage, GrayImage};
 pub use spatial::Neighbours;
-
-// The image buffers are camplace-config's: image files hold them too.
-pub use camplace_config::{FloatImage, GrayImage, Image};
 
 #[cfg(any(test, feature = "testing"))]
 pub mod testing;

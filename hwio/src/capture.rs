@@ -150,7 +150,7 @@ impl Drop for Capture {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use camplace_estimator::GrayImage;
+    use camplace_config::GrayImage;
 
     /// Frames whose every pixel is the frame index (mod 256), `total` of them, each
     /// taking `delay_ms` to capture.

@@ -124,7 +124,7 @@ pub fn list_devices() -> Result<DeviceList> {
 }
 
 /// The `videoN` nodes under `dev`, numerically ordered, named from `sys`.
-pub fn scan_v4l2(dev: &Path, sys: &Path) -> Vec<V4l2Device> {
+fn scan_v4l2(dev: &Path, sys: &Path) -> Vec<V4l2Device> {
     let Ok(entries) = std::fs::read_dir(dev) else { return Vec::new() };
     let mut found: Vec<(u32, V4l2Device)> = entries
         .flatten()
@@ -186,7 +186,8 @@ fn list_usb(list: &mut DeviceList) {
 
 /// USB cameras from a sysfs `bus/usb/devices` folder: devices with a video-class
 /// interface or from a stereo-camera vendor.
-pub fn scan_usb_sysfs(dir: &Path) -> Vec<UsbDevice> {
+#[cfg(any(test, not(feature = "usb")))]
+fn scan_usb_sysfs(dir: &Path) -> Vec<UsbDevice> {
     let Ok(entries) = std::fs::read_dir(dir) else { return Vec::new() };
     let names: Vec<String> = entries.flatten().map(|e| e.file_name().to_string_lossy().into_owned()).collect();
     let mut found = Vec::new();
@@ -232,7 +233,8 @@ fn list_firewire(list: &mut DeviceList) {
 
 /// FireWire nodes other than this machine's own controller, from a sysfs
 /// `bus/firewire/devices` folder.
-pub fn scan_firewire_sysfs(dir: &Path) -> Vec<FirewireDevice> {
+#[cfg(any(test, not(feature = "dc1394")))]
+fn scan_firewire_sysfs(dir: &Path) -> Vec<FirewireDevice> {
     let Ok(entries) = std::fs::read_dir(dir) else { return Vec::new() };
     let mut found: Vec<FirewireDevice> = entries
         .flatten()

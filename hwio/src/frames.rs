@@ -1,7 +1,7 @@
 //! The boundary between cameras and the estimator: a stereo frame of one or more shots in
 //! caller-owned buffers, and the `FrameSource` trait every camera and recording implements.
 
-use camplace_estimator::GrayImage;
+use camplace_config::GrayImage;
 
 use crate::Result;
 
@@ -63,4 +63,5 @@ pub trait FrameSource {
     fn shots(&self) -> usize;
 }
 
-pub use camplace_config::formats::dataset::frame_name;
+#[cfg(any(test, feature = "v4l", feature = "dc1394"))]
+pub(crate) use camplace_config::frame_name;

@@ -3,30 +3,30 @@
 //! device listing, the projector window (behind `display`), and the deployed loop that
 //! estimates a tray pose per captured frame.
 
-pub mod capture;
+mod capture;
 #[cfg(feature = "dc1394")]
-pub mod dc1394;
-pub mod deploy;
-pub mod devices;
+mod dc1394;
+mod deploy;
+mod devices;
 #[cfg(feature = "display")]
-pub mod display;
+mod display;
 mod error;
-pub mod frames;
-pub mod paced;
-pub mod pixels;
-pub mod recorded;
-pub mod spec;
+mod frames;
+mod paced;
+mod pixels;
+mod recorded;
+mod spec;
 #[cfg(feature = "v4l")]
-pub mod v4l2;
+mod v4l2;
 
 pub use capture::{Capture, Captured, WhenBehind};
 pub use deploy::{DeploySource, DeployStats, Deployment, Estimated};
-pub use devices::{list_devices, DeviceList};
+pub use devices::{list_devices, DeviceList, FirewireDevice, UsbDevice, V4l2Device};
 #[cfg(feature = "display")]
-pub use display::show_patterns;
+pub use display::{show_patterns, Projector};
 pub use error::{Error, ErrorKind, Result};
 pub use frames::{FrameInfo, FrameSource, Frames};
 pub use paced::Paced;
-pub use pixels::{InterleavedOrder, PixelFormat};
+pub use pixels::{deinterleave16, luma601, split_side_by_side, to_gray, InterleavedOrder, PixelFormat};
 pub use recorded::{read_background, RecordedSource};
-pub use spec::{open_source, parse_source, SourceSpec};
+pub use spec::{open_source, parse_source, SourceSpec, SOURCE_FORMS};

@@ -5,7 +5,7 @@
 //! `stride` is the bytes from one row's start to the next (V4L2's `bytesperline`), at
 //! least the packed row length; 0 means packed.
 
-use camplace_estimator::GrayImage;
+use camplace_config::GrayImage;
 
 use crate::{Error, ErrorKind, Result};
 
@@ -69,16 +69,6 @@ pub fn to_gray(
         PixelFormat::Bgr24 => bgr24_to_gray(src, width, height, stride, out),
         PixelFormat::Mjpeg => mjpeg_to_gray(src, out, scratch),
     }
-}
-
-/// YUYV 4:2:2 to grey: the luma bytes.
-pub fn yuyv_to_gray(src: &[u8], width: usize, height: usize, stride: usize, out: &mut GrayImage) -> Result<()> {
-    packed_to_gray(src, width, height, stride, 2, 0, out)
-}
-
-/// UYVY 4:2:2 to grey: the luma bytes.
-pub fn uyvy_to_gray(src: &[u8], width: usize, height: usize, stride: usize, out: &mut GrayImage) -> Result<()> {
-    packed_to_gray(src, width, height, stride, 2, 1, out)
 }
 
 /// 8-bit grey (GREY / Y8) copied, dropping any row padding.
@@ -271,9 +261,9 @@ mod tests {
             let stride = 2 * w + pad;
             let src = noise(i as u64, stride * h);
             let mut out = GrayImage::default();
-            yuyv_to_gray(&src, w, h, stride, &mut out).unwrap();
+            to_gray(PixelFormat::Yuyv, &src, w, h, stride, &mut out, &mut Vec::new()).unwrap();
             let mut out2 = GrayImage::default();
-            uyvy_to_gray(&src, w, h, stride, &mut out2).unwrap();
+            to_gray(PixelFormat::Uyvy, &src, w, h, stride, &mut out2, &mut Vec::new()).unwrap();
             for y in 0..h {
                 for x in 0..w {
                     assert_eq!(out.get(x, y), src[y * stride + 2 * x]);
@@ -370,7 +360,7 @@ mod tests {
     #[test]
     fn short_buffers_and_strides_are_errors() {
         let mut out = GrayImage::default();
-        let e = yuyv_to_gray(&[0; 10], 4, 2, 0, &mut out).unwrap_err();
+        let e = to_gray(PixelFormat::Yuyv, &[0; 10], 4, 2, 0, &mut out, &mut Vec::new()).unwrap_err();
         assert!(e.to_string().contains("expected at least 16"), "{e}");
         let e = rgb24_to_gray(&[0; 100], 4, 2, 11, &mut out).unwrap_err();
         assert!(e.to_string().contains("stride"), "{e}");

@@ -6,9 +6,9 @@
 use std::path::{Path, PathBuf};
 use std::time::UNIX_EPOCH;
 
-use camplace_config::formats::png::read_gray;
+use camplace_config::read_gray;
+use camplace_config::GrayImage;
 use camplace_config::RigFile;
-use camplace_estimator::GrayImage;
 
 use crate::frames::{FrameInfo, FrameSource, Frames};
 use crate::{Error, ErrorKind, Result};
@@ -175,7 +175,7 @@ impl FrameSource for RecordedSource {
     }
 }
 
-pub use camplace_config::formats::dataset::image_name;
+pub use camplace_config::image_name;
 
 /// One shot when `left.png` is there, else as many as consecutive `left_NN.png` from 00.
 fn detect_shots(dir: &Path) -> Result<usize> {
@@ -207,7 +207,7 @@ fn modified_us(path: &Path) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use camplace_config::formats::png::write_gray;
+    use camplace_config::write_gray;
     use camplace_config::CameraFile;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;

@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use camplace_estimator::GrayImage;
+use camplace_config::GrayImage;
 use v4l::buffer::Type;
 use v4l::io::mmap::Stream;
 use v4l::io::traits::CaptureStream;
@@ -93,15 +93,6 @@ impl V4l2Source {
             ));
         }
         Ok(V4l2Source { layout, nodes, full: GrayImage::default(), jpeg_scratch: Vec::new(), index: 0 })
-    }
-
-    /// The size of each camera's images.
-    pub fn image_size(&self) -> (usize, usize) {
-        let n = &self.nodes[0];
-        match self.layout {
-            Layout::SideBySide => (n.width / 2, n.height),
-            _ => (n.width, n.height),
-        }
     }
 }
 

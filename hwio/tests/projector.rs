@@ -7,7 +7,7 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use camplace_estimator::GrayImage;
+use camplace_config::GrayImage;
 use camplace_hwio::show_patterns;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;

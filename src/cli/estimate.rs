@@ -2,7 +2,6 @@
 //! its truth where there is one), or in one point cloud.
 
 use anyhow::Context;
-use camplace_config::formats::ply;
 use camplace_config::RigFile;
 use camplace_estimator::{Estimator, Method, Model, Rig};
 use camplace_sim::{estimate_dataset, load_model, FrameRecord, Summary};
@@ -43,7 +42,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         Some(p) => Rig::from_file(&RigFile::load(p)?),
         None => camplace_sim::rig_for(&placement, &cell.sensor),
     };
-    let cloud = ply::read_cloud(path)?;
+    let cloud = camplace_config::read_cloud(path)?;
     let points: Vec<Point3<f32>> = cloud.points.iter().map(|p| Point3::from(*p)).collect();
     let mut estimator = Estimator::new(&cell, &rig, model, Method::OneShot)?;
     let pose = estimator.process_cloud(&points).with_context(|| path.display().to_string())?;

@@ -1,7 +1,7 @@
 //! `camplace init [PATH]`: writes the default cell file, a comment on every key.
 
 use anyhow::bail;
-use camplace_config::cell::DEFAULT_CELL_TOML;
+use camplace_config::DEFAULT_CELL_TOML;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -21,7 +21,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if a.path.exists() && !a.force {
         bail!("{}: already exists; pass --force to overwrite it", a.path.display());
     }
-    camplace_config::formats::write_atomic(&a.path, DEFAULT_CELL_TOML.as_bytes())?;
+    camplace_config::write_atomic(&a.path, DEFAULT_CELL_TOML.as_bytes())?;
     println!("wrote {}", a.path.display());
     Ok(ExitCode::SUCCESS)
 }

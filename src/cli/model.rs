@@ -2,7 +2,7 @@
 //! on request, its ICP points as a PLY cloud).
 
 use anyhow::Context;
-use camplace_config::formats::{ply, write_atomic};
+use camplace_config::write_atomic;
 use camplace_sim::{build_model, model_points, Method};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -35,7 +35,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let model = build_model(&cell, &placement, a.method, seed)?;
     write_atomic(&a.out, &model.to_bytes())?;
     if let Some(path) = &a.ply {
-        ply::write_cloud(path, &model_points(&model), None).with_context(|| path.display().to_string())?;
+        camplace_config::write_cloud(path, &model_points(&model), None).with_context(|| path.display().to_string())?;
     }
     let points: usize = model.views.iter().map(|v| v.points.len()).sum();
     println!(

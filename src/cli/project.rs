@@ -62,11 +62,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
 mod shown {
     use super::Args;
     use anyhow::{bail, Context};
-    use camplace_config::formats::dataset::{frame_name, image_name};
-    use camplace_config::formats::png::write_gray;
+    use camplace_config::write_gray;
     use camplace_config::Cell;
-    use camplace_estimator::GrayImage;
-    use camplace_hwio::display::Projector;
+    use camplace_config::GrayImage;
+    use camplace_config::{frame_name, image_name};
+    use camplace_hwio::Projector;
     use camplace_hwio::{open_source, parse_source, FrameSource, Frames};
     use camplace_sim::Method;
     use camplace_sim::{fringe_set, one_shot};

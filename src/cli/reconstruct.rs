@@ -2,10 +2,10 @@
 //! dataset, one raw pair with its `rig.json`, or one already rectified pair.
 
 use anyhow::{bail, Context};
-use camplace_config::formats::{pfm, ply, png};
 use camplace_config::RigFile;
+use camplace_config::{FloatImage, GrayImage};
 use camplace_estimator::DisparityMatcher;
-use camplace_estimator::{Elas, FloatImage, GrayImage, Method, Reconstruction, Reconstructor, RectifiedCamera, Rig};
+use camplace_estimator::{Elas, Method, Reconstruction, Reconstructor, RectifiedCamera, Rig};
 use camplace_hwio::{FrameSource, Frames, RecordedSource};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -175,12 +175,12 @@ fn rectified_pair(
     }
     times.sort_by(f64::total_cmp);
     let ms = times[times.len() / 2];
-    pfm::write(&out.join("disparity.pfm"), disparity.width, disparity.height, &disparity.data)?;
+    camplace_config::write_pfm(&out.join("disparity.pfm"), disparity.width, disparity.height, &disparity.data)?;
     let f = a.focal_px.unwrap_or(1.0);
     let b = a.baseline_mm.unwrap_or(1.0);
     let depth: Vec<f32> =
         disparity.data.iter().map(|&d| if d > 0.0 { (f * b) as f32 / d } else { f32::INFINITY }).collect();
-    pfm::write(&out.join("depth.pfm"), disparity.width, disparity.height, &depth)?;
+    camplace_config::write_pfm(&out.join("depth.pfm"), disparity.width, disparity.height, &depth)?;
     let valid = disparity.data.iter().filter(|d| d.is_finite()).count();
     println!(
         "disparity {:.1} % valid, median {ms:.1} ms over {} runs; wrote {}",
@@ -205,7 +205,7 @@ fn read_all(paths: &[PathBuf]) -> anyhow::Result<Vec<GrayImage>> {
     paths
         .iter()
         .map(|p| {
-            let g = png::read_gray(p)?;
+            let g = camplace_config::read_gray(p)?;
             Ok(GrayImage::from_vec(g.width, g.height, g.data).expect("decoded size"))
         })
         .collect()
@@ -225,13 +225,13 @@ fn method_for(left: usize, right: usize, first: &Path) -> anyhow::Result<Method>
 /// Writes the rectified images, disparity, depth and cloud of one frame into `dir`.
 fn write_outputs(dir: &Path, rec: &Reconstructor, r: &Reconstruction) -> anyhow::Result<()> {
     let (rl, rr) = rec.rectified();
-    png::write_gray(&dir.join("rectified_left.png"), rl[0].width, rl[0].height, &rl[0].data)?;
-    png::write_gray(&dir.join("rectified_right.png"), rr[0].width, rr[0].height, &rr[0].data)?;
-    pfm::write(&dir.join("disparity.pfm"), r.disparity.width, r.disparity.height, &r.disparity.data)?;
+    camplace_config::write_gray(&dir.join("rectified_left.png"), rl[0].width, rl[0].height, &rl[0].data)?;
+    camplace_config::write_gray(&dir.join("rectified_right.png"), rr[0].width, rr[0].height, &rr[0].data)?;
+    camplace_config::write_pfm(&dir.join("disparity.pfm"), r.disparity.width, r.disparity.height, &r.disparity.data)?;
     let d = &r.cloud.depth;
-    pfm::write(&dir.join("depth.pfm"), d.width, d.height, &d.data)?;
+    camplace_config::write_pfm(&dir.join("depth.pfm"), d.width, d.height, &d.data)?;
     let pts: Vec<[f32; 3]> = r.cloud.points.iter().map(|p| [p.x, p.y, p.z]).collect();
-    ply::write_cloud(&dir.join("cloud.ply"), &pts, None)?;
+    camplace_config::write_cloud(&dir.join("cloud.ply"), &pts, None)?;
     Ok(())
 }
 

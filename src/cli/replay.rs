@@ -3,7 +3,7 @@
 //! `truth.json`, `summary.json` with the numbers `evaluate` gives for the same scenes.
 
 use anyhow::Context;
-use camplace_config::formats::write_atomic;
+use camplace_config::write_atomic;
 use camplace_config::Cell;
 use camplace_sim::{estimate_dataset, load_model, Summary};
 use std::path::PathBuf;

@@ -57,10 +57,10 @@ fn sample_cloud() -> Vec<u8> {
 #[test]
 fn ply_survives_truncation_and_flips() {
     let good = sample_cloud();
-    let accepted = torture(&good, 4000, 4000, 1, |b| ply::decode(b).is_ok());
+    let accepted = torture(&good, 4000, 4000, 1, |b| ply::decode_ply(b).is_ok());
     assert_eq!(accepted, 0, "a cut binary PLY is short of its vertices");
     let ascii = b"ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n";
-    torture(ascii, 4000, 4000, 2, |b| ply::decode(b).is_ok());
+    torture(ascii, 4000, 4000, 2, |b| ply::decode_ply(b).is_ok());
 }
 
 #[test]
@@ -74,7 +74,7 @@ fn ply_headers_that_promise_too_much_are_refused() {
     for (i, elements) in huge.iter().enumerate() {
         for format in ["binary_little_endian", "ascii"] {
             let text = format!("ply\nformat {format} 1.0\n{elements}end_header\n0 0 0 1 1 1 2 2 2\n");
-            let e = ply::decode(text.as_bytes()).expect_err(&format!("case {i} {format}"));
+            let e = ply::decode_ply(text.as_bytes()).expect_err(&format!("case {i} {format}"));
             assert!(!e.key().is_empty(), "case {i}: {e}");
         }
     }
@@ -83,21 +83,21 @@ fn ply_headers_that_promise_too_much_are_refused() {
     b.extend(std::iter::repeat_n(0u8, 36));
     b.extend(u32::MAX.to_le_bytes());
     b.extend([0u8; 12]);
-    assert!(ply::decode(&b).is_err());
+    assert!(ply::decode_ply(&b).is_err());
 }
 
 #[test]
 fn pfm_survives_truncation_and_flips() {
     let data: Vec<f32> = (0..24 * 16).map(|i| i as f32 * 0.25).collect();
-    let good = pfm::encode(24, 16, &data);
-    let accepted = torture(&good, 4000, 4000, 3, |b| pfm::decode(b).is_ok());
+    let good = pfm::encode_pfm(24, 16, &data);
+    let accepted = torture(&good, 4000, 4000, 3, |b| pfm::decode_pfm(b).is_ok());
     assert_eq!(accepted, 0, "a cut PFM is short of its floats");
     for head in
         ["Pf\n4294967296 4294967296\n-1\n", "Pf\n18446744073709551615 2\n-1\n", "PF\n0 5\n-1\n", "Pf\n2 2\nnan\n"]
     {
         let mut b = head.as_bytes().to_vec();
         b.extend([0u8; 64]);
-        assert!(pfm::decode(&b).is_err(), "{head:?}");
+        assert!(pfm::decode_pfm(&b).is_err(), "{head:?}");
     }
 }
 

@@ -13,13 +13,13 @@ pub struct Mesh {
 }
 
 /// Loads a mesh by extension (`.stl`, `.obj`, `.ply`).
-pub fn load(path: &Path) -> Result<Mesh, Error> {
+pub fn load_mesh(path: &Path) -> Result<Mesh, Error> {
     let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
     let mesh = match ext.as_str() {
         "stl" => decode_stl(&bytes),
         "obj" => decode_obj(&bytes),
-        "ply" => super::ply::decode(&bytes).map(|d| Mesh { vertices: d.vertices, triangles: d.faces }),
+        "ply" => super::ply::decode_ply(&bytes).map(|d| Mesh { vertices: d.vertices, triangles: d.faces }),
         _ => Err(Error::new(ErrorKind::Format, "", "expected a mesh file ending in .stl, .obj or .ply")),
     }
     .map_err(|e| e.in_file(path))?;
@@ -143,7 +143,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("notes.stl");
         std::fs::write(&p, "this is a shopping list").unwrap();
-        let e = load(&p).unwrap_err();
+        let e = load_mesh(&p).unwrap_err();
         assert!(e.to_string().contains("notes.stl") && e.to_string().contains("not"), "{e}");
     }
 }

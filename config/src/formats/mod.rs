@@ -5,12 +5,12 @@
 
 #[cfg(test)]
 mod corruption_tests;
-pub mod dataset;
+pub(crate) mod dataset;
 pub(crate) mod json;
-pub mod mesh;
-pub mod pfm;
-pub mod ply;
-pub mod png;
+pub(crate) mod mesh;
+pub(crate) mod pfm;
+pub(crate) mod ply;
+pub(crate) mod png;
 
 use std::io::Write;
 use std::path::Path;

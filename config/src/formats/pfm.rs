@@ -6,7 +6,7 @@ use std::path::Path;
 use crate::{Error, ErrorKind, FloatImage};
 
 /// Encodes a one-channel PFM (little-endian).
-pub fn encode(width: usize, height: usize, data: &[f32]) -> Vec<u8> {
+pub fn encode_pfm(width: usize, height: usize, data: &[f32]) -> Vec<u8> {
     assert_eq!(data.len(), width * height, "pfm size");
     let mut out = format!("Pf\n{width} {height}\n-1\n").into_bytes();
     out.reserve(data.len() * 4);
@@ -19,18 +19,18 @@ pub fn encode(width: usize, height: usize, data: &[f32]) -> Vec<u8> {
 }
 
 /// Writes a one-channel PFM.
-pub fn write(path: &Path, width: usize, height: usize, data: &[f32]) -> Result<(), Error> {
-    super::write_atomic(path, &encode(width, height, data))
+pub fn write_pfm(path: &Path, width: usize, height: usize, data: &[f32]) -> Result<(), Error> {
+    super::write_atomic(path, &encode_pfm(width, height, data))
 }
 
 /// Reads a PFM; a three-channel file is reduced to its first channel.
-pub fn read(path: &Path) -> Result<FloatImage, Error> {
+pub fn read_pfm(path: &Path) -> Result<FloatImage, Error> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
-    decode(&bytes).map_err(|e| e.in_file(path))
+    decode_pfm(&bytes).map_err(|e| e.in_file(path))
 }
 
 /// Decodes PFM bytes.
-pub fn decode(bytes: &[u8]) -> Result<FloatImage, Error> {
+pub fn decode_pfm(bytes: &[u8]) -> Result<FloatImage, Error> {
     let bad = |field: &str, m: &str| Error::new(ErrorKind::Format, field, m.to_string());
     let mut pos = 0;
     let token = |pos: &mut usize| -> Option<String> {
@@ -90,16 +90,16 @@ mod tests {
     #[test]
     fn round_trip_keeps_inf_and_row_order() {
         let data = vec![1.0, 2.0, f32::INFINITY, 4.5, -1.0, 0.25];
-        let img = decode(&encode(3, 2, &data)).unwrap();
+        let img = decode_pfm(&encode_pfm(3, 2, &data)).unwrap();
         assert_eq!((img.width, img.height), (3, 2));
         assert_eq!(img.data, data);
     }
 
     #[test]
     fn short_file_is_an_error() {
-        let mut b = encode(3, 2, &[0.0; 6]);
+        let mut b = encode_pfm(3, 2, &[0.0; 6]);
         b.truncate(b.len() - 3);
-        assert_eq!(decode(&b).unwrap_err().key(), "data");
-        assert_eq!(decode(b"P6\n1 1\n").unwrap_err().key(), "header");
+        assert_eq!(decode_pfm(&b).unwrap_err().key(), "data");
+        assert_eq!(decode_pfm(b"P6\n1 1\n").unwrap_err().key(), "header");
     }
 }

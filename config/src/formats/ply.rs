@@ -54,14 +54,14 @@ pub fn write_cloud(path: &Path, points: &[[f32; 3]], normals: Option<&[[f32; 3]]
 
 /// Reads a point cloud (faces, if any, are ignored).
 pub fn read_cloud(path: &Path) -> Result<PlyCloud, Error> {
-    let d = read(path)?;
+    let d = read_ply(path)?;
     Ok(PlyCloud { points: d.vertices, normals: d.normals })
 }
 
 /// Reads a PLY file.
-pub fn read(path: &Path) -> Result<PlyData, Error> {
+pub fn read_ply(path: &Path) -> Result<PlyData, Error> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
-    decode(&bytes).map_err(|e| e.in_file(path))
+    decode_ply(&bytes).map_err(|e| e.in_file(path))
 }
 
 #[derive(Clone, Copy, PartialEq)]
@@ -138,7 +138,7 @@ enum Encoding {
 }
 
 /// Decodes PLY bytes.
-pub fn decode(bytes: &[u8]) -> Result<PlyData, Error> {
+pub fn decode_ply(bytes: &[u8]) -> Result<PlyData, Error> {
     let bad = |field: &str, m: String| Error::new(ErrorKind::Format, field, m);
     if !bytes.starts_with(b"ply") {
         return Err(bad("header", "not a PLY file: expected it to start with \"ply\"".into()));
@@ -318,7 +318,7 @@ mod tests {
     fn binary_round_trip_with_normals() {
         let p = vec![[1.0, 2.0, 3.0], [-4.0, 5.5, 0.0]];
         let n = vec![[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]];
-        let d = decode(&encode_cloud(&p, Some(&n))).unwrap();
+        let d = decode_ply(&encode_cloud(&p, Some(&n))).unwrap();
         assert_eq!(d.vertices, p);
         assert_eq!(d.normals.unwrap(), n);
     }
@@ -326,13 +326,13 @@ mod tests {
     #[test]
     fn ascii_mesh_with_quads() {
         let text = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n";
-        let d = decode(text.as_bytes()).unwrap();
+        let d = decode_ply(text.as_bytes()).unwrap();
         assert_eq!(d.vertices.len(), 4);
         assert_eq!(d.faces, vec![[0, 1, 2], [0, 2, 3]]);
     }
 
     #[test]
     fn not_a_ply() {
-        assert_eq!(decode(b"solid x").unwrap_err().key(), "header");
+        assert_eq!(decode_ply(b"solid x").unwrap_err().key(), "header");
     }
 }

@@ -4,11 +4,11 @@
 
 use std::path::{Path, PathBuf};
 
-use camplace_config::formats::dataset::{frame_name, image_name};
-use camplace_config::formats::{pfm, png};
+use camplace_config::{frame_name, image_name};
+use camplace_config::{FloatImage, GrayImage};
 use camplace_config::{LightingTruth, Placement, TruthFile};
 use camplace_estimator::isometry_to_rows;
-use camplace_estimator::{FloatImage, GrayImage, Rig};
+use camplace_estimator::Rig;
 
 use crate::render::{Frame, Method};
 use crate::scene::scenario::Scenario;
@@ -93,11 +93,11 @@ impl DatasetLayout {
 }
 
 fn write_gray(path: &Path, img: &GrayImage) -> Result<()> {
-    Ok(png::write_gray(path, img.width, img.height, &img.data)?)
+    Ok(camplace_config::write_gray(path, img.width, img.height, &img.data)?)
 }
 
 fn write_float(path: &Path, img: &FloatImage) -> Result<()> {
-    Ok(pfm::write(path, img.width, img.height, &img.data)?)
+    Ok(camplace_config::write_pfm(path, img.width, img.height, &img.data)?)
 }
 
 /// The left image beside a colour map of its depth (near red, far blue, nothing black).
@@ -120,7 +120,7 @@ pub fn write_preview(path: &Path, image: &GrayImage, depth: &FloatImage) -> Resu
             rgb[o..o + 3].copy_from_slice(&c);
         }
     }
-    Ok(png::write_rgb(path, 2 * w, h, &rgb)?)
+    Ok(camplace_config::write_rgb(path, 2 * w, h, &rgb)?)
 }
 
 /// Google's Turbo colour map (polynomial approximation), t in [0, 1].

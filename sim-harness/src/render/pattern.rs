@@ -2,8 +2,8 @@
 //! 12-shot phase-shift fringes, as the 8-bit images a real projector would show, and
 //! their sampling at sub-pixel projector coordinates.
 
+use camplace_config::GrayImage;
 use camplace_config::Sensor;
-use camplace_estimator::GrayImage;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;

@@ -4,9 +4,9 @@
 
 use std::path::Path;
 
-use camplace_config::formats::pfm;
+use camplace_config::FloatImage;
 use camplace_config::{Cell, Placement};
-use camplace_estimator::{FloatImage, Rectification, Rig};
+use camplace_estimator::{Rectification, Rig};
 use rayon::prelude::*;
 
 use super::frame_files::{write_frame, write_images, write_rig, DatasetLayout};
@@ -77,6 +77,6 @@ fn create_folder(out: &Path) -> Result<()> {
 fn write_disparity_truth(dir: &Path, rectification: &Rectification, rig: &Rig, frame: &Frame) -> Result<()> {
     let mut truth = FloatImage::default();
     rectification.disparity_truth(&rig.left, &frame.depth_left, &mut truth);
-    pfm::write(&dir.join("disparity_truth.pfm"), truth.width, truth.height, &truth.data)?;
+    camplace_config::write_pfm(&dir.join("disparity_truth.pfm"), truth.width, truth.height, &truth.data)?;
     Ok(())
 }

@@ -12,7 +12,7 @@
 //! sampled once, bilinearly, at the pixel centre's projector coordinates, which keeps the
 //! dots from aliasing at a quarter of the cost of four sub-samples.
 
-use camplace_estimator::{FloatImage, GrayImage};
+use camplace_config::{FloatImage, GrayImage};
 use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 

@@ -8,8 +8,9 @@
 //! in `Simulator::new` or on the first frame, and reused after.
 
 use camplace_config::{Cell, Placement};
+use camplace_config::{FloatImage, GrayImage};
 pub use camplace_estimator::Method;
-use camplace_estimator::{Camera, FloatImage, GrayImage, Rig};
+use camplace_estimator::{Camera, Rig};
 use nalgebra::Point3;
 
 use crate::render::noise::mean_filter_to_u8;

@@ -2,7 +2,7 @@
 //! ("tray-4", "tray-8") with their slots, the built-in box item, and trays and items read
 //! from mesh files. Where the objects stand in the world is the scene's business.
 
-use camplace_config::formats::mesh::{self, Mesh};
+use camplace_config::Mesh;
 use camplace_config::{Cell, ItemsKind, TrayKind};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
@@ -93,7 +93,7 @@ impl TrayModel {
             TrayKind::Tray4 => Ok(TrayModel::builtin(2, 2, [130.0, 130.0])),
             TrayKind::Tray8 => Ok(TrayModel::builtin(4, 2, [200.0, 120.0])),
             TrayKind::Mesh => {
-                let solid = Solid::from_mesh(&mesh::load(&cell.tray.mesh)?)?;
+                let solid = Solid::from_mesh(&camplace_config::load_mesh(&cell.tray.mesh)?)?;
                 let (lo, hi) = solid.bounds();
                 Ok(TrayModel {
                     slots: cell.tray.slots.clone(),
@@ -183,7 +183,7 @@ pub fn item_for(cell: &Cell) -> Result<Solid> {
             s.push_box([-x / 2.0, -y / 2.0, 0.0], [x / 2.0, y / 2.0, z]);
             Ok(s)
         }
-        ItemsKind::Mesh => Solid::from_mesh(&mesh::load(&cell.items.mesh)?),
+        ItemsKind::Mesh => Solid::from_mesh(&camplace_config::load_mesh(&cell.items.mesh)?),
     }
 }
 

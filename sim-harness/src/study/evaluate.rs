@@ -3,7 +3,7 @@
 //! rendered, estimated and scored. Each scene's result depends only on (cell, placement,
 //! method, seed, scenario index), never on which worker ran it or in what order.
 
-use camplace_config::formats::dataset::frame_name;
+use camplace_config::frame_name;
 use camplace_config::{Cell, Placement};
 use camplace_estimator::{isometry_from_rows, isometry_to_rows};
 use camplace_estimator::{Estimator, Model, PoseEstimate};

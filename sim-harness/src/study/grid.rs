@@ -3,8 +3,8 @@
 
 use std::str::FromStr;
 
-use camplace_config::placement::PARAMETERS;
 use camplace_config::Placement;
+use camplace_config::PARAMETERS;
 use serde::{Deserialize, Serialize};
 
 /// One axis of a sweep: a parameter from `lo` to `hi` in `steps` values.

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 
-use camplace_config::formats::write_atomic;
+use camplace_config::write_atomic;
 use camplace_config::{Cell, Placement};
 use camplace_estimator::Model;
 use indicatif::{ProgressBar, ProgressStyle};

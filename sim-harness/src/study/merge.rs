@@ -75,12 +75,12 @@ fn merge_leaf(dirs: &[&PathBuf], out: &Path) -> Result<usize> {
     let joined: Vec<ResultLine> = lines.into_values().collect();
     write_lines(&out.join("results.jsonl"), &joined)?;
     let text = serde_json::to_string_pretty(&settings).expect("plain data");
-    camplace_config::formats::write_atomic(&out.join("settings.json"), text.as_bytes())?;
+    camplace_config::write_atomic(&out.join("settings.json"), text.as_bytes())?;
     let method = settings.method()?;
     let store = ResultsStore::open(&out.join("results.jsonl"))?;
     if let Some((grid, n, base)) = sweep {
         let text = serde_json::to_string_pretty(&(&grid, n, base)).expect("plain data");
-        camplace_config::formats::write_atomic(&out.join("sweep.json"), text.as_bytes())?;
+        camplace_config::write_atomic(&out.join("sweep.json"), text.as_bytes())?;
         let placements = grid.placements(&base)?;
         write_sweep_outputs(out, &grid, &placements, &store, method, settings.seed, n)?;
     } else {

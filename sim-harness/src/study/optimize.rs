@@ -8,8 +8,8 @@
 
 use std::str::FromStr;
 
-use camplace_config::placement::PARAMETERS;
 use camplace_config::Placement;
+use camplace_config::PARAMETERS;
 use serde::{Deserialize, Serialize};
 
 use super::summary::Summary;

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use camplace_config::formats::write_atomic;
+use camplace_config::write_atomic;
 use camplace_config::{Cell, TruthFile};
 use camplace_estimator::isometry_from_rows;
 use camplace_estimator::{Estimator, Method, Model, PoseEstimate, Rig};

@@ -172,7 +172,7 @@ pub fn write_lines(path: &Path, lines: &[ResultLine]) -> Result<()> {
         text.push_str(&serde_json::to_string(l).expect("a result line is plain data"));
         text.push('\n');
     }
-    Ok(camplace_config::formats::write_atomic(path, text.as_bytes())?)
+    Ok(camplace_config::write_atomic(path, text.as_bytes())?)
 }
 
 #[cfg(test)]

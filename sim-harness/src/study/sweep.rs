@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use camplace_config::formats::write_atomic;
+use camplace_config::write_atomic;
 use camplace_config::{Cell, Placement};
 
 use super::folder::open_folder;
