@@ -10,15 +10,24 @@ fn main() -> ExitCode {
     match cli::dispatch() {
         Ok(code) => code,
         Err(e) => {
-            // One line: the chain joined, the innermost cause last; a cause its error's
-            // message already ends with is not said twice.
+            // One line: the context chain joined, down to the first error of a camplace
+            // crate, whose message is already complete (its own sources are for programs,
+            // and a parser's may span lines); a cause its error's message already ends with
+            // is not said twice.
             let mut msg: Vec<String> = Vec::new();
-            for cause in e.chain().map(|c| c.to_string()) {
-                let words = |t: &str| t.split_whitespace().collect::<Vec<_>>().join(" ");
-                if msg.last().is_some_and(|last| words(last).ends_with(&words(&cause))) {
-                    continue;
+            let words = |t: &str| t.split_whitespace().collect::<Vec<_>>().join(" ");
+            for cause in e.chain() {
+                let text = words(&cause.to_string());
+                if !msg.last().is_some_and(|last| last.ends_with(&text)) {
+                    msg.push(text);
                 }
-                msg.push(cause);
+                let complete = cause.is::<camplace_config::Error>()
+                    || cause.is::<camplace_estimator::Error>()
+                    || cause.is::<camplace_hwio::Error>()
+                    || cause.is::<camplace_sim::Error>();
+                if complete {
+                    break;
+                }
             }
             eprintln!("error: {}", msg.join(": "));
             ExitCode::from(2)

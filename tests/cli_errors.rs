@@ -77,3 +77,63 @@ fn init_writes_a_file_that_reads_back_as_the_default() {
     let again = camplace(dir.path(), &["init", "my.toml"]);
     assert_eq!(again.status.code(), Some(2), "refuses to overwrite");
 }
+
+/// Flags and cell values that once crashed, hung or were silently accepted: each ends at
+/// once with one line naming the flag, file or key and what was expected.
+#[test]
+fn hostile_flags_and_values_are_one_line_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let huge_ply = "ply\nformat binary_little_endian 1.0\nelement vertex 18446744073709551615\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+    std::fs::write(d.join("huge.ply"), huge_ply).unwrap();
+    let cells = [
+        ("texture.toml", "[stereo]\nmin_texture = 4294967295\n", "stereo.min_texture"),
+        ("normals.toml", "[estimator]\nnormal_radius = 1e9\n", "estimator.normal_radius"),
+        ("sres.toml", "[estimator]\nsurface_resolution = 1e-9\n", "estimator.surface_resolution"),
+        ("ransac.toml", "[estimator]\nransac_iterations = 4000000000\n", "estimator.ransac_iterations"),
+        ("mesh.toml", "[tray]\nkind = \"mesh\"\nmesh = \"huge.ply\"\n", "tray.mesh"),
+        ("syntax.toml", "[scenarios]\ncount = 3\n\n[stereo]\nmin_texture = = 3\n", "line 5"),
+    ];
+    for (name, text, key) in cells {
+        std::fs::write(d.join(name), text).unwrap();
+        let o = camplace(d, &["render", "--cell", name, "--out", "out"]);
+        assert_one_line_error(o.status.code().unwrap_or(-1), &stderr(&o), &[name, key]);
+    }
+    let flags: [(&[&str], &[&str]); 5] = [
+        (&["evaluate"], &["--out"]),
+        (&["evaluate", "--placement", "vergence=auto,r=1e-6", "--out", "o"], &["placement.vergence", "auto"]),
+        (&["evaluate", "--scenarios", "1000000000", "--out", "o"], &["--scenarios"]),
+        (&["sweep", "--x", "r=400:900:100000000", "--out", "o"], &["--x", "steps"]),
+        (&["evaluate", "--placement", "r=1e12", "--out", "o"], &["placement.r"]),
+    ];
+    for (args, names) in flags {
+        let o = camplace(d, args);
+        assert_one_line_error(o.status.code().unwrap_or(-1), &stderr(&o), names);
+    }
+    assert!(!d.join("o").exists(), "a refused run writes no study folder");
+}
+
+#[test]
+fn a_reflected_camera_pose_is_refused_not_hung() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::create_dir_all(d.join("ds/frames/0000")).unwrap();
+    let t = |x: f64| format!("[[{x}, 0, 0, -40], [0, -1, 0, 0], [0, 0, -1, 600], [0, 0, 0, 1]]");
+    let cam = |x: f64| {
+        format!(
+            "{{\"width\": 640, \"height\": 480, \"K\": [[812, 0, 319.5], [0, 812, 239.5], [0, 0, 1]], \"dist\": [0, 0, 0, 0, 0], \"T_world_camera\": {}}}",
+            t(x)
+        )
+    };
+    std::fs::write(
+        d.join("ds/rig.json"),
+        format!("{{\"left\": {}, \"right\": {}, \"projector\": null}}", cam(-1.0), cam(1.0)),
+    )
+    .unwrap();
+    let o = camplace(d, &["reconstruct", "--dataset", "ds"]);
+    assert_one_line_error(
+        o.status.code().unwrap_or(-1),
+        &stderr(&o),
+        &["rig.json", "left.T_world_camera", "determinant"],
+    );
+}

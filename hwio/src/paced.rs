@@ -18,15 +18,20 @@ pub struct Paced<S> {
 impl<S: FrameSource> Paced<S> {
     /// Paces `inner` to `fps` frames per second (a positive, finite rate).
     pub fn new(inner: S, fps: f64) -> Result<Self> {
-        if !(fps.is_finite() && fps > 0.0) {
+        if !(fps.is_finite() && (MIN_FPS..=MAX_FPS).contains(&fps)) {
             return Err(Error::new(
                 ErrorKind::Spec,
-                format!("frame rate {fps}: expected a positive number of frames per second"),
+                format!("frame rate {fps:?}: expected {MIN_FPS} to {MAX_FPS} frames per second"),
             ));
         }
         Ok(Paced { inner, period: Duration::from_secs_f64(1.0 / fps), start: None, released: 0 })
     }
 }
+
+/// The slowest pace, frames per second: one frame in about 17 minutes.
+pub const MIN_FPS: f64 = 0.001;
+/// The fastest pace, frames per second.
+pub const MAX_FPS: f64 = 1000.0;
 
 impl<S: FrameSource> FrameSource for Paced<S> {
     fn next(&mut self, frames: &mut Frames) -> Result<Option<FrameInfo>> {

@@ -71,11 +71,7 @@ pub fn dispatch() -> anyhow::Result<ExitCode> {
         // --help and --version print as clap shows them.
         Err(e) if !e.use_stderr() => e.exit(),
         // A bad flag: one line, exit code 2 like every other bad input.
-        Err(e) => {
-            let text = e.to_string();
-            let first = text.lines().next().unwrap_or("bad arguments").trim_start_matches("error: ");
-            anyhow::bail!("{first}");
-        }
+        Err(e) => anyhow::bail!("{}", one_line(&e.to_string())),
     };
     match cli.command {
         Command::Init(a) => init::run(a),
@@ -93,5 +89,38 @@ pub fn dispatch() -> anyhow::Result<ExitCode> {
         Command::Run(a) => run::run(a),
         Command::Devices(a) => devices::run(a),
         Command::Project(a) => project::run(a),
+    }
+}
+
+/// clap's message on one line: what is wrong and the flags it names (clap lists missing
+/// flags on the lines below its first), without the usage and help pointers.
+fn one_line(text: &str) -> String {
+    let said: Vec<&str> = text
+        .lines()
+        .map(str::trim)
+        .take_while(|l| !l.starts_with("Usage:") && !l.starts_with("For more information"))
+        .filter(|l| !l.is_empty())
+        .collect();
+    let joined = said.join(" ");
+    let joined = joined.trim_start_matches("error: ");
+    if joined.is_empty() {
+        "bad arguments".to_string()
+    } else {
+        joined.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clap_errors_become_one_line_naming_the_flag() {
+        let e = Cli::try_parse_from(["camplace", "evaluate"]).unwrap_err();
+        let line = one_line(&e.to_string());
+        assert!(!line.contains('\n') && line.contains("--out"), "{line}");
+        let e = Cli::try_parse_from(["camplace", "render", "--bogus"]).unwrap_err();
+        let line = one_line(&e.to_string());
+        assert!(line.contains("--bogus") && !line.contains("Usage"), "{line}");
     }
 }

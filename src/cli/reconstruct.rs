@@ -159,9 +159,16 @@ fn rectified_pair(
         );
     }
     let range = match &a.disparity_range {
-        Some(text) => parse_range(text)?,
+        Some(text) => parse_range(text, l.width)?,
         None => (0.0, (l.width / 3) as f32),
     };
+    for (flag, v) in [("--focal-px", a.focal_px), ("--baseline-mm", a.baseline_mm)] {
+        if let Some(v) = v {
+            if !(v.is_finite() && v > 0.0) {
+                bail!("{flag}: expected a positive finite number, got {v}");
+            }
+        }
+    }
     let span = (range.1 - range.0).ceil() as usize + 1;
     let mut elas = Elas::new(&cell.stereo, l.width, l.height, span);
     let mut disparity = FloatImage::default();
@@ -191,11 +198,18 @@ fn rectified_pair(
     Ok(ExitCode::SUCCESS)
 }
 
-fn parse_range(text: &str) -> anyhow::Result<(f32, f32)> {
-    let bad = || anyhow::anyhow!("--disparity-range: expected MIN:MAX in pixels with MIN < MAX, got \"{text}\"");
+/// `MIN:MAX` in pixels: a search no wider than the image (a disparity of the image's width
+/// or more cannot be seen) and within what the matcher stores (i16 pixels).
+fn parse_range(text: &str, width: usize) -> anyhow::Result<(f32, f32)> {
+    let most = (width as f32).min(i16::MAX as f32);
+    let bad = || {
+        anyhow::anyhow!(
+            "--disparity-range: expected MIN:MAX in pixels with 0 <= MIN < MAX <= {most} (the image width), got \"{text}\""
+        )
+    };
     let (lo, hi) = text.split_once(':').ok_or_else(bad)?;
     let (lo, hi): (f32, f32) = (lo.trim().parse().map_err(|_| bad())?, hi.trim().parse().map_err(|_| bad())?);
-    if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+    if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi && hi <= most) {
         return Err(bad());
     }
     Ok((lo, hi))

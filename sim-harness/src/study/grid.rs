@@ -30,6 +30,9 @@ impl Axis {
     }
 }
 
+/// The most values one sweep axis may take (a 100 x 100 grid is already 10 000 placements).
+pub const MAX_AXIS_STEPS: usize = 100;
+
 impl FromStr for Axis {
     type Err = String;
 
@@ -53,6 +56,9 @@ impl FromStr for Axis {
         let steps: usize = steps.trim().parse().map_err(|_| bad())?;
         if !(lo.is_finite() && hi.is_finite()) || steps == 0 || (steps > 1 && lo == hi) {
             return Err(bad());
+        }
+        if steps > MAX_AXIS_STEPS {
+            return Err(format!("{steps} steps along {name}: expected 1 to {MAX_AXIS_STEPS}"));
         }
         Ok(Axis { name: name.to_string(), lo, hi, steps })
     }
