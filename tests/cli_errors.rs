@@ -1,6 +1,6 @@
 //! Bad input ends with one line naming the file, the key and what was expected, exit 2.
 
-use crate::camplace_cmd::{camplace, stderr};
+use crate::camplace_cmd::{assert_one_line_error, camplace, stderr};
 
 fn render_with_cell(cell_text: &str, extra: &[(&str, &[u8])]) -> (i32, String) {
     let dir = tempfile::tempdir().unwrap();
@@ -10,14 +10,6 @@ fn render_with_cell(cell_text: &str, extra: &[(&str, &[u8])]) -> (i32, String) {
     }
     let o = camplace(dir.path(), &["render", "--cell", "cell.toml", "--out", "out"]);
     (o.status.code().unwrap_or(-1), stderr(&o))
-}
-
-fn assert_one_line_error(code: i32, err: &str, must_name: &[&str]) {
-    assert_eq!(code, 2, "exit code, stderr: {err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
-    for s in must_name {
-        assert!(err.contains(s), "{s:?} missing from: {err}");
-    }
 }
 
 #[test]

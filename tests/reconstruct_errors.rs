@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use crate::camplace_cmd::{camplace, stderr};
+use crate::camplace_cmd::{assert_one_line_error, camplace, stderr};
 
 /// A rendered pair with its `rig.json` in `dir` (left.png, right.png, rig.json).
 fn rendered_pair(dir: &Path) {
@@ -14,14 +14,6 @@ fn rendered_pair(dir: &Path) {
 fn reconstruct(dir: &Path, left: &str, right: &str, rig: &str) -> (i32, String) {
     let o = camplace(dir, &["reconstruct", "--left", left, "--right", right, "--rig", rig, "--out", "out"]);
     (o.status.code().unwrap_or(-1), stderr(&o))
-}
-
-fn assert_one_line_error(code: i32, err: &str, must_name: &[&str]) {
-    assert_eq!(code, 2, "exit code, stderr: {err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
-    for s in must_name {
-        assert!(err.contains(s), "{s:?} missing from: {err}");
-    }
 }
 
 #[test]
