@@ -21,7 +21,7 @@ impl<S: FrameSource> Paced<S> {
         if !(fps.is_finite() && (MIN_FPS..=MAX_FPS).contains(&fps)) {
             return Err(Error::new(
                 ErrorKind::Spec,
-                format!("frame rate {fps:?}: expected {MIN_FPS} to {MAX_FPS} frames per second"),
+                format!("frame rate {fps:?}: expected a positive rate from {MIN_FPS} to {MAX_FPS} frames per second"),
             ));
         }
         Ok(Paced { inner, period: Duration::from_secs_f64(1.0 / fps), start: None, released: 0 })
