@@ -19,25 +19,16 @@ mod study;
 
 pub use error::{Error, Result};
 pub use model_builder::{build_model, model_points};
-pub use render::frame_files::{truth_of, write_frame, write_images, write_preview, write_rig, DatasetLayout};
 pub use render::pattern::{fringe_set, one_shot};
-pub use render::raster::{GBuffer, MapPixel, View, ZBuffer};
 pub use render::render_files::{render_dataset, render_scene};
-pub use render::shade::{Lights, ShadingTerms};
-pub use render::{Frame, Method, Simulator, LAMP_MAP_SIZE};
+pub use render::{Frame, Method, Simulator};
 pub use report::sweep_panels::SweepResult;
-pub use report::table::{write_summary_csv, write_summary_json, SummaryRow};
-pub use report::{save_plot, Plot, SavedPlot};
 pub use scene::placement_rig::rig_for;
 pub use scene::scenario::{background_scene, draw_scenario, Scenario};
-pub use scene::{Objects, SceneSpec, SceneTriangle, ID_FIRST_ITEM, ID_TABLE, ID_TRAY};
-pub use search::rbf::Surrogate;
-pub use search::test_functions::{run_test_function, test_function, TEST_FUNCTIONS};
-pub use search::{RbfOptimizer, RbfSettings, SearchStep};
+pub use scene::SceneSpec;
+pub use search::test_functions::{run_test_function, test_function};
 pub use seeds::noise_key;
-pub use study::folder::open_folder;
 pub use study::grid::{Axis, Grid};
-pub use study::jobs::{shard_jobs, JobEvaluator, PlacementJob};
 pub use study::merge::merge;
 pub use study::one_placement::{acceptance_summary, evaluate_placement};
 pub use study::optimize::{SearchParameter, SearchPlan};
@@ -46,7 +37,6 @@ pub use study::placement_study::{run_study, Preset};
 pub use study::recording::{
     estimate_dataset, estimator_for, load_model, method_for, record as frame_record, truth_path,
 };
-pub use study::results::ResultsStore;
 pub use study::shard::Shard;
 pub use study::sweep::sweep;
-pub use study::{median, score, wilson_interval, Evaluator, FrameRecord, Score, Summary, Timings};
+pub use study::{median, score, Evaluator, FrameRecord, Score, Summary};

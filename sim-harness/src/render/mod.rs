@@ -10,4 +10,4 @@ pub mod render_files;
 pub mod shade;
 mod simulator;
 
-pub use simulator::{Frame, Method, Simulator, LAMP_MAP_SIZE};
+pub use simulator::{Frame, Method, Simulator};

@@ -81,23 +81,6 @@ impl View {
         let m = self.t_world_view.rotation.to_rotation_matrix().matrix() * self.k_inv;
         [m.column(0).into_owned(), m.column(1).into_owned(), m.column(2).into_owned()]
     }
-
-    /// The inverse-depth plane `[a, b, c]` of a world triangle: 1/z = a x + b y + c over
-    /// this view's pixels; `None` when the triangle's plane passes through the centre.
-    pub fn inverse_depth_plane(&self, world: &[Point3<f64>; 3]) -> Option<[f64; 3]> {
-        let p = world.map(|v| self.t_view_world * v);
-        inverse_depth_plane(&self.k_inv, &p)
-    }
-
-    /// The homography taking this view's pixel (x, y, 1) on a surface of inverse-depth
-    /// plane `plane` to `other`'s homogeneous pixel, scaled so that its third component
-    /// is z_other / z_this.
-    pub fn homography_to(&self, other: &View, plane: [f64; 3]) -> Matrix3<f64> {
-        let t = other.t_view_world * self.t_world_view;
-        let r = t.rotation.to_rotation_matrix().into_inner();
-        let m = r * self.k_inv + t.translation.vector * nalgebra::RowVector3::new(plane[0], plane[1], plane[2]);
-        other.k * m
-    }
 }
 
 fn inverse_depth_plane(k_inv: &Matrix3<f64>, p: &[Point3<f64>; 3]) -> Option<[f64; 3]> {
@@ -243,6 +226,7 @@ impl ZBuffer {
     }
 
     /// Depth along the view's z axis at pixel (x, y), mm; +inf where nothing is seen.
+    #[cfg(test)]
     pub fn depth(&self, x: usize, y: usize) -> f64 {
         let t = self.triangle[y * self.width + x];
         if t == NO_TRIANGLE {
@@ -268,6 +252,7 @@ impl ZBuffer {
     }
 
     /// The pixel index nearest to (u, v), `None` outside the image.
+    #[cfg(test)]
     #[inline]
     pub fn nearest(&self, u: f64, v: f64) -> Option<usize> {
         // For the non-negative values let through, truncation is the floor (and cheaper,
@@ -410,17 +395,18 @@ fn fill_band_body(screen: &[ScreenTriangle], w: usize, y_begin: usize, y_end: us
     }
 }
 
-/// What one camera pixel sees, read from its z-buffer: the G-buffer of that camera.
+/// What one camera pixel sees, read from its z-buffer: the G-buffer of that camera (the
+/// tests' view of a rendered frame).
+#[cfg(test)]
 #[derive(Debug, Clone, Copy)]
 pub struct GBuffer<'a> {
-    /// The camera's view.
-    pub view: &'a View,
     /// Its z-buffer, drawn from `triangles`.
     pub zbuffer: &'a ZBuffer,
     /// The scene's triangles.
     pub triangles: &'a [SceneTriangle],
 }
 
+#[cfg(test)]
 impl GBuffer<'_> {
     /// The scene triangle seen at pixel (x, y).
     pub fn triangle(&self, x: usize, y: usize) -> Option<&SceneTriangle> {
@@ -431,25 +417,6 @@ impl GBuffer<'_> {
     /// Depth along the camera's z axis, mm; +inf where nothing is seen.
     pub fn depth(&self, x: usize, y: usize) -> f64 {
         self.zbuffer.depth(x, y)
-    }
-
-    /// World position of the surface seen at (x, y).
-    pub fn position(&self, x: usize, y: usize) -> Option<Point3<f64>> {
-        let z = self.depth(x, y);
-        let [rx, ry, r0] = self.view.world_ray_coefficients();
-        z.is_finite().then(|| self.view.centre() + (rx * x as f64 + ry * y as f64 + r0) * z)
-    }
-
-    /// Unit world normal of the surface seen at (x, y), turned towards the camera.
-    pub fn normal(&self, x: usize, y: usize) -> Option<Vector3<f64>> {
-        let tri = self.triangle(x, y)?;
-        let towards = self.view.centre() - tri.vertices[0];
-        Some(if tri.normal.dot(&towards) < 0.0 { -tri.normal } else { tri.normal })
-    }
-
-    /// Albedo of the surface seen at (x, y).
-    pub fn albedo(&self, x: usize, y: usize) -> Option<f64> {
-        self.triangle(x, y).map(|t| t.albedo)
     }
 
     /// Object id seen at (x, y); the table's id where nothing is seen.
@@ -514,7 +481,7 @@ mod tests {
                         }
                     }
                     checked += 1;
-                    let g = GBuffer { view: &view, zbuffer: &zb, triangles: &tris };
+                    let g = GBuffer { zbuffer: &zb, triangles: &tris };
                     match best {
                         None => assert!(g.depth(x, y).is_infinite(), "({x}, {y}) should see nothing"),
                         Some((d, id)) => {

@@ -165,6 +165,7 @@ impl ShadingTerms {
 
     /// Whether the projector lights pixel `i` (the complement is its projector shadow,
     /// its back-facing surfaces and what lies outside the projector's image).
+    #[cfg(test)]
     pub fn projector_lit(&self, i: usize) -> bool {
         self.projector[i] > 0.0
     }

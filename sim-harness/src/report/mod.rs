@@ -14,4 +14,4 @@ pub mod study_report;
 pub mod sweep_panels;
 pub mod table;
 
-pub use plot::{save_plot, Plot, SavedPlot};
+pub use plot::save_plot;

@@ -6,4 +6,6 @@ pub mod scenario;
 mod spec;
 pub mod tray;
 
-pub use spec::{Objects, SceneSpec, SceneTriangle, ID_FIRST_ITEM, ID_TABLE, ID_TRAY};
+pub use spec::{Objects, SceneSpec, SceneTriangle, ID_TABLE};
+#[cfg(test)]
+pub use spec::{ID_FIRST_ITEM, ID_TRAY};

@@ -124,15 +124,10 @@ pub enum SearchStep {
     /// Regis–Shoemaker: the candidate of least w·surrogate + (1 − w)·closeness to
     /// evaluated points (w in [0, 1]; larger exploits more).
     Weighted(f64),
-    /// Gutmann's target value: the candidate of least bumpiness growth if the objective
-    /// there were f* = min s − W·(max y − min s). W = ∞ explores purely, W = 0 exploits.
-    Target(f64),
     /// Regis–Shoemaker's CORS: the candidate of least surrogate value among those at least
     /// β·Δ from every evaluated point, Δ being the largest such distance of any candidate
     /// (β in [0, 1]; smaller exploits more). Unlike `Weighted` it does not favour corners.
     Spaced(f64),
-    /// The surrogate's minimum over the whole box.
-    SurrogateMinimum,
     /// The surrogate's minimum within the trust radius of the incumbent.
     TrustRegion,
 }
@@ -146,8 +141,6 @@ struct Fit {
     /// The told indices it was fitted to: `from..told`.
     from: usize,
     told: usize,
-    /// The largest value it was fitted to (after transform and clipping).
-    fitted_max: f64,
 }
 
 impl Fit {
@@ -239,11 +232,6 @@ impl RbfOptimizer {
         self.lower.len()
     }
 
-    /// The number of told evaluations.
-    pub fn evaluations(&self) -> usize {
-        self.told_values.len()
-    }
-
     /// The next point to evaluate; it stays pending until told.
     pub fn ask(&mut self) -> Vec<f64> {
         let u = self.next_unit_point();
@@ -253,6 +241,7 @@ impl RbfOptimizer {
     }
 
     /// `n` distinct points to evaluate in parallel; they stay pending until told.
+    #[cfg(test)]
     pub fn ask_batch(&mut self, n: usize) -> Vec<Vec<f64>> {
         (0..n).map(|_| self.ask()).collect()
     }
@@ -434,10 +423,9 @@ impl RbfOptimizer {
                 *v = v.min(med);
             }
         }
-        let fitted_max = y.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let pts: Vec<f64> = self.told_unit[from..].iter().flatten().copied().collect();
         let surrogate = Surrogate::fit(&pts, d, &y, self.settings.noise_smoothing).ok()?;
-        Some(Fit { surrogate, log_from, from, told: n, fitted_max })
+        Some(Fit { surrogate, log_from, from, told: n })
     }
 
     /// The unit-box point the next `ask` hands out.
@@ -464,9 +452,7 @@ impl RbfOptimizer {
         }
         match cycle[k.saturating_sub(self.epoch_start + self.design.len()) % cycle.len()] {
             SearchStep::Weighted(w) => self.weighted_step(Some(&fit), w, &mut rng),
-            SearchStep::Target(w) => self.target_step(&fit, w, &mut rng),
             SearchStep::Spaced(beta) => self.spaced_step(&fit, beta, &mut rng),
-            SearchStep::SurrogateMinimum => self.global_step(&fit, &mut rng),
             SearchStep::TrustRegion => self.trust_region_step(&fit, &mut rng),
         }
     }
@@ -520,35 +506,6 @@ impl RbfOptimizer {
                 }
             })
             .collect()
-    }
-
-    /// A Gutmann step: the candidate that would least raise the bumpiness of a surrogate
-    /// passing through the target value f* there.
-    fn target_step(&self, fit: &Fit, w: f64, rng: &mut ChaCha8Rng) -> Vec<f64> {
-        let cands = self.candidates(Some(fit), rng);
-        let s = &fit.surrogate;
-        let sval: Vec<f64> = cands.iter().map(|c| s.value(c)).collect();
-        let smin = sval.iter().copied().fold(f64::INFINITY, f64::min);
-        let ymax = fit.fitted_max;
-        let target = if w.is_finite() { smin - w * (ymax - smin).max(0.0) } else { f64::NEG_INFINITY };
-        let mut scratch = Vec::new();
-        let mut best = None;
-        let mut best_score = f64::INFINITY;
-        for (c, &v) in cands.iter().zip(&sval) {
-            if self.nearest(c) < self.settings.min_distance {
-                continue;
-            }
-            let mu = s.bumpiness_weight(c, &mut scratch);
-            let score = if target.is_finite() { mu * (v - target) * (v - target) } else { mu };
-            if score < best_score || best.is_none() {
-                best_score = score;
-                best = Some(c);
-            }
-        }
-        match best {
-            Some(c) => c.clone(),
-            None => self.pick_by_score(&cands, Some(fit), 0.0),
-        }
     }
 
     /// A CORS step: the least surrogate value among candidates far enough from the data.
@@ -607,29 +564,6 @@ impl RbfOptimizer {
             }
         }
         cands[best].clone()
-    }
-
-    /// Minimises the surrogate over the whole box from the best few random candidates
-    /// (Gutmann's target at the surrogate's own minimum: pure exploitation).
-    fn global_step(&self, fit: &Fit, rng: &mut ChaCha8Rng) -> Vec<f64> {
-        let d = self.dim();
-        let mut starts: Vec<(f64, Vec<f64>)> =
-            self.candidates(Some(fit), rng).into_iter().map(|x| (fit.surrogate.value(&x), x)).collect();
-        starts.sort_by(|a, b| a.0.total_cmp(&b.0));
-        starts.truncate(5);
-        let lo = vec![0.0; d];
-        let hi = vec![1.0; d];
-        let mut best: Option<(f64, Vec<f64>)> = None;
-        for (_, x0) in starts {
-            let (x, v) = descend(&fit.surrogate, x0, &lo, &hi, 200);
-            if self.nearest(&x) >= self.settings.min_distance && best.as_ref().is_none_or(|b| v < b.0) {
-                best = Some((v, x));
-            }
-        }
-        match best {
-            Some((_, x)) => x,
-            None => self.weighted_step(Some(fit), 0.95, rng),
-        }
     }
 
     /// Minimises the surrogate within the trust radius of the incumbent, from the incumbent
@@ -834,14 +768,7 @@ mod tests {
 
     #[test]
     fn every_kind_of_step_makes_progress_on_branin() {
-        let steps = [
-            SearchStep::Weighted(0.5),
-            SearchStep::Target(f64::INFINITY),
-            SearchStep::Target(0.3),
-            SearchStep::Spaced(0.5),
-            SearchStep::SurrogateMinimum,
-            SearchStep::TrustRegion,
-        ];
+        let steps = [SearchStep::Weighted(0.5), SearchStep::Spaced(0.5), SearchStep::TrustRegion];
         for step in steps {
             // The step alone, apart from the refinement after an improvement, measured from
             // the end of a six-point start design.
@@ -857,9 +784,7 @@ mod tests {
                 opt.tell(&x, branin(&x));
             }
             let end = opt.best_observed().unwrap().1;
-            // Pure exploration only improves by the refinements its lucky draws trigger.
-            let bar = if step == SearchStep::Target(f64::INFINITY) { start } else { 0.897887 };
-            assert!(end < start && end < bar, "{step:?}: {start} -> {end}");
+            assert!(end < start && end < 0.897887, "{step:?}: {start} -> {end}");
         }
     }
 

@@ -15,8 +15,6 @@ pub struct Surrogate {
     weights: Vec<f64>,
     /// a₀ then a (the linear tail).
     tail: Vec<f64>,
-    /// The inverse of the fitted saddle-point matrix, for `bumpiness_weight`.
-    inverse: DMatrix<f64>,
 }
 
 impl Surrogate {
@@ -78,7 +76,6 @@ impl Surrogate {
                         centres: points.to_vec(),
                         weights: sol.rows(0, n).iter().copied().collect(),
                         tail: sol.rows(n, dim + 1).iter().copied().collect(),
-                        inverse,
                     });
                 }
             }
@@ -91,11 +88,6 @@ impl Surrogate {
         ))
     }
 
-    /// The number of dimensions.
-    pub fn dim(&self) -> usize {
-        self.dim
-    }
-
     /// s(x).
     pub fn value(&self, x: &[f64]) -> f64 {
         let d = self.dim;
@@ -105,33 +97,6 @@ impl Surrogate {
             s += w * r * r * r;
         }
         s
-    }
-
-    /// Gutmann's μ(x): how much the bumpiness grows per squared unit of value when a new
-    /// point at x joins the data, 1 / (φ(0) − uᵀA⁻¹u) with u = (φ(‖x − c_i‖), 1, x).
-    /// Small far from the data, infinite on it; `scratch` is reused between calls.
-    pub fn bumpiness_weight(&self, x: &[f64], scratch: &mut Vec<f64>) -> f64 {
-        let d = self.dim;
-        scratch.clear();
-        for c in self.centres.chunks_exact(d) {
-            let r = distance(x, c);
-            scratch.push(r * r * r);
-        }
-        scratch.push(1.0);
-        scratch.extend_from_slice(x);
-        let m = scratch.len();
-        // The matrix is symmetric, so its inverse is too: walk contiguous columns.
-        let mut q = 0.0;
-        for (col, &ui) in self.inverse.as_slice().chunks_exact(m).zip(scratch.iter()) {
-            let t: f64 = col.iter().zip(scratch.iter()).map(|(a, b)| a * b).sum();
-            q += ui * t;
-        }
-        let mu = -1.0 / q;
-        if mu.is_finite() && mu > 0.0 {
-            mu
-        } else {
-            f64::INFINITY
-        }
     }
 
     /// s(x), with ∇s(x) written into `grad`.

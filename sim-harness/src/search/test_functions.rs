@@ -27,6 +27,7 @@ pub struct TestRun {
 }
 
 /// The names `test_function` knows.
+#[cfg(test)]
 pub const TEST_FUNCTIONS: [&str; 4] = ["branin", "goldstein_price", "hartmann3", "hartmann6"];
 
 /// The test function of that name (see `TEST_FUNCTIONS`), or `None`.

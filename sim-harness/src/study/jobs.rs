@@ -52,13 +52,12 @@ pub struct JobEvaluator<'a> {
     method: Method,
     store: &'a ResultsStore,
     model_cache: Option<PathBuf>,
-    show_progress: bool,
 }
 
 impl<'a> JobEvaluator<'a> {
     /// An evaluator writing to `store`.
     pub fn new(cell: &'a Cell, method: Method, store: &'a ResultsStore) -> JobEvaluator<'a> {
-        JobEvaluator { cell, method, store, model_cache: None, show_progress: true }
+        JobEvaluator { cell, method, store, model_cache: None }
     }
 
     /// Keeps built models in `dir` and reads them from there, so a resumed run of one
@@ -66,12 +65,6 @@ impl<'a> JobEvaluator<'a> {
     /// `evaluate`, not for a sweep's every cell).
     pub fn with_model_cache(mut self, dir: &Path) -> Self {
         self.model_cache = Some(dir.to_path_buf());
-        self
-    }
-
-    /// Whether to draw a progress bar (on a terminal only, in any case).
-    pub fn with_progress(mut self, show: bool) -> Self {
-        self.show_progress = show;
         self
     }
 
@@ -93,7 +86,7 @@ impl<'a> JobEvaluator<'a> {
         if total == 0 {
             return Ok(());
         }
-        let bar = if self.show_progress { ProgressBar::new(total as u64) } else { ProgressBar::hidden() };
+        let bar = ProgressBar::new(total as u64);
         bar.set_style(
             ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} scenes, {elapsed} elapsed, ETA {eta} {msg}")
                 .expect("a valid template")

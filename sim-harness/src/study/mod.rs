@@ -25,5 +25,5 @@ mod summary;
 pub mod sweep;
 
 pub use evaluate::Evaluator;
-pub use record::{score, FrameRecord, Score, Timings};
-pub use summary::{median, wilson_interval, Summary};
+pub use record::{score, FrameRecord, Score};
+pub use summary::{median, Summary};

@@ -101,11 +101,6 @@ impl ResultsStore {
         self.lines.lock().expect("results lock").contains_key(key)
     }
 
-    /// The line of a finished scene.
-    pub fn get(&self, key: &SceneKey) -> Option<ResultLine> {
-        self.lines.lock().expect("results lock").get(key).cloned()
-    }
-
     /// Records a finished scene: appended to the file (one write of one whole line) and
     /// kept in memory.
     pub fn add(&self, line: ResultLine) -> Result<()> {
@@ -121,6 +116,7 @@ impl ResultsStore {
     }
 
     /// Every line, sorted by key.
+    #[cfg(test)]
     pub fn all(&self) -> Vec<ResultLine> {
         let mut v: Vec<ResultLine> = self.lines.lock().expect("results lock").values().cloned().collect();
         v.sort_by_key(ResultLine::key);
