@@ -51,3 +51,79 @@ fn a_rig_without_a_right_camera() {
     let (code, err) = reconstruct(dir.path(), "left.png", "right.png", "left-only.json");
     assert_one_line_error(code, &err, &["left-only.json", "right"]);
 }
+
+/// A rectified pair that sees a fronto-parallel plane: random dots, the right image the left
+/// shifted by `shift` pixels.
+fn shifted_pair(dir: &Path, shift: usize) {
+    let (w, h) = (160, 96);
+    let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+    let left: Vec<u8> = (0..w * h)
+        .map(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 56) as u8
+        })
+        .collect();
+    let right: Vec<u8> =
+        (0..h).flat_map(|y| (0..w).map(move |x| (y, x))).map(|(y, x)| left[y * w + (x + shift).min(w - 1)]).collect();
+    camplace_config::write_gray(&dir.join("left.png"), w, h, &left).unwrap();
+    camplace_config::write_gray(&dir.join("right.png"), w, h, &right).unwrap();
+}
+
+#[test]
+fn a_rectified_pair_gives_the_depth_of_its_plane() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    shifted_pair(d, 12);
+    let o = camplace(
+        d,
+        &[
+            "reconstruct",
+            "--left",
+            "left.png",
+            "--right",
+            "right.png",
+            "--rectified",
+            "--focal-px",
+            "800",
+            "--baseline-mm",
+            "80",
+            "--disparity-range",
+            "0:40",
+            "--out",
+            "out",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let depth = camplace_config::read_pfm(&d.join("out/depth.pfm")).unwrap().data;
+    let mut seen: Vec<f32> = depth.iter().copied().filter(|z| z.is_finite()).collect();
+    assert!(seen.len() > depth.len() / 2, "{} of {} pixels have a depth", seen.len(), depth.len());
+    seen.sort_by(f32::total_cmp);
+    let median = seen[seen.len() / 2];
+    // z = f b / d = 800 * 80 / 12.
+    assert!((median - 800.0 * 80.0 / 12.0).abs() < 0.01 * 800.0 * 80.0 / 12.0, "median depth {median}");
+}
+
+#[test]
+fn rectified_numbers_that_mean_nothing_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    shifted_pair(d, 12);
+    let cases: [(&[&str], &str); 7] = [
+        (&["--focal-px", "0", "--baseline-mm", "80"], "--focal-px"),
+        (&["--focal-px", "-800", "--baseline-mm", "80"], "--focal-px"),
+        (&["--focal-px", "NaN", "--baseline-mm", "80"], "--focal-px"),
+        (&["--focal-px", "800", "--baseline-mm", "inf"], "--baseline-mm"),
+        (&["--focal-px", "800", "--baseline-mm", "0"], "--baseline-mm"),
+        (&["--focal-px", "800", "--baseline-mm", "80", "--disparity-range", "0:3e9"], "--disparity-range"),
+        (&["--focal-px", "800", "--baseline-mm", "80", "--disparity-range", "40:10"], "--disparity-range"),
+    ];
+    for (extra, flag) in cases {
+        let mut args = vec!["reconstruct", "--left", "left.png", "--right", "right.png", "--rectified", "--out", "out"];
+        args.extend_from_slice(extra);
+        let o = camplace(d, &args);
+        assert_one_line_error(o.status.code().unwrap_or(-1), &stderr(&o), &[flag]);
+        assert!(!d.join("out/depth.pfm").exists(), "{extra:?} wrote a depth map");
+    }
+}

@@ -14,6 +14,8 @@ pub enum Error {
     Estimator(camplace_estimator::Error),
     /// A recorded dataset could not be read.
     Recording(camplace_hwio::Error),
+    /// An error that belongs to one input file, named before it.
+    In(std::path::PathBuf, Box<Error>),
     /// Anything else, said in words.
     Other(String),
 }
@@ -24,6 +26,7 @@ impl fmt::Display for Error {
             Error::Config(e) => e.fmt(f),
             Error::Estimator(e) => e.fmt(f),
             Error::Recording(e) => e.fmt(f),
+            Error::In(path, e) => write!(f, "{}: {e}", path.display()),
             Error::Other(s) => f.write_str(s),
         }
     }
@@ -35,6 +38,7 @@ impl std::error::Error for Error {
             Error::Config(e) => Some(e),
             Error::Estimator(e) => Some(e),
             Error::Recording(e) => Some(e),
+            Error::In(_, e) => Some(e.as_ref()),
             Error::Other(_) => None,
         }
     }
@@ -55,6 +59,13 @@ impl From<camplace_estimator::Error> for Error {
 impl From<camplace_hwio::Error> for Error {
     fn from(e: camplace_hwio::Error) -> Self {
         Error::Recording(e)
+    }
+}
+
+impl Error {
+    /// This error, said to belong to the file `path`.
+    pub fn in_file(self, path: &std::path::Path) -> Error {
+        Error::In(path.to_path_buf(), Box::new(self))
     }
 }
 

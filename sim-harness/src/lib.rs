@@ -10,6 +10,7 @@
 
 mod error;
 mod model_builder;
+mod reconstruction;
 mod render;
 mod report;
 mod scene;
@@ -19,6 +20,9 @@ mod study;
 
 pub use error::{Error, Result};
 pub use model_builder::{build_model, model_points};
+pub use reconstruction::{
+    match_rectified, reconstruct_dataset, reconstruct_pair, DatasetDepth, PairDepth, RectifiedDepth, RectifiedPair,
+};
 pub use render::pattern::{fringe_set, one_shot};
 pub use render::render_files::{render_dataset, render_scene};
 pub use render::{Frame, Method, Simulator};
