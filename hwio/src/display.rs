@@ -3,8 +3,7 @@
 //! exposed afterwards sees it (12-shot capture in step). X11 only (XWayland serves Wayland
 //! desktops).
 //!
-//! winit allows one event loop per process, so a `Projector` is opened once and kept;
-//! `show_patterns` is the one-call form for a single run of patterns.
+//! winit allows one event loop per process, so a `Projector` is opened once and kept.
 
 use std::num::NonZeroU32;
 use std::rc::Rc;
@@ -19,6 +18,7 @@ use winit::platform::pump_events::{EventLoopExtPumpEvents, PumpStatus};
 use winit::platform::x11::EventLoopBuilderExtX11;
 use winit::window::{Fullscreen, Window, WindowId};
 
+use crate::frames::{FrameSource, Frames};
 use crate::{Error, ErrorKind, Result};
 
 /// How long to wait for the window to appear before giving up.
@@ -98,6 +98,35 @@ impl Projector {
         }
     }
 
+    /// Shows each of `patterns` in turn, lets it settle for `settle_ms`, throws away
+    /// `skip` camera frames queued before it changed, and keeps the next: one frame with a
+    /// shot per pattern (a camera's frame is one image a side; any further shots it has are
+    /// ignored).
+    pub fn capture(
+        &mut self,
+        source: &mut dyn FrameSource,
+        patterns: &[GrayImage],
+        settle_ms: u64,
+        skip: usize,
+    ) -> Result<Frames> {
+        let mut shot = Frames::new(source.shots());
+        let mut frame = Frames::new(patterns.len());
+        for (i, p) in patterns.iter().enumerate() {
+            self.show(p, settle_ms)?;
+            for _ in 0..=skip {
+                if source.next(&mut shot)?.is_none() {
+                    return Err(Error::new(
+                        ErrorKind::Device,
+                        format!("the source ended before pattern {i} was captured"),
+                    ));
+                }
+            }
+            std::mem::swap(&mut frame.left[i], &mut shot.left[0]);
+            std::mem::swap(&mut frame.right[i], &mut shot.right[0]);
+        }
+        Ok(frame)
+    }
+
     fn pump(&mut self, timeout: Duration) -> Result<()> {
         let status = self.event_loop.pump_app_events(Some(timeout), &mut self.app);
         if let Some(e) = self.app.error.take() {
@@ -108,25 +137,6 @@ impl Projector {
         }
         Ok(())
     }
-}
-
-/// Shows each of `patterns` full screen on `monitor`, calling `on_shown(i)` once pattern
-/// `i` has settled for `settle_ms` (capture the cameras there); stops early when
-/// `on_shown` returns false. Opens a `Projector`, so call it once per process.
-pub fn show_patterns(
-    monitor: Option<usize>,
-    patterns: &[GrayImage],
-    settle_ms: u64,
-    mut on_shown: impl FnMut(usize) -> bool,
-) -> Result<()> {
-    let mut projector = Projector::open(monitor)?;
-    for (i, p) in patterns.iter().enumerate() {
-        projector.show(p, settle_ms)?;
-        if !on_shown(i) {
-            break;
-        }
-    }
-    Ok(())
 }
 
 impl App {

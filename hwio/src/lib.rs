@@ -23,10 +23,10 @@ pub use capture::{Capture, Captured, WhenBehind};
 pub use deploy::{DeploySource, DeployStats, Deployment, Estimated};
 pub use devices::{list_devices, DeviceList, FirewireDevice, UsbDevice, V4l2Device};
 #[cfg(feature = "display")]
-pub use display::{show_patterns, Projector};
+pub use display::Projector;
 pub use error::{Error, ErrorKind, Result};
 pub use frames::{FrameInfo, FrameSource, Frames};
 pub use paced::Paced;
 pub use pixels::{deinterleave16, luma601, split_side_by_side, to_gray, InterleavedOrder, PixelFormat};
-pub use recorded::{read_background, RecordedSource};
+pub use recorded::{append_frame, read_background, RecordedSource};
 pub use spec::{open_source, parse_source, SourceSpec, SOURCE_FORMS};

@@ -177,6 +177,38 @@ impl FrameSource for RecordedSource {
 
 pub use camplace_config::image_name;
 
+/// Writes `frames` as the next frame of the dataset `root` (`frames/NNNN/`, the first number
+/// not yet taken) and returns its folder; with `rig`, copies that calibration to the
+/// dataset's `rig.json` when it has none yet.
+pub fn append_frame(root: &Path, frames: &Frames, rig: Option<&Path>) -> Result<PathBuf> {
+    let all = root.join("frames");
+    let next = match std::fs::read_dir(&all) {
+        Ok(entries) => {
+            entries.flatten().filter_map(|e| e.file_name().to_str()?.parse::<u64>().ok()).max().map_or(0, |n| n + 1)
+        }
+        Err(_) => 0,
+    };
+    let dir = all.join(camplace_config::frame_name(next));
+    std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, &e))?;
+    for (side, images) in [("left", &frames.left), ("right", &frames.right)] {
+        for (i, img) in images.iter().enumerate() {
+            camplace_config::write_gray(
+                &dir.join(image_name(side, i, images.len())),
+                img.width,
+                img.height,
+                &img.data,
+            )?;
+        }
+    }
+    if let Some(rig) = rig {
+        let to = root.join("rig.json");
+        if !to.exists() {
+            std::fs::copy(rig, &to).map_err(|e| Error::io(rig, &e))?;
+        }
+    }
+    Ok(dir)
+}
+
 /// One shot when `left.png` is there, else as many as consecutive `left_NN.png` from 00.
 fn detect_shots(dir: &Path) -> Result<usize> {
     if dir.join("left.png").is_file() {
@@ -358,5 +390,33 @@ mod tests {
         std::fs::remove_file(t.path().join("rig.json")).unwrap();
         let e = RecordedSource::open(t.path()).unwrap_err();
         assert!(e.to_string().contains("rig.json"), "{e}");
+    }
+
+    #[test]
+    fn appended_frames_read_back_as_written_after_the_last_number() {
+        let t = tempfile::tempdir().unwrap();
+        let written = dataset(t.path(), &["0007"], 12, 3);
+        let rig_copy = t.path().join("other-rig.json");
+        rig().save(&rig_copy).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let mut frames = Frames::new(12);
+        for img in frames.left.iter_mut().chain(frames.right.iter_mut()) {
+            *img = GrayImage::from_vec(W, H, (0..W * H).map(|_| rng.random::<u8>()).collect()).unwrap();
+        }
+        let dir = append_frame(t.path(), &frames, Some(&rig_copy)).unwrap();
+        assert_eq!(dir, t.path().join("frames").join("0008"));
+        let mut src = RecordedSource::open(t.path()).unwrap();
+        let mut back = Frames::default();
+        assert_eq!(src.next(&mut back).unwrap().unwrap().name, "0007");
+        assert_eq!(back.left[11].data, written[0][0][11]);
+        assert_eq!(src.next(&mut back).unwrap().unwrap().name, "0008");
+        for i in 0..12 {
+            assert_eq!(back.left[i].data, frames.left[i].data);
+            assert_eq!(back.right[i].data, frames.right[i].data);
+        }
+        // A fresh dataset starts at 0000 and takes the given rig.
+        let fresh = t.path().join("fresh");
+        assert_eq!(append_frame(&fresh, &frames, Some(&rig_copy)).unwrap(), fresh.join("frames").join("0000"));
+        assert_eq!(RigFile::load(&fresh.join("rig.json")).unwrap(), rig());
     }
 }

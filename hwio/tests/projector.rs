@@ -1,5 +1,6 @@
 //! The projector window under a virtual X server: each pattern shown must be on screen
-//! pixel for pixel when `on_shown` is called. Runs only with the `display` feature, and
+//! pixel for pixel when the capture in step reads the camera (here a camera that
+//! screenshots the screen). Runs only with the `display` feature, and
 //! skips (saying why) when neither Xvfb nor a DISPLAY is there, or xwd is missing.
 #![cfg(feature = "display")]
 
@@ -8,7 +9,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use camplace_config::GrayImage;
-use camplace_hwio::show_patterns;
+use camplace_hwio::{FrameInfo, FrameSource, Frames, Projector};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -80,6 +81,27 @@ fn screenshot(display: &str) -> GrayImage {
     img
 }
 
+/// A camera that sees the whole screen: each frame is one screenshot, on both sides.
+struct ScreenCamera {
+    display: String,
+    reads: usize,
+}
+
+impl FrameSource for ScreenCamera {
+    fn next(&mut self, frames: &mut Frames) -> camplace_hwio::Result<Option<FrameInfo>> {
+        let shot = screenshot(&self.display);
+        *frames = Frames::new(1);
+        frames.left[0] = shot.clone();
+        frames.right[0] = shot;
+        self.reads += 1;
+        Ok(Some(FrameInfo { index: self.reads as u64 - 1, name: String::new(), timestamp_us: 0 }))
+    }
+
+    fn shots(&self) -> usize {
+        1
+    }
+}
+
 #[test]
 fn patterns_reach_the_screen_pixel_for_pixel() {
     if !on_path("xwd") {
@@ -104,15 +126,16 @@ fn patterns_reach_the_screen_pixel_for_pixel() {
     let ramp = GrayImage::from_vec(W, H, (0..W * H).map(|i| ((i % W) * 255 / (W - 1)) as u8).collect()).unwrap();
     // Smaller than the screen: the rest must be black.
     let small = GrayImage::new(W / 2, H / 3, 200);
-    // A fourth pattern that must never be shown: returning false stops the run.
-    let patterns = [noise, ramp, small, GrayImage::new(W, H, 9)];
-    let mut seen = Vec::new();
-    show_patterns(None, &patterns, 150, |i| {
-        seen.push((i, screenshot(&display)));
-        i < 2
-    })
-    .unwrap();
-    assert_eq!(seen.iter().map(|s| s.0).collect::<Vec<_>>(), [0, 1, 2]);
+    let patterns = [noise, ramp, small];
+    let mut camera = ScreenCamera { display: display.clone(), reads: 0 };
+    let mut projector = Projector::open(None).unwrap();
+    // One frame thrown away after each pattern settled: two reads a pattern.
+    let frame = projector.capture(&mut camera, &patterns[..3], 150, 1).unwrap();
+    assert_eq!(camera.reads, 6);
+    let seen: Vec<(usize, GrayImage)> = (0..3).map(|i| (i, frame.left[i].clone())).collect();
+    for i in 0..3 {
+        assert_eq!(frame.left[i].data, frame.right[i].data);
+    }
     for (i, shot) in &seen {
         let p = &patterns[*i];
         assert_eq!((shot.width, shot.height), (W, H));

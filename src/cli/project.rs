@@ -61,13 +61,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
 #[cfg(feature = "display")]
 mod shown {
     use super::Args;
-    use anyhow::{bail, Context};
-    use camplace_config::write_gray;
+    use anyhow::Context;
     use camplace_config::Cell;
     use camplace_config::GrayImage;
-    use camplace_config::{frame_name, image_name};
     use camplace_hwio::Projector;
-    use camplace_hwio::{open_source, parse_source, FrameSource, Frames};
+    use camplace_hwio::{append_frame, open_source, parse_source, FrameSource};
     use camplace_sim::Method;
     use camplace_sim::{fringe_set, one_shot};
     use std::path::Path;
@@ -129,46 +127,9 @@ mod shown {
         patterns: &[GrayImage],
         out: &Path,
     ) -> anyhow::Result<ExitCode> {
-        let mut shot = Frames::new(source.shots());
-        let mut frame = Frames::new(patterns.len());
-        for (i, p) in patterns.iter().enumerate() {
-            projector.show(p, a.settle_ms)?;
-            for _ in 0..=a.skip {
-                if source.next(&mut shot)?.is_none() {
-                    bail!("the source ended before pattern {i} was captured");
-                }
-            }
-            // A camera's frame is one image per side; any further shots it has are ignored.
-            std::mem::swap(&mut frame.left[i], &mut shot.left[0]);
-            std::mem::swap(&mut frame.right[i], &mut shot.right[0]);
-        }
-        let dir = next_frame_dir(out)?;
-        std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create the folder", dir.display()))?;
-        for (side, images) in [("left", &frame.left), ("right", &frame.right)] {
-            for (i, img) in images.iter().enumerate() {
-                write_gray(&dir.join(image_name(side, i, images.len())), img.width, img.height, &img.data)?;
-            }
-        }
-        if let Some(rig) = &a.rig {
-            let to = out.join("rig.json");
-            if !to.exists() {
-                std::fs::copy(rig, &to)
-                    .with_context(|| format!("{}: cannot copy to {}", rig.display(), to.display()))?;
-            }
-        }
+        let frame = projector.capture(source.as_mut(), patterns, a.settle_ms, a.skip)?;
+        let dir = append_frame(out, &frame, a.rig.as_deref())?;
         println!("captured {} pattern(s) ({}) into {}", patterns.len(), a.method, dir.display());
         Ok(ExitCode::SUCCESS)
-    }
-
-    /// `out/frames/NNNN` with the first number not yet taken.
-    fn next_frame_dir(out: &Path) -> anyhow::Result<std::path::PathBuf> {
-        let frames = out.join("frames");
-        let taken = match std::fs::read_dir(&frames) {
-            Ok(entries) => {
-                entries.flatten().filter_map(|e| e.file_name().to_str()?.parse::<u64>().ok()).max().map_or(0, |n| n + 1)
-            }
-            Err(_) => 0,
-        };
-        Ok(frames.join(frame_name(taken)))
     }
 }
