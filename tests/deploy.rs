@@ -68,13 +68,7 @@ fn replay_equals_the_evaluation_and_run_equals_replay() {
     assert!(String::from_utf8_lossy(&o.stdout).contains(&summary.line()[..20]));
 
     // The evaluator of the same placement, seed and model, scene by scene.
-    let cell = Cell::default();
-    let placement = cell.placement.with_overrides(OPTIMUM).unwrap();
-    let bytes = std::fs::read(f.root.join("tray.model")).unwrap();
-    let model = camplace_estimator::Model::from_bytes(&bytes).unwrap();
-    let evaluator = Evaluator::with_model(&cell, &placement, Method::OneShot, SEED, model).unwrap();
-    let mut worker = evaluator.worker().unwrap();
-    let evaluated: Vec<FrameRecord> = (0..SCENES).map(|i| worker.scene(i).unwrap()).collect();
+    let evaluated = evaluated(&f);
 
     assert_eq!(replayed.len(), SCENES as usize);
     for (r, e) in replayed.iter().zip(&evaluated) {

@@ -5,22 +5,19 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::bail;
-use camplace_sim::{acceptance_summary, Method};
+use camplace_sim::acceptance_summary;
 
 use super::cell_args::CellArgs;
 use super::study_args::check_scenarios;
+use super::study_args::SceneArgs;
 
 /// Flags of `camplace accept`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     #[command(flatten)]
     cell: CellArgs,
-    /// one-shot (random dots) or phase-12 (12 phase-shift fringes).
-    #[arg(long, default_value = "one-shot")]
-    method: Method,
-    /// Study seed (default: the cell's scenarios.seed).
-    #[arg(long)]
-    seed: Option<u64>,
+    #[command(flatten)]
+    scene: SceneArgs,
     /// Required success rate, 0..1: the lower end of the 95 % interval must reach it.
     #[arg(long)]
     min_success: f64,
@@ -38,12 +35,12 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         bail!("--min-success: expected a rate between 0 and 1 (e.g. 0.95), got {}", a.min_success);
     }
     let (cell, placement) = a.cell.load()?;
-    let seed = a.seed.unwrap_or(cell.scenarios.seed);
+    let seed = a.scene.seed(&cell);
     let scenarios = check_scenarios(a.scenarios)?;
-    let s = acceptance_summary(a.out.as_deref(), &cell, &placement, a.method, seed, scenarios)?;
+    let s = acceptance_summary(a.out.as_deref(), &cell, &placement, a.scene.method, seed, scenarios)?;
     let low = s.success_interval[0];
     let pass = low >= a.min_success;
-    println!("{placement} ({}, seed {seed}): {}", a.method, s.line());
+    println!("{placement} ({}, seed {seed}): {}", a.scene.method, s.line());
     println!(
         "{}: lower 95 % bound {:.1} % {} the required {:.1} %",
         if pass { "PASS" } else { "FAIL" },

@@ -28,7 +28,7 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (cell, placement) = a.cell.load()?;
     let seed = a.run.seed(&cell);
-    let method = a.run.method;
+    let method = a.run.method();
     let scenarios = check_scenarios(a.scenarios)?;
     let shard = a.run.shard()?;
     let summary = evaluate_placement(&a.out, &cell, &placement, method, seed, scenarios, shard)?;

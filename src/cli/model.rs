@@ -3,23 +3,20 @@
 
 use anyhow::Context;
 use camplace_config::write_atomic;
-use camplace_sim::{build_model, model_points, Method};
+use camplace_sim::{build_model, model_points};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use super::cell_args::CellArgs;
+use super::study_args::SceneArgs;
 
 /// Flags of `camplace model`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     #[command(flatten)]
     cell: CellArgs,
-    /// one-shot (random dots) or phase-12 (12 phase-shift fringes).
-    #[arg(long, default_value = "one-shot")]
-    method: Method,
-    /// Seed of the projected pattern and the camera noise (default: the cell's scenarios.seed).
-    #[arg(long)]
-    seed: Option<u64>,
+    #[command(flatten)]
+    scene: SceneArgs,
     /// The model file to write.
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
@@ -31,8 +28,8 @@ pub struct Args {
 /// Runs `camplace model`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (cell, placement) = a.cell.load()?;
-    let seed = a.seed.unwrap_or(cell.scenarios.seed);
-    let model = build_model(&cell, &placement, a.method, seed)?;
+    let seed = a.scene.seed(&cell);
+    let model = build_model(&cell, &placement, a.scene.method, seed)?;
     write_atomic(&a.out, &model.to_bytes())?;
     if let Some(path) = &a.ply {
         camplace_config::write_cloud(path, &model_points(&model), None).with_context(|| path.display().to_string())?;
@@ -40,7 +37,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let points: usize = model.views.iter().map(|v| v.points.len()).sum();
     println!(
         "model at {placement} ({}): {} features, {} views, {points} ICP points; wrote {}",
-        a.method,
+        a.scene.method,
         model.feature_points.len(),
         model.views.len(),
         a.out.display()

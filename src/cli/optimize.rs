@@ -53,7 +53,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         if test_function(&key).is_none() {
             bail!("--test-function: expected branin, goldstein-price, hartmann3 or hartmann6, got \"{name}\"");
         }
-        let seed = a.run.seed.unwrap_or(1);
+        let seed = a.run.scene.seed.unwrap_or(1);
         let run = run_test_function(&key, seed, a.budget.unwrap_or(300));
         let line = serde_json::json!({
             "function": name,
@@ -83,7 +83,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         top: a.top.max(1),
         recheck_scenarios: a.scenarios,
     };
-    let outcome = optimize(out, &cell, &base, a.run.method, seed, &plan, "optimize")?;
+    let outcome = optimize(out, &cell, &base, a.run.method(), seed, &plan, "optimize")?;
     let best = outcome.best();
     println!(
         "best of {} evaluations, re-evaluated on fresh scenarios: {}: {}; wrote {}",

@@ -1,23 +1,20 @@
 //! `camplace render`: one simulated scene with its ground truth, or (`--dataset`) a
 //! recorded-dataset folder of scenarios 0..N-1 that `evaluate` and `replay` read alike.
 
-use camplace_sim::{render_dataset, render_scene, Method};
+use camplace_sim::{render_dataset, render_scene};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use super::cell_args::CellArgs;
+use super::study_args::SceneArgs;
 
 /// Flags of `camplace render`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     #[command(flatten)]
     cell: CellArgs,
-    /// one-shot (random dots) or phase-12 (12 phase-shift fringes).
-    #[arg(long, default_value = "one-shot")]
-    method: Method,
-    /// Study seed (default: the cell's scenarios.seed).
-    #[arg(long)]
-    seed: Option<u64>,
+    #[command(flatten)]
+    scene: SceneArgs,
     /// Scenario index within the seed.
     #[arg(long, default_value_t = 0)]
     scenario: u64,
@@ -35,18 +32,23 @@ pub struct Args {
 /// Runs `camplace render`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (cell, placement) = a.cell.load()?;
-    let seed = a.seed.unwrap_or(cell.scenarios.seed);
+    let seed = a.scene.seed(&cell);
     if !a.dataset {
-        render_scene(&a.out, &cell, &placement, a.method, seed, a.scenario)?;
+        render_scene(&a.out, &cell, &placement, a.scene.method, seed, a.scenario)?;
         println!(
             "rendered scenario {} of seed {seed} at {placement} ({}) into {}",
             a.scenario,
-            a.method,
+            a.scene.method,
             a.out.display()
         );
         return Ok(ExitCode::SUCCESS);
     }
-    render_dataset(&a.out, &cell, &placement, a.method, seed, a.count)?;
-    println!("rendered {} scenarios of seed {seed} at {placement} ({}) into {}", a.count, a.method, a.out.display());
+    render_dataset(&a.out, &cell, &placement, a.scene.method, seed, a.count)?;
+    println!(
+        "rendered {} scenarios of seed {seed} at {placement} ({}) into {}",
+        a.count,
+        a.scene.method,
+        a.out.display()
+    );
     Ok(ExitCode::SUCCESS)
 }

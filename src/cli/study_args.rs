@@ -1,18 +1,34 @@
-//! The flags the study commands share: method, seed and shard.
+//! The flags the study commands share: method and seed (also taken by `render`, `model`
+//! and `accept`), and the shard.
 
 use anyhow::bail;
 use camplace_config::Cell;
 use camplace_sim::{Method, Shard};
 
-/// `--method`, `--seed`, `--shard` / `--shards`.
+/// `--method` and `--seed`: which sensor and which scenes.
 #[derive(clap::Args, Debug, Clone)]
-pub struct StudyArgs {
+pub struct SceneArgs {
     /// one-shot (random dots) or phase-12 (12 phase-shift fringes).
     #[arg(long, default_value = "one-shot")]
     pub method: Method,
-    /// Study seed: scenario i of a seed is the same scene everywhere (default: the cell's scenarios.seed).
+    /// Study seed: scenario i of a seed is the same scene everywhere, and the seed picks the
+    /// projected dots and the camera noise (default: the cell's scenarios.seed).
     #[arg(long)]
     pub seed: Option<u64>,
+}
+
+impl SceneArgs {
+    /// The seed: the flag, else the cell's.
+    pub fn seed(&self, cell: &Cell) -> u64 {
+        self.seed.unwrap_or(cell.scenarios.seed)
+    }
+}
+
+/// `--method`, `--seed`, `--shard` / `--shards`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct StudyArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
     /// Run only part I of N (0-based) of the (placement, scenario) pairs; `camplace merge` joins the parts.
     #[arg(long, value_name = "I/N", conflicts_with = "shards")]
     pub shard: Option<String>,
@@ -24,7 +40,12 @@ pub struct StudyArgs {
 impl StudyArgs {
     /// The seed: the flag, else the cell's.
     pub fn seed(&self, cell: &Cell) -> u64 {
-        self.seed.unwrap_or(cell.scenarios.seed)
+        self.scene.seed(cell)
+    }
+
+    /// The method.
+    pub fn method(&self) -> Method {
+        self.scene.method
     }
 
     /// The shard to run (the whole work by default).

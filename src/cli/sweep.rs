@@ -41,7 +41,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let scenarios = check_scenarios(a.scenarios)?;
     let grid = Grid { x: a.x.clone(), y: a.y.clone() };
     let shard = a.run.shard()?;
-    let r = sweep(&a.out, &cell, &base, a.run.method, seed, &grid, scenarios, shard, "sweep")?;
+    let r = sweep(&a.out, &cell, &base, a.run.method(), seed, &grid, scenarios, shard, "sweep")?;
     report(&a.out, &r, shard);
     Ok(ExitCode::SUCCESS)
 }

@@ -192,7 +192,6 @@ impl Ransac {
 
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
         let min_edge2 = self.min_edge * self.min_edge;
-        let n = self.matched.len() as u32;
         let mut best: Option<(Isometry3<f64>, usize)> = None;
         let mut best_inliers = 0u32;
         let mut iterations = 0;
@@ -202,47 +201,13 @@ impl Ransac {
             // As PCL does: 3 distinct key points, then one of each one's matches. The key
             // points are few enough to stay in cache, and the scene-side checks run before
             // any match is looked at.
-            if self.sample == 2 {
+            let pose = if self.sample == 2 {
                 let Some(pose) = self.table_pair(&mut rng, scene_keypoints, model, min_edge2) else { continue };
-                let view = model.closest_view(&pose, sensor_position_world);
-                let to_beat = best_inliers.max(self.required_in_sample(view).saturating_sub(1));
-                if let Some(inliers) = self.score(&pose, view, to_beat) {
-                    if inliers > best_inliers {
-                        best_inliers = inliers;
-                        best = Some((pose, view));
-                        needed = self.iterations_needed(&pose, scene_keypoints, model);
-                    }
-                }
-                continue;
-            }
-            let k = [
-                self.matched[rng.random_range(0..n) as usize] as usize,
-                self.matched[rng.random_range(0..n) as usize] as usize,
-                self.matched[rng.random_range(0..n) as usize] as usize,
-            ];
-            if k[0] == k[1] || k[0] == k[2] || k[1] == k[2] {
-                continue;
-            }
-            let s = k.map(|i| scene_keypoints[i]);
-            if !good_scene_triangle(&s, min_edge2) {
-                continue;
-            }
-            let f = k.map(|i| self.draw_match(&mut rng, i));
-            if f[0] == f[1] || f[0] == f[2] || f[1] == f[2] {
-                continue;
-            }
-            let m = f.map(|j| model.feature_points[j as usize]);
-            if !edges_agree(&s, &m, self.edge_similarity) {
-                continue;
-            }
-            let mut fit = RigidFit::new();
-            for k in 0..3 {
-                fit.add(&m[k], &s[k]);
-            }
-            let Some(pose) = fit.solve() else { continue };
-            if !self.on_table(&pose) {
-                continue;
-            }
+                pose
+            } else {
+                let Some(pose) = self.triple(&mut rng, scene_keypoints, model, min_edge2) else { continue };
+                pose
+            };
             let view = model.closest_view(&pose, sensor_position_world);
             // Reaching the minimum exactly is enough to qualify.
             let to_beat = best_inliers.max(self.required_in_sample(view).saturating_sub(1));
@@ -277,6 +242,48 @@ impl Ransac {
         }
         let found = best_inliers >= self.required(view);
         Ok(RansacResult { found, t_world_tray: pose, inliers: best_inliers, iterations, view })
+    }
+
+    /// One 3-match hypothesis, or `None` when the sample is rejected before scoring: three
+    /// distinct key points forming a good triangle, one match of each, edges that agree in
+    /// length, and a fitted pose that rests on the table.
+    fn triple(
+        &self,
+        rng: &mut ChaCha8Rng,
+        scene_keypoints: &[Point3<f32>],
+        model: &Model,
+        min_edge2: f32,
+    ) -> Option<Isometry3<f64>> {
+        let n = self.matched.len() as u32;
+        let k = [
+            self.matched[rng.random_range(0..n) as usize] as usize,
+            self.matched[rng.random_range(0..n) as usize] as usize,
+            self.matched[rng.random_range(0..n) as usize] as usize,
+        ];
+        if k[0] == k[1] || k[0] == k[2] || k[1] == k[2] {
+            return None;
+        }
+        let s = k.map(|i| scene_keypoints[i]);
+        if !good_scene_triangle(&s, min_edge2) {
+            return None;
+        }
+        let f = k.map(|i| self.draw_match(rng, i));
+        if f[0] == f[1] || f[0] == f[2] || f[1] == f[2] {
+            return None;
+        }
+        let m = f.map(|j| model.feature_points[j as usize]);
+        if !edges_agree(&s, &m, self.edge_similarity) {
+            return None;
+        }
+        let mut fit = RigidFit::new();
+        for k in 0..3 {
+            fit.add(&m[k], &s[k]);
+        }
+        let pose = fit.solve()?;
+        if !self.on_table(&pose) {
+            return None;
+        }
+        Some(pose)
     }
 
     /// One 2-match hypothesis of a tray resting on the table, or `None` when the sample is
