@@ -129,3 +129,28 @@ fn a_reflected_camera_pose_is_refused_not_hung() {
         &["rig.json", "left.T_world_camera", "determinant"],
     );
 }
+
+#[test]
+fn rig_geometry_errors_name_the_file_and_the_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = camplace(d, &["render", "--dataset", "--count", "1", "--out", "ds"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rig: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("ds/rig.json")).unwrap()).unwrap();
+    // Both cameras at one centre; then both looking straight up, away from the table.
+    let mut same = rig.clone();
+    same["right"]["T_world_camera"] = rig["left"]["T_world_camera"].clone();
+    let mut up = rig.clone();
+    for side in ["left", "right"] {
+        for r in 0..3 {
+            for c in 0..3 {
+                up[side]["T_world_camera"][r][c] = serde_json::json!(if r == c { 1.0 } else { 0.0 });
+            }
+        }
+    }
+    for (rig, key) in [(same, "right.T_world_camera"), (up, "left.T_world_camera")] {
+        std::fs::write(d.join("ds/rig.json"), rig.to_string()).unwrap();
+        let o = camplace(d, &["reconstruct", "--dataset", "ds"]);
+        assert_one_line_error(o.status.code().unwrap_or(-1), &stderr(&o), &["rig.json", key]);
+    }
+}

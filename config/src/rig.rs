@@ -58,6 +58,19 @@ impl RigFile {
         let rig: RigFile = crate::formats::json::decode(text)?;
         rig.left.check("left")?;
         rig.right.check("right")?;
+        let baseline = (0..3)
+            .map(|r| rig.right.t_world_camera[r][3] - rig.left.t_world_camera[r][3])
+            .map(|d| d * d)
+            .sum::<f64>()
+            .sqrt();
+        if baseline < MIN_BASELINE_MM {
+            return Err(Error::value(
+                "right.T_world_camera",
+                format!(
+                    "expected a camera centre at least {MIN_BASELINE_MM} mm from left's (the baseline), got {baseline} mm"
+                ),
+            ));
+        }
         if let Some(p) = &rig.projector {
             p.check("projector")?;
         }
@@ -77,6 +90,10 @@ impl RigFile {
         crate::formats::write_atomic(path, self.to_json().as_bytes())
     }
 }
+
+/// The shortest baseline a `rig.json` may give, mm: with cameras closer than this no depth
+/// can be triangulated (stereo rigs are tens of millimetres apart and more).
+pub const MIN_BASELINE_MM: f64 = 1.0;
 
 /// The largest image side a `rig.json` may give, pixels: buffers are sized from it.
 pub const MAX_IMAGE_SIDE: u32 = 16384;
@@ -142,15 +159,22 @@ mod tests {
         }
     }
 
+    /// The right camera of a rig, 80 mm to the left camera's right.
+    fn right() -> CameraFile {
+        let mut c = cam();
+        c.t_world_camera[0][3] = 80.0;
+        c
+    }
+
     #[test]
     fn round_trip() {
-        let rig = RigFile { left: cam(), right: cam(), projector: Some(cam()), rectified: None };
+        let rig = RigFile { left: cam(), right: right(), projector: Some(cam()), rectified: None };
         assert_eq!(RigFile::from_json(&rig.to_json()).unwrap(), rig);
     }
 
     #[test]
     fn missing_right_camera_is_named() {
-        let rig = RigFile { left: cam(), right: cam(), projector: None, rectified: None };
+        let rig = RigFile { left: cam(), right: right(), projector: None, rectified: None };
         let mut v: serde_json::Value = serde_json::from_str(&rig.to_json()).unwrap();
         v.as_object_mut().unwrap().remove("right");
         let e = RigFile::from_json(&v.to_string()).unwrap_err();
@@ -158,7 +182,7 @@ mod tests {
     }
 
     fn with_left(f: impl FnOnce(&mut CameraFile)) -> String {
-        let mut rig = RigFile { left: cam(), right: cam(), projector: None, rectified: None };
+        let mut rig = RigFile { left: cam(), right: right(), projector: None, rectified: None };
         f(&mut rig.left);
         RigFile::from_json(&rig.to_json()).unwrap_err().to_string()
     }
@@ -178,5 +202,15 @@ mod tests {
         assert!(with_left(|c| c.width = 1 << 20).starts_with("left.width: "));
         assert!(with_left(|c| c.k[0][2] = f64::INFINITY).contains("left.K"));
         assert!(with_left(|c| c.dist[4] = f64::NAN).contains("left.dist"));
+    }
+
+    #[test]
+    fn cameras_at_one_centre_are_refused_naming_the_key() {
+        let mut rig = RigFile { left: cam(), right: right(), projector: None, rectified: None };
+        rig.right.t_world_camera[0][3] = 0.5;
+        let e = RigFile::from_json(&rig.to_json()).unwrap_err();
+        assert!(e.to_string().contains("right.T_world_camera") && e.to_string().contains("baseline"), "{e}");
+        rig.right.t_world_camera[0][3] = 1.0;
+        assert!(RigFile::from_json(&rig.to_json()).is_ok());
     }
 }

@@ -255,7 +255,9 @@ mod tests {
             dist: [0.0; 5],
             t_world_camera: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
         };
-        RigFile { left: cam.clone(), right: cam, projector: None, rectified: None }
+        let mut right = cam.clone();
+        right.t_world_camera[0][3] = 80.0;
+        RigFile { left: cam, right, projector: None, rectified: None }
     }
 
     /// Writes a dataset of `names` frames with `shots` seeded random images per side and

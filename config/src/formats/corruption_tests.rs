@@ -129,7 +129,9 @@ fn rig_and_truth_json_survive_truncation_and_flips() {
         dist: [0.0; 5],
         t_world_camera: [[1.0, 0.0, 0.0, -40.0], [0.0, -1.0, 0.0, 0.0], [0.0, 0.0, -1.0, 600.0], [0.0, 0.0, 0.0, 1.0]],
     };
-    let rig = RigFile { left: cam.clone(), right: cam.clone(), projector: Some(cam), rectified: None }.to_json();
+    let mut right = cam.clone();
+    right.t_world_camera[0][3] = 80.0;
+    let rig = RigFile { left: cam.clone(), right, projector: Some(cam), rectified: None }.to_json();
     let accepted =
         torture(rig.as_bytes(), 4000, 4000, 7, |b| std::str::from_utf8(b).is_ok_and(|t| RigFile::from_json(t).is_ok()));
     assert_eq!(accepted, 0, "a cut rig.json is not JSON");

@@ -84,7 +84,10 @@ impl Rectification {
         let baseline_vec = right.centre() - left.centre();
         let baseline = baseline_vec.norm();
         if !(baseline.is_finite() && baseline > 1e-6) {
-            return Err(Error::new(ErrorKind::Rig, "rig: expected two distinct camera centres"));
+            return Err(Error::new(
+                ErrorKind::Rig,
+                "right.T_world_camera: expected a camera centre apart from the left camera's",
+            ));
         }
         let r_wl = left.t_world_camera.rotation.to_rotation_matrix();
         let r_wr = right.t_world_camera.rotation.to_rotation_matrix();
@@ -111,8 +114,14 @@ impl Rectification {
         let r_left_rect = r_wl.inverse() * r_w_rect;
         let r_right_rect = r_wr.inverse() * r_w_rect;
 
-        let seen = seen_work_volume(left, right, &t_world_rectified, focal, baseline, work_volume)
-            .ok_or_else(|| Error::new(ErrorKind::Rig, "rig: no part of the work volume is seen by both cameras"))?;
+        let seen =
+            seen_work_volume(left, right, &t_world_rectified, focal, baseline, work_volume).ok_or_else(|| {
+                Error::new(
+                    ErrorKind::Rig,
+                    "left.T_world_camera, right.T_world_camera: no part of the work volume (the table and the space \
+                 above it) is seen by both cameras; expected cameras that look down at the table",
+                )
+            })?;
         let max_w = MAX_CANVAS_SCALE * left.width.max(right.width) as f64;
         let max_h = MAX_CANVAS_SCALE * left.height.max(right.height) as f64;
         let (x0, x1) = clamp_span(seen.x_min - CANVAS_MARGIN_PX, seen.x_max + CANVAS_MARGIN_PX, max_w);
