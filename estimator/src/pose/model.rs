@@ -262,6 +262,14 @@ impl Model {
 
         let model = Model { surface_resolution, feature_points, feature_normals, descriptors, views, symmetries_deg };
         model.validate()?;
+        // A file from `camplace model` always has both; an estimator cannot run without.
+        if model.feature_points.is_empty() || model.views.is_empty() {
+            return Err(err(format!(
+                "expected at least one feature and one view, found {} features and {} views",
+                model.feature_points.len(),
+                model.views.len()
+            )));
+        }
         Ok(model)
     }
 }
@@ -431,6 +439,19 @@ mod tests {
         }
         let tray = testing::tray(false, 1);
         assert_eq!(Model::from_bytes(&tray.to_bytes()).unwrap(), tray);
+    }
+
+    #[test]
+    fn a_file_without_views_or_features_is_refused_as_a_model() {
+        let mut m = small_model(3);
+        m.views.clear();
+        let e = Model::from_bytes(&m.to_bytes()).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::Model);
+        assert!(e.to_string().contains("0 views"), "{e}");
+        let mut m = small_model(3);
+        (m.feature_points, m.feature_normals, m.descriptors) = (vec![], vec![], vec![]);
+        let e = Model::from_bytes(&m.to_bytes()).unwrap_err();
+        assert!(e.to_string().contains("0 features"), "{e}");
     }
 
     #[test]

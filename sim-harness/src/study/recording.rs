@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use camplace_config::write_atomic;
 use camplace_config::{Cell, TruthFile};
 use camplace_estimator::isometry_from_rows;
-use camplace_estimator::{Estimator, Method, Model, PoseEstimate, Rig};
+use camplace_estimator::{ErrorKind, Estimator, Method, Model, PoseEstimate, Rig};
 use camplace_hwio::{FrameSource, Frames, RecordedSource};
 
 use super::record::{score, FrameRecord};
@@ -39,8 +39,11 @@ pub fn estimator_for(
     method: Method,
     background: Option<&Frames>,
 ) -> Result<Estimator> {
-    let mut estimator =
-        Estimator::new(cell, rig, model, method).map_err(|e| Error::Other(format!("{}: {e}", rig_path.display())))?;
+    // Only the rig's own errors belong to its file; a model's name the model.
+    let mut estimator = Estimator::new(cell, rig, model, method).map_err(|e| match e.kind() {
+        ErrorKind::Rig => Error::from(e).in_file(rig_path),
+        _ => Error::from(e),
+    })?;
     if let Some(frames) = background {
         estimator.set_background(&frames.left, &frames.right).map_err(|e| Error::Other(format!("background: {e}")))?;
     }
