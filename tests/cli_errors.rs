@@ -136,7 +136,8 @@ fn rig_geometry_errors_name_the_file_and_the_key() {
     let d = dir.path();
     let o = camplace(d, &["render", "--dataset", "--count", "1", "--out", "ds"]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let rig: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(d.join("ds/rig.json")).unwrap()).unwrap();
+    let rig: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("ds/rig.json")).unwrap()).unwrap();
     // Both cameras at one centre; then both looking straight up, away from the table.
     let mut same = rig.clone();
     same["right"]["T_world_camera"] = rig["left"]["T_world_camera"].clone();
@@ -152,5 +153,60 @@ fn rig_geometry_errors_name_the_file_and_the_key() {
         std::fs::write(d.join("ds/rig.json"), rig.to_string()).unwrap();
         let o = camplace(d, &["reconstruct", "--dataset", "ds"]);
         assert_one_line_error(o.status.code().unwrap_or(-1), &stderr(&o), &["rig.json", key]);
+    }
+}
+
+/// Every command that reads a recorded dataset checks its poses: a reflected camera in
+/// `rig.json` and a rotation that is not one in `truth.json` end in one line naming the file
+/// and the key, never a hang or a score.
+#[test]
+fn every_dataset_command_checks_the_poses_it_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A coarse cell builds its model in moments.
+    std::fs::write(
+        d.join("coarse.toml"),
+        "[estimator]\nsurface_resolution = 12.0\nnormal_radius = 40\nfeature_radius = 60\nkeypoint_spacing = 30\n",
+    )
+    .unwrap();
+    for args in [
+        &["render", "--cell", "coarse.toml", "--dataset", "--count", "2", "--out", "ds"][..],
+        &["model", "--cell", "coarse.toml", "--out", "tray.model"],
+    ] {
+        let o = camplace(d, args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+    }
+    let commands: [&[&str]; 3] = [
+        &["estimate", "--cell", "coarse.toml", "--dataset", "ds", "--model", "tray.model"],
+        &["replay", "ds", "--cell", "coarse.toml", "--model", "tray.model"],
+        &["run", "--cell", "coarse.toml", "--source", "dir:ds", "--model", "tray.model"],
+    ];
+    let good_rig = std::fs::read_to_string(d.join("ds/rig.json")).unwrap();
+    let mut rig: serde_json::Value = serde_json::from_str(&good_rig).unwrap();
+    for r in 0..3 {
+        let v = rig["left"]["T_world_camera"][r][0].as_f64().unwrap();
+        rig["left"]["T_world_camera"][r][0] = serde_json::json!(-v);
+    }
+    std::fs::write(d.join("ds/rig.json"), rig.to_string()).unwrap();
+    for args in commands {
+        let o = camplace(d, args);
+        assert_one_line_error(o.status.code().unwrap_or(-1), &stderr(&o), &["rig.json", "left.T_world_camera"]);
+    }
+    std::fs::write(d.join("ds/rig.json"), good_rig).unwrap();
+    let truth_path = d.join("ds/frames/0001/truth.json");
+    let mut truth: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&truth_path).unwrap()).unwrap();
+    for (rows, name) in [
+        (serde_json::json!([[0, 0, 0, 0], [0, 0, 0, 0], [0, 0, 0, 0], [0, 0, 0, 1]]), "all zero"),
+        (serde_json::json!([[2, 0, 0, 0], [0, 2, 0, 0], [0, 0, 2, 0], [0, 0, 0, 1]]), "scaled"),
+        (serde_json::json!([[-1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]), "reflected"),
+    ] {
+        truth["T_world_tray"] = rows;
+        std::fs::write(&truth_path, truth.to_string()).unwrap();
+        for args in commands {
+            let o = camplace(d, args);
+            let err = stderr(&o);
+            assert!(!err.is_empty(), "{name} truth accepted by {args:?}");
+            assert_one_line_error(o.status.code().unwrap_or(-1), &err, &["0001/truth.json", "T_world_tray"]);
+        }
     }
 }
