@@ -46,13 +46,9 @@ impl Error {
         Self::new(ErrorKind::Format, format!("{}: {message}", path.display()))
     }
 
-    /// An I/O error about `path`.
+    /// An I/O error about `path`, with the I/O error as its source.
     pub fn io(path: &Path, err: &std::io::Error) -> Self {
-        let what = match err.kind() {
-            std::io::ErrorKind::NotFound => "no such file or folder".to_string(),
-            _ => err.to_string(),
-        };
-        Self::new(ErrorKind::Io, format!("{}: {what}", path.display()))
+        camplace_config::Error::io(path, err).into()
     }
 
     /// A device error: `device: message`.
@@ -104,3 +100,23 @@ impl From<camplace_config::Error> for Error {
 
 /// The hardware crate's result type.
 pub type Result<T> = std::result::Result<T, Error>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::error::Error as _;
+
+    #[test]
+    fn an_io_error_names_the_path_and_keeps_the_os_error() {
+        let e = Error::io(Path::new("frames"), &std::io::Error::from_raw_os_error(13));
+        assert_eq!(e.kind(), ErrorKind::Io);
+        assert!(e.to_string().starts_with("frames: "), "{e}");
+        let mut cause = e.source();
+        let mut os = None;
+        while let Some(c) = cause {
+            os = os.or(c.downcast_ref::<std::io::Error>().and_then(|io| io.raw_os_error()));
+            cause = c.source();
+        }
+        assert_eq!(os, Some(13));
+    }
+}
