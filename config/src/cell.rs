@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 use crate::formats::mesh;
-use crate::{Error, ErrorKind, Placement};
+use crate::{Error, ErrorKind, Placement, MAX_DISTANCE_MM};
 
 /// The commented default cell file, as `camplace init` writes it.
 pub const DEFAULT_CELL_TOML: &str = include_str!("default_cell.toml");
@@ -264,19 +264,37 @@ impl Cell {
         let tr = &self.tray;
         unit("tray.albedo", tr.albedo)?;
         if tr.kind == TrayKind::Mesh {
+            // A mesh tray with no slots is allowed: it is found empty.
             load_mesh_checked("tray.mesh", &tr.mesh)?;
-            if tr.slots.is_empty() {
-                // A mesh tray with no slots is allowed: it is found empty.
-            }
+        } else if !tr.mesh.as_os_str().is_empty() || !tr.slots.is_empty() {
+            // A built-in tray has its own shape and slots: a mesh or slots given beside
+            // one would be ignored, which is never what was meant.
+            let key = if tr.slots.is_empty() { "tray.mesh" } else { "tray.slots" };
+            return Err(Error::value(key, "given with a built-in tray.kind; set kind = \"mesh\" to use the mesh and its slots"));
         }
         for (i, s) in tr.slots.iter().enumerate() {
-            if s.iter().any(|v| !v.is_finite()) {
-                return Err(Error::value(format!("tray.slots[{i}]"), "expected four finite numbers [x, y, z, yaw]"));
+            if s.iter().any(|v| !(v.is_finite() && v.abs() <= MAX_DISTANCE_MM)) {
+                return Err(Error::value(
+                    format!("tray.slots[{i}]"),
+                    format!("expected four numbers [x, y, z, yaw] within ±{MAX_DISTANCE_MM} (mm and degrees)"),
+                ));
             }
         }
-        for (i, s) in tr.symmetries.iter().enumerate() {
-            if !s.is_finite() {
-                return Err(Error::value(format!("tray.symmetries[{i}]"), "expected an angle in degrees"));
+        for (i, &s) in tr.symmetries.iter().enumerate() {
+            // A rotation that maps the tray onto itself is a fraction of a turn: n of them
+            // make whole turns for some n up to 360.
+            let fraction_of_a_turn = s.is_finite()
+                && s > 0.0
+                && s < 360.0
+                && (1..=360).any(|n| {
+                    let turns = s * n as f64 / 360.0;
+                    turns.round() >= 1.0 && (turns - turns.round()).abs() < 1e-6
+                });
+            if !fraction_of_a_turn {
+                return Err(Error::value(
+                    format!("tray.symmetries[{i}]"),
+                    format!("expected an angle between 0 and 360 degrees that is a fraction of a turn (e.g. 90, 180), got {s}"),
+                ));
             }
         }
         let it = &self.items;
@@ -284,6 +302,8 @@ impl Cell {
         positive("items.size", &it.size)?;
         if it.kind == ItemsKind::Mesh {
             load_mesh_checked("items.mesh", &it.mesh)?;
+        } else if !it.mesh.as_os_str().is_empty() {
+            return Err(Error::value("items.mesh", "given with items.kind = \"box\"; set kind = \"mesh\" to use it"));
         }
         let s = &self.sensor;
         if s.camera_resolution.iter().any(|&v| !(16..=8192).contains(&v)) {
@@ -315,7 +335,12 @@ impl Cell {
             ));
         }
         angle_open("sensor.projector_hfov", s.projector_hfov, 1.0, 170.0)?;
-        nonneg("sensor.projector_gain", s.projector_gain)?;
+        if !(s.projector_gain.is_finite() && (0.0..=10.0).contains(&s.projector_gain)) {
+            return Err(Error::value(
+                "sensor.projector_gain",
+                format!("expected 0 to 10 (1 lights a white surface to full scale), got {}", s.projector_gain),
+            ));
+        }
         if s.noise_amplitude > 127 {
             return Err(Error::value("sensor.noise_amplitude", "expected 0 to 127 grey levels"));
         }
@@ -340,8 +365,12 @@ impl Cell {
         range("lighting.ambient", l.ambient, 0.0, 10.0)?;
         range("lighting.lamp_strength", l.lamp_strength, 0.0, 10.0)?;
         range("lighting.lamp_polar", l.lamp_polar, 0.0, 89.9)?;
-        if !(l.lamp_distance.is_finite() && l.lamp_distance > 0.0) {
-            return Err(Error::value("lighting.lamp_distance", "expected a positive distance in mm"));
+        // The lamp stands outside the work volume: not closer than 100 mm to the origin.
+        if !(l.lamp_distance.is_finite() && (100.0..=MAX_DISTANCE_MM).contains(&l.lamp_distance)) {
+            return Err(Error::value(
+                "lighting.lamp_distance",
+                format!("expected 100 to {MAX_DISTANCE_MM} mm, got {}", l.lamp_distance),
+            ));
         }
         let sc = &self.scenarios;
         if sc.count == 0 {
@@ -580,12 +609,16 @@ fn unit(key: &str, v: f64) -> Result<(), Error> {
 }
 
 fn positive(key: &str, v: &[f64]) -> Result<(), Error> {
-    if v.iter().all(|x| x.is_finite() && *x > 0.0) {
+    if v.iter().all(|x| x.is_finite() && (MIN_SIZE_MM..=MAX_DISTANCE_MM).contains(x)) {
         Ok(())
     } else {
-        Err(Error::value(key, format!("expected positive sizes in mm, got {v:?}")))
+        Err(Error::value(key, format!("expected sizes from {MIN_SIZE_MM} to {MAX_DISTANCE_MM} mm, got {v:?}")))
     }
 }
+
+/// The smallest size of a table or an item, mm: a tenth of a millimetre is below anything
+/// the sensor resolves.
+const MIN_SIZE_MM: f64 = 0.1;
 
 fn angle_open(key: &str, v: f64, lo: f64, hi: f64) -> Result<(), Error> {
     if v.is_finite() && v > lo && v < hi {
@@ -626,6 +659,33 @@ mod tests {
             }
             assert!(i > 0 && lines[i - 1].trim_start().starts_with('#'), "key without a comment: {t}");
         }
+    }
+
+    #[test]
+    fn values_that_mean_nothing_are_refused_naming_the_key() {
+        let cases = [
+            ("[table]\nsize = [1e308, 1e308]\n", "table.size"),
+            ("[table]\nsize = [1e-300, 900.0]\n", "table.size"),
+            ("[items]\nsize = [34.0, 34.0, 1e9]\n", "items.size"),
+            ("[tray]\nmesh = \"tray.stl\"\n", "tray.mesh"),
+            ("[tray]\nslots = [[0.0, 0.0, 0.0, 0.0]]\n", "tray.slots"),
+            ("[items]\nmesh = \"item.stl\"\n", "items.mesh"),
+            ("[tray]\nsymmetries = [-90.0]\n", "tray.symmetries[0]"),
+            ("[tray]\nsymmetries = [180.0, 360.0]\n", "tray.symmetries[1]"),
+            ("[tray]\nsymmetries = [1e-300]\n", "tray.symmetries[0]"),
+            ("[tray]\nsymmetries = [0.123456789]\n", "tray.symmetries[0]"),
+            ("[sensor]\nprojector_gain = 1e308\n", "sensor.projector_gain"),
+            ("[placement]\nazimuth = 1e308\n", "placement.azimuth"),
+            ("[lighting]\nlamp_distance = 1e-300\n", "lighting.lamp_distance"),
+            ("[lighting]\nlamp_distance = 4294967296\n", "lighting.lamp_distance"),
+        ];
+        for (text, key) in cases {
+            let e = Cell::from_toml_str(text, Path::new(".")).unwrap_err();
+            assert!(e.to_string().starts_with(key), "{text}: {e}");
+        }
+        // Symmetries that are fractions of a turn are kept.
+        let c = Cell::from_toml_str("[tray]\nsymmetries = [90.0, 180.0, 270.0, 120.0, 72.0]\n", Path::new(".")).unwrap();
+        assert_eq!(c.tray.symmetries.len(), 5);
     }
 
     #[test]

@@ -136,8 +136,11 @@ impl Placement {
                 }
             }
         }
-        if !self.azimuth.is_finite() {
-            return Err(Error::value(k("azimuth"), "expected a finite azimuth in degrees"));
+        if !(self.azimuth.is_finite() && (-360.0..=360.0).contains(&self.azimuth)) {
+            return Err(Error::value(
+                k("azimuth"),
+                format!("expected an azimuth from -360 to 360 degrees, got {}", self.azimuth),
+            ));
         }
         Ok(())
     }
