@@ -381,9 +381,14 @@ impl Cell {
         range("scenarios.tray_yaw", sc.tray_yaw, -720.0, 720.0)?;
         unit("scenarios.fill_probability", sc.fill_probability)?;
         let w = &self.work_volume;
-        range("work_volume.x", w.x, -1e5, 1e5)?;
-        range("work_volume.y", w.y, -1e5, 1e5)?;
-        range("work_volume.z", w.z, -1e5, 1e5)?;
+        for (key, v) in [("work_volume.x", w.x), ("work_volume.y", w.y), ("work_volume.z", w.z)] {
+            range(key, v, -1e5, 1e5)?;
+            // The estimator crops the cloud to this box: one that is not a millimetre deep
+            // along an axis keeps nothing.
+            if v[1] - v[0] < 1.0 {
+                return Err(Error::value(key, format!("expected max at least 1 mm above min, got {v:?}")));
+            }
+        }
         let st = &self.stereo;
         if !(1..=64).contains(&st.support_step) {
             return Err(Error::value(
@@ -678,6 +683,7 @@ mod tests {
             ("[placement]\nazimuth = 1e308\n", "placement.azimuth"),
             ("[lighting]\nlamp_distance = 1e-300\n", "lighting.lamp_distance"),
             ("[lighting]\nlamp_distance = 4294967296\n", "lighting.lamp_distance"),
+            ("[work_volume]\nz = [0.0, 0.0]\n", "work_volume.z"),
         ];
         for (text, key) in cases {
             let e = Cell::from_toml_str(text, Path::new(".")).unwrap_err();
