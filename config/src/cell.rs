@@ -270,7 +270,10 @@ impl Cell {
             // A built-in tray has its own shape and slots: a mesh or slots given beside
             // one would be ignored, which is never what was meant.
             let key = if tr.slots.is_empty() { "tray.mesh" } else { "tray.slots" };
-            return Err(Error::value(key, "given with a built-in tray.kind; set kind = \"mesh\" to use the mesh and its slots"));
+            return Err(Error::value(
+                key,
+                "given with a built-in tray.kind; set kind = \"mesh\" to use the mesh and its slots",
+            ));
         }
         for (i, s) in tr.slots.iter().enumerate() {
             if s.iter().any(|v| !(v.is_finite() && v.abs() <= MAX_DISTANCE_MM)) {
@@ -690,7 +693,8 @@ mod tests {
             assert!(e.to_string().starts_with(key), "{text}: {e}");
         }
         // Symmetries that are fractions of a turn are kept.
-        let c = Cell::from_toml_str("[tray]\nsymmetries = [90.0, 180.0, 270.0, 120.0, 72.0]\n", Path::new(".")).unwrap();
+        let c =
+            Cell::from_toml_str("[tray]\nsymmetries = [90.0, 180.0, 270.0, 120.0, 72.0]\n", Path::new(".")).unwrap();
         assert_eq!(c.tray.symmetries.len(), 5);
     }
 

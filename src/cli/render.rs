@@ -21,8 +21,8 @@ pub struct Args {
     /// Write a recorded-dataset folder of scenarios 0..count-1 instead of one scene.
     #[arg(long)]
     dataset: bool,
-    /// Number of scenarios with --dataset.
-    #[arg(long, default_value_t = 10, requires = "dataset")]
+    /// Number of scenarios with --dataset, 1 to 1000000.
+    #[arg(long, default_value_t = 10, requires = "dataset", value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
     count: u64,
     /// Output folder.
     #[arg(long)]

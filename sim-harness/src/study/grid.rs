@@ -77,6 +77,15 @@ impl Grid {
     /// The placements, x fastest: index = iy·nx + ix. Each is checked like a user's
     /// placement, so a grid reaching alpha = 90 is an error naming the key.
     pub fn placements(&self, base: &Placement) -> Result<Vec<Placement>, camplace_config::Error> {
+        if self.x.name == self.y.name {
+            return Err(camplace_config::Error::value(
+                "y",
+                format!(
+                    "expected a parameter other than the x axis's ({}): one parameter cannot span both axes",
+                    self.x.name
+                ),
+            ));
+        }
         let mut out = Vec::with_capacity(self.x.steps * self.y.steps);
         for y in self.y.values() {
             for x in self.x.values() {
