@@ -18,11 +18,11 @@ mod seeds;
 mod study;
 
 pub use error::{Error, Result};
-pub use model_builder::{build_model, model_points};
+pub use model_builder::{build_model, model_origin, model_points};
 pub use render::frame_files::{truth_of, write_frame, write_images, write_preview, write_rig, DatasetLayout};
 pub use render::pattern::{fringe_set, one_shot};
 pub use render::raster::{GBuffer, MapPixel, View, ZBuffer};
-pub use render::render_files::{render_dataset, render_scene};
+pub use render::render_files::{clear_dataset, render_dataset, render_scene};
 pub use render::shade::{Lights, ShadingTerms};
 pub use render::{Frame, Method, Simulator, LAMP_MAP_SIZE};
 pub use report::sweep_panels::SweepResult;
@@ -44,7 +44,8 @@ pub use study::optimize::{SearchParameter, SearchPlan};
 pub use study::placement_search::optimize;
 pub use study::placement_study::{run_study, Preset};
 pub use study::recording::{
-    estimate_dataset, estimator_for, load_model, method_for, record as frame_record, truth_path,
+    estimate_dataset, estimator_for, load_model, load_model_for, method_for, record as frame_record, truth_path,
+    DATASET_SUMMARY,
 };
 pub use study::results::ResultsStore;
 pub use study::shard::Shard;
