@@ -210,6 +210,64 @@ fn bad_run_flags_are_one_line_errors() {
     assert_one_line_error(&o, &["nowhere"]);
 }
 
+#[test]
+fn a_model_of_another_tray_is_refused_when_a_cell_is_given() {
+    let f = fixture();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("tray4.toml"), "[tray]\nkind = \"tray-4\"\n").unwrap();
+    std::fs::write(d.join("old.model"), camplace_estimator::testing::tray(false, 1).to_bytes()).unwrap();
+    let data = f.root.join("data").display().to_string();
+    let model = f.root.join("tray.model").display().to_string();
+    let source = format!("dir:{data}");
+    let runs: [&[&str]; 3] = [
+        &["estimate", "--dataset", &data, "--model", &model, "--cell", "tray4.toml"],
+        &["replay", &data, "--model", &model, "--cell", "tray4.toml"],
+        &["run", "--source", &source, "--model", &model, "--cell", "tray4.toml"],
+    ];
+    for args in runs {
+        let o = camplace(d, args);
+        assert_one_line_error(
+            &o,
+            &["tray.model", "built for tray tray-8", "tray4.toml has tray tray-4", "camplace model"],
+        );
+    }
+    std::fs::write(d.join("default.toml"), "").unwrap();
+    let o = camplace(d, &["estimate", "--dataset", &data, "--model", "old.model", "--cell", "default.toml"]);
+    assert_one_line_error(&o, &["old.model", "records no tray", "rebuild it with camplace model"]);
+}
+
+#[test]
+fn replay_without_truth_leaves_no_earlier_summary() {
+    let f = fixture();
+    let dir = tempfile::tempdir().unwrap();
+    let bare = dir.path().join("bare");
+    // The fixture's dataset without its truth: rig, background and the camera images.
+    std::fs::create_dir_all(bare.join("background")).unwrap();
+    std::fs::copy(f.root.join("data/rig.json"), bare.join("rig.json")).unwrap();
+    for side in ["left.png", "right.png"] {
+        std::fs::copy(f.root.join("data/background").join(side), bare.join("background").join(side)).unwrap();
+        for i in 0..SCENES {
+            let frame = format!("frames/{i:04}");
+            std::fs::create_dir_all(bare.join(&frame)).unwrap();
+            std::fs::copy(f.root.join("data").join(&frame).join(side), bare.join(&frame).join(side)).unwrap();
+        }
+    }
+    std::fs::write(bare.join("summary.json"), "{\"frames\": 99}").unwrap();
+    // A cell file of the model's own tray passes the tray check.
+    std::fs::write(dir.path().join("default.toml"), "").unwrap();
+    let model = f.root.join("tray.model").display().to_string();
+    let o = camplace(dir.path(), &["replay", "bare", "--model", &model, "--cell", "default.toml"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!bare.join("summary.json").exists(), "the earlier summary is gone");
+    let replayed = records(&read(&bare.join("poses.jsonl")));
+    let evaluated = evaluated(f);
+    assert_eq!(replayed.len(), evaluated.len());
+    for (r, e) in replayed.iter().zip(&evaluated) {
+        assert_eq!(untimed(r), FrameRecord { score: None, ..untimed(e) }, "frame {}", r.frame);
+    }
+}
+
 #[cfg(not(feature = "display"))]
 #[test]
 fn project_without_the_display_feature_says_how_to_build_it() {

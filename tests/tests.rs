@@ -4,6 +4,7 @@ mod camplace_cmd;
 mod cli_errors;
 mod deploy;
 mod estimate;
+mod integrity;
 mod reconstruct;
 mod reconstruct_errors;
 mod study;

@@ -3,6 +3,7 @@
 //! nothing of the estimator or the simulator, only what the user writes and reads.
 
 mod cell;
+mod cell_hash;
 mod error;
 mod formats;
 mod placement;
@@ -15,13 +16,14 @@ pub use cell::{
     Cell, EstimatorParams, Items, ItemsKind, Lighting, Metrics, PhaseParams, ReconstructionParams, Scenarios, Sensor,
     StereoParams, Table, Tray, TrayKind, WorkVolume, DEFAULT_CELL_TOML, MAX_ITERATIONS, MAX_TEXTURE,
 };
+pub use cell_hash::{CellHashes, ContentHash, MeshHash};
 pub use error::{Error, ErrorKind};
-pub use formats::dataset::{frame_name, image_name};
+pub use formats::dataset::{frame_name, image_name, is_image_name, DATASET_FILES, FRAME_FILES};
 pub use formats::mesh::{decode_obj, decode_stl, load_mesh, Mesh};
 pub use formats::pfm::{decode_pfm, encode_pfm, read_pfm, write_pfm};
 pub use formats::ply::{decode_ply, encode_cloud, read_cloud, read_ply, write_cloud, PlyCloud, PlyData};
 pub use formats::png::{read_gray, write_gray, write_rgb, Gray};
-pub use formats::write_atomic;
+pub use formats::{is_temp_file_name, remove_stale_temp_files, write_atomic};
 pub use placement::{Placement, Vergence, MAX_DISTANCE_MM, PARAMETERS};
 pub use pose::{check_rigid, ROTATION_TOLERANCE};
 pub use raster::{FloatImage, GrayImage, Image};

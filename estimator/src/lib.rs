@@ -33,7 +33,7 @@ pub use features::{
 pub use method::Method;
 pub use pipeline::{Estimator, PoseEstimate, StageTimings};
 pub use pose::{
-    correct_matches, pose_errors, Icp, IcpResult, Model, ModelView, PoseErrors, Ransac, RansacResult,
+    correct_matches, pose_errors, Icp, IcpResult, Model, ModelOrigin, ModelView, PoseErrors, Ransac, RansacResult,
     MODEL_FORMAT_VERSION,
 };
 pub use rig::Rig;

@@ -19,12 +19,12 @@ mod seeds;
 mod study;
 
 pub use error::{Error, Result};
-pub use model_builder::{build_model, model_points};
+pub use model_builder::{build_model, model_origin, model_points};
 pub use reconstruction::{
     match_rectified, reconstruct_dataset, reconstruct_pair, DatasetDepth, PairDepth, RectifiedDepth, RectifiedPair,
 };
 pub use render::pattern::{fringe_set, one_shot};
-pub use render::render_files::{render_dataset, render_scene};
+pub use render::render_files::{clear_dataset, render_dataset, render_scene};
 pub use render::{Frame, Method, Simulator};
 pub use report::sweep_panels::SweepResult;
 pub use scene::placement_rig::rig_for;
@@ -32,6 +32,7 @@ pub use scene::scenario::{background_scene, draw_scenario, Scenario};
 pub use scene::SceneSpec;
 pub use search::test_functions::{run_test_function, test_function};
 pub use seeds::noise_key;
+pub use study::folder::open_folder;
 pub use study::grid::{Axis, Grid};
 pub use study::merge::merge;
 pub use study::one_placement::{acceptance_summary, evaluate_placement};
@@ -39,7 +40,8 @@ pub use study::optimize::{SearchParameter, SearchPlan};
 pub use study::placement_search::optimize;
 pub use study::placement_study::{run_study, Preset};
 pub use study::recording::{
-    estimate_dataset, estimator_for, load_model, method_for, record as frame_record, truth_path,
+    estimate_dataset, estimator_for, load_model, load_model_for, method_for, record as frame_record, truth_path,
+    DATASET_SUMMARY,
 };
 pub use study::shard::Shard;
 pub use study::sweep::sweep;

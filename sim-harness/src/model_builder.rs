@@ -8,8 +8,8 @@
 use camplace_config::{Cell, Placement};
 use camplace_estimator::MIN_NORMAL_NEIGHBOURS;
 use camplace_estimator::{
-    Descriptor, Downsampler, FeatureExtractor, Method, Model, ModelView, Neighbours, NormalEstimator, Reconstruction,
-    Reconstructor, Rectification,
+    Descriptor, Downsampler, FeatureExtractor, Method, Model, ModelOrigin, ModelView, Neighbours, NormalEstimator,
+    Reconstruction, Reconstructor, Rectification,
 };
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
@@ -29,6 +29,19 @@ const CROP_MARGIN_MM: f32 = 4.0;
 /// Noise keys of model captures sit far from a study's scenario indices.
 const MODEL_NOISE_OFFSET: u64 = 1 << 40;
 
+/// What [`build_model`] records a model was built from.
+pub fn model_origin(cell: &Cell, placement: &Placement, method: Method, seed: u64) -> Result<ModelOrigin> {
+    let hashes = cell.hashes()?;
+    Ok(ModelOrigin {
+        cell_hash: hashes.cell,
+        tray: cell.tray_name(),
+        tray_hash: hashes.tray,
+        method: method.to_string(),
+        seed,
+        placement: placement.to_string(),
+    })
+}
+
 /// One capture's contribution: its features and its down-sampled cloud, tray frame.
 struct Capture {
     points: Vec<Point3<f32>>,
@@ -40,6 +53,7 @@ struct Capture {
 /// The tray model of `cell`'s tray seen by the sensor at `placement` with `method`; `seed`
 /// draws the one-shot pattern and the camera noise.
 pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64) -> Result<Model> {
+    let origin = model_origin(cell, placement, method, seed)?;
     let probe = Simulator::new(cell, placement, seed)?;
     let slots = probe.objects().tray.slots.len();
     let rectification = Rectification::new(probe.rig(), &cell.work_volume)?;
@@ -116,6 +130,7 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
     let mut model = Model {
         surface_resolution: params.surface_resolution as f32,
         symmetries_deg: cell.tray.symmetries.iter().map(|&s| s as f32).collect(),
+        origin: Some(origin),
         ..Model::default()
     };
     for v in 0..VIEWPOINTS {

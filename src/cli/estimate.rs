@@ -4,7 +4,7 @@
 use anyhow::Context;
 use camplace_config::RigFile;
 use camplace_estimator::{Estimator, Method, Model, Rig};
-use camplace_sim::{estimate_dataset, load_model, FrameRecord, Summary};
+use camplace_sim::{estimate_dataset, load_model, load_model_for, FrameRecord, Summary};
 use nalgebra::Point3;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -25,7 +25,8 @@ pub struct Args {
     /// Calibration of the sensor that saw --cloud (default: the cell's sensor at its placement).
     #[arg(long, value_name = "FILE", requires = "cloud")]
     rig: Option<PathBuf>,
-    /// The tray model (from `camplace model`).
+    /// The tray model (from `camplace model`); with --cell, it must have been built for that
+    /// cell's tray.
     #[arg(long, value_name = "FILE")]
     model: PathBuf,
 }
@@ -33,7 +34,10 @@ pub struct Args {
 /// Runs `camplace estimate`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (cell, placement) = a.cell.load()?;
-    let model = load_model(&a.model)?;
+    let model = match &a.cell.cell {
+        Some(cell_file) => load_model_for(&a.model, &cell, cell_file)?,
+        None => load_model(&a.model)?,
+    };
     if let Some(dir) = &a.dataset {
         return dataset(&cell, model, dir);
     }

@@ -1,7 +1,8 @@
 //! `camplace render`: one simulated scene with its ground truth, or (`--dataset`) a
-//! recorded-dataset folder of scenarios 0..N-1 that `evaluate` and `replay` read alike.
+//! recorded-dataset folder of scenarios 0..N-1 that `evaluate` and `replay` read alike,
+//! into an empty folder (or, with `--force`, one emptied of an earlier dataset first).
 
-use camplace_sim::{render_dataset, render_scene};
+use camplace_sim::{clear_dataset, render_dataset, render_scene};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -24,6 +25,10 @@ pub struct Args {
     /// Number of scenarios with --dataset, 1 to 1000000.
     #[arg(long, default_value_t = 10, requires = "dataset", value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
     count: u64,
+    /// With --dataset: first remove the dataset already in the output folder (only files
+    /// camplace writes into a dataset; a folder holding anything else is refused).
+    #[arg(long, requires = "dataset")]
+    force: bool,
     /// Output folder.
     #[arg(long)]
     out: PathBuf,
@@ -43,9 +48,12 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         );
         return Ok(ExitCode::SUCCESS);
     }
+    let removed = if a.force { clear_dataset(&a.out)? } else { 0 };
     render_dataset(&a.out, &cell, &placement, a.scene.method, seed, a.count)?;
+    let replaced =
+        if removed > 0 { format!(" (the {removed} files of the dataset there removed first)") } else { String::new() };
     println!(
-        "rendered {} scenarios of seed {seed} at {placement} ({}) into {}",
+        "rendered {} scenarios of seed {seed} at {placement} ({}) into {}{replaced}",
         a.count,
         a.scene.method,
         a.out.display()

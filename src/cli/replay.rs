@@ -1,11 +1,12 @@
 //! `camplace replay`: a recorded dataset (real or rendered) through the deployed estimator,
 //! frame by frame: `poses.jsonl` as `estimate` writes it and, where frames carry a
-//! `truth.json`, `summary.json` with the numbers `evaluate` gives for the same scenes.
+//! `truth.json`, `summary.json` with the numbers `evaluate` gives for the same scenes (a
+//! summary of an earlier replay is removed when these frames carry no truth).
 
 use anyhow::Context;
 use camplace_config::write_atomic;
 use camplace_config::Cell;
-use camplace_sim::{estimate_dataset, load_model, Summary};
+use camplace_sim::{estimate_dataset, load_model, load_model_for, Summary, DATASET_SUMMARY};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -18,18 +19,22 @@ pub struct Args {
     /// The tray model (from `camplace model`).
     #[arg(long, value_name = "FILE")]
     model: PathBuf,
-    /// Cell file (TOML) with the estimator settings and metrics; the built-in default when not given.
+    /// Cell file (TOML) with the estimator settings and metrics; the built-in default when not
+    /// given. The model must have been built for its tray.
     #[arg(long, value_name = "FILE")]
     cell: Option<PathBuf>,
 }
 
 /// Runs `camplace replay`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    let cell = match &a.cell {
-        Some(path) => Cell::load(path)?,
-        None => Cell::default(),
+    let (cell, model) = match &a.cell {
+        Some(path) => {
+            let cell = Cell::load(path)?;
+            let model = load_model_for(&a.model, &cell, path)?;
+            (cell, model)
+        }
+        None => (Cell::default(), load_model(&a.model)?),
     };
-    let model = load_model(&a.model)?;
     let (records, method) = estimate_dataset(&cell, model, &a.dataset)?;
     let summary = Summary::from_records(&records);
     let poses = a.dataset.join("poses.jsonl");
@@ -37,7 +42,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         println!("{} frames ({method}): {}; wrote {}", records.len(), summary.line(), poses.display());
         return Ok(ExitCode::SUCCESS);
     }
-    let path = a.dataset.join("summary.json");
+    let path = a.dataset.join(DATASET_SUMMARY);
     let json = serde_json::to_string_pretty(&summary).context("summary")?;
     write_atomic(&path, format!("{json}\n").as_bytes())?;
     println!(

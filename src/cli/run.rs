@@ -8,7 +8,9 @@ use anyhow::{bail, Context};
 use camplace_config::Cell;
 use camplace_estimator::Rig;
 use camplace_hwio::{parse_source, DeploySource, Deployment};
-use camplace_sim::{estimator_for, frame_record, load_model, method_for, truth_path, FrameRecord, Summary};
+use camplace_sim::{
+    estimator_for, frame_record, load_model, load_model_for, method_for, truth_path, FrameRecord, Summary,
+};
 use serde::Serialize;
 use std::io::Write;
 use std::path::PathBuf;
@@ -29,7 +31,8 @@ pub struct Args {
     /// Write the JSON lines here instead of stdout.
     #[arg(long, value_name = "FILE")]
     out: Option<PathBuf>,
-    /// Cell file (TOML) with the estimator settings; the built-in default when not given.
+    /// Cell file (TOML) with the estimator settings; the built-in default when not given. The
+    /// model must have been built for its tray.
     #[arg(long, value_name = "FILE")]
     cell: Option<PathBuf>,
     /// Calibration of the cameras (needed for cameras; a dataset's own rig.json otherwise).
@@ -70,7 +73,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     };
     let opened = DeploySource::open(&spec, a.rig.as_deref(), a.background.as_deref(), a.fps)?;
     let rig = Rig::from_file(&opened.rig);
-    let model = load_model(&a.model)?;
+    let model = match &a.cell {
+        Some(path) => load_model_for(&a.model, &cell, path)?,
+        None => load_model(&a.model)?,
+    };
     let method = method_for(opened.source.shots());
     let estimator = estimator_for(&cell, model, &rig, &opened.rig_path, method, opened.background.as_ref())?;
     if opened.background.is_none() {

@@ -1,6 +1,7 @@
 //! Names inside a recorded dataset (docs/architecture.md §3): `frames/NNNN/` folders and
 //! the camera images `left.png` (one shot) or `left_00.png` ... `left_11.png`. The
-//! simulator writes them and hwio reads them, so both take the names from here.
+//! simulator writes them and hwio reads them, so both take the names from here. Also the
+//! other files camplace writes into a dataset, so a folder can be told to hold only those.
 
 /// Name of frame `index`'s folder inside `frames/` (`7` -> `"0007"`).
 pub fn frame_name(index: u64) -> String {
@@ -16,6 +17,35 @@ pub fn image_name(side: &str, shot: usize, shots: usize) -> String {
     }
 }
 
+/// Files camplace writes at the top of a dataset besides `background/` and `frames/`: the
+/// calibration, and the poses and summary of `estimate --dataset` and `replay`.
+pub const DATASET_FILES: [&str; 3] = ["rig.json", "poses.jsonl", "summary.json"];
+
+/// Files camplace writes into a frame folder besides the camera images: the simulator's
+/// truth and preview, and `reconstruct --dataset`'s outputs.
+pub const FRAME_FILES: [&str; 12] = [
+    "truth.json",
+    "depth_left.pfm",
+    "depth_right.pfm",
+    "ids_left.png",
+    "ids_right.png",
+    "disparity_truth.pfm",
+    "preview.png",
+    "rectified_left.png",
+    "rectified_right.png",
+    "disparity.pfm",
+    "depth.pfm",
+    "cloud.ply",
+];
+
+/// Whether `name` is a camera image's file name as [`image_name`] gives it (`left.png`,
+/// `right_07.png`).
+pub fn is_image_name(name: &str) -> bool {
+    let Some(stem) = name.strip_suffix(".png") else { return false };
+    let Some(rest) = stem.strip_prefix("left").or_else(|| stem.strip_prefix("right")) else { return false };
+    rest.is_empty() || rest.strip_prefix('_').is_some_and(|n| n.len() == 2 && n.bytes().all(|b| b.is_ascii_digit()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -26,5 +56,14 @@ mod tests {
         assert_eq!(frame_name(12345), "12345");
         assert_eq!(image_name("left", 0, 1), "left.png");
         assert_eq!(image_name("right", 11, 12), "right_11.png");
+        for shots in [1, 12] {
+            for shot in 0..shots {
+                assert!(is_image_name(&image_name("left", shot, shots)));
+                assert!(is_image_name(&image_name("right", shot, shots)));
+            }
+        }
+        for other in ["left.jpg", "middle.png", "left_1.png", "right_123.png", "left_ab.png", "lefty.png"] {
+            assert!(!is_image_name(other), "{other}");
+        }
     }
 }

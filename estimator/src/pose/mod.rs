@@ -12,5 +12,5 @@ pub use icp::{Icp, IcpResult};
 pub use metrics::{correct_matches, pose_errors, PoseErrors};
 #[cfg(any(test, feature = "testing"))]
 pub(crate) use model::DESCRIPTOR_LEN;
-pub use model::{Model, ModelView, MODEL_FORMAT_VERSION};
+pub use model::{Model, ModelOrigin, ModelView, MODEL_FORMAT_VERSION};
 pub use ransac::{Ransac, RansacResult};

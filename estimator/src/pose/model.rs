@@ -5,12 +5,14 @@
 //!
 //! Points are `f32` like every cloud; poses are `f64` like every calibrated transform.
 
+use camplace_config::ContentHash;
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::error::{Error, ErrorKind, Result};
 
-/// Version of the binary layout written by [`Model::to_bytes`].
-pub const MODEL_FORMAT_VERSION: u32 = 1;
+/// Version of the binary layout written by [`Model::to_bytes`]. Version 2 added the `ORIG`
+/// section; version 1 files still read, without an origin.
+pub const MODEL_FORMAT_VERSION: u32 = 2;
 
 /// First bytes of every model file.
 pub const MODEL_MAGIC: [u8; 8] = *b"CPLMODEL";
@@ -33,6 +35,26 @@ pub struct Model {
     pub views: Vec<ModelView>,
     /// Rotations about tray z (deg) that map the tray onto itself; the identity is implied.
     pub symmetries_deg: Vec<f32>,
+    /// What the model was built from; `None` for a model of unknown origin (a version 1
+    /// file, a test fixture).
+    pub origin: Option<ModelOrigin>,
+}
+
+/// What a model was built from, so that a model of another tray or cell can be refused.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct ModelOrigin {
+    /// The hash of the whole cell (every setting and its mesh files' bytes).
+    pub cell_hash: ContentHash,
+    /// The tray as the cell names it (`tray-8`, `tray-4`, `mesh NAME`).
+    pub tray: String,
+    /// The hash of the tray's and its items' geometry.
+    pub tray_hash: ContentHash,
+    /// The capture method (`one-shot`, `phase-12`).
+    pub method: String,
+    /// The seed of the pattern and the camera noise.
+    pub seed: u64,
+    /// The placement, as `r=..,alpha=..,baseline=..,vergence=..`.
+    pub placement: String,
 }
 
 /// The tray seen from one viewpoint: its fill states merged and down-sampled.
@@ -50,6 +72,9 @@ const TAG_HEAD: [u8; 4] = *b"HEAD";
 const TAG_FEAT: [u8; 4] = *b"FEAT";
 const TAG_VIEW: [u8; 4] = *b"VIEW";
 const TAG_SYMM: [u8; 4] = *b"SYMM";
+const TAG_ORIG: [u8; 4] = *b"ORIG";
+/// Longest text an `ORIG` section may hold in one field.
+const MAX_ORIGIN_TEXT: usize = 4096;
 /// Magic, version and body length.
 const PREAMBLE_LEN: usize = 8 + 4 + 8;
 const FEATURE_BYTES: usize = 4 * (3 + 3 + DESCRIPTOR_LEN);
@@ -120,13 +145,17 @@ impl Model {
     /// The body is tagged sections, each `tag[4] length(u64) payload`: `HEAD` (surface
     /// resolution f32, feature, view and symmetry counts u32), `FEAT` (per feature: point,
     /// normal, descriptor as f32), one `VIEW` per viewpoint (direction f32×3, point count u32,
-    /// then point and normal f32×6 each) and `SYMM` (angles f32, deg).
+    /// then point and normal f32×6 each), `SYMM` (angles f32, deg) and `ORIG` (empty for an
+    /// unknown origin, else the cell hash and the tray hash, 32 bytes each, the seed u64, then
+    /// the tray, method and placement as u32 length and UTF-8 text).
     pub fn to_bytes(&self) -> Vec<u8> {
         let view_bytes: usize = self.views.iter().map(|v| 12 + 16 + v.points.len() * VIEW_POINT_BYTES).sum();
+        let origin = self.origin.as_ref().map(encode_origin).unwrap_or_default();
         let body_len = (12 + 16)
             + (12 + self.feature_points.len() * FEATURE_BYTES)
             + view_bytes
-            + (12 + 4 * self.symmetries_deg.len());
+            + (12 + 4 * self.symmetries_deg.len())
+            + (12 + origin.len());
         let mut out = Vec::with_capacity(PREAMBLE_LEN + body_len + 4);
         out.extend_from_slice(&MODEL_MAGIC);
         out.extend_from_slice(&MODEL_FORMAT_VERSION.to_le_bytes());
@@ -159,13 +188,16 @@ impl Model {
         for s in &self.symmetries_deg {
             put_f32(&mut out, *s);
         }
+        section(&mut out, TAG_ORIG, origin.len());
+        out.extend_from_slice(&origin);
         let crc = crc32(&out);
         put_u32(&mut out, crc);
         out
     }
 
-    /// Decodes [`Model::to_bytes`]'s layout; a wrong magic, another version, a truncated or
-    /// corrupted file each give an [`ErrorKind::Model`] error saying what was expected.
+    /// Decodes [`Model::to_bytes`]'s layout (and version 1's, which has no `ORIG`); a wrong
+    /// magic, another version, a truncated or corrupted file each give an
+    /// [`ErrorKind::Model`] error saying what was expected.
     pub fn from_bytes(bytes: &[u8]) -> Result<Model> {
         let err = |msg: String| Error::new(ErrorKind::Model, format!("model: {msg}"));
         if bytes.len() < MODEL_MAGIC.len() || bytes[..MODEL_MAGIC.len()] != MODEL_MAGIC {
@@ -183,9 +215,9 @@ impl Model {
             )));
         }
         let version = u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes"));
-        if version != MODEL_FORMAT_VERSION {
+        if !(1..=MODEL_FORMAT_VERSION).contains(&version) {
             return Err(err(format!(
-                "expected format version {MODEL_FORMAT_VERSION}, found version {version} (rebuild the model with this camplace)"
+                "expected format version 1 to {MODEL_FORMAT_VERSION}, found version {version} (rebuild the model with this camplace)"
             )));
         }
         let body_len = u64::from_le_bytes(bytes[12..20].try_into().expect("8 bytes"));
@@ -253,14 +285,17 @@ impl Model {
         symm.expect_len(n_symmetries, 4, "symmetries")?;
         let symmetries_deg = (0..n_symmetries).map(|_| symm.f32("symmetry")).collect::<Result<Vec<_>>>()?;
         symm.finish()?;
+        let origin = if version >= 2 { decode_origin(r.section(TAG_ORIG)?)? } else { None };
         if r.remaining() != 0 {
+            let last = if version >= 2 { "ORIG" } else { "SYMM" };
             return Err(err(format!(
-                "expected the body to end after section SYMM, found {} more bytes",
+                "expected the body to end after section {last}, found {} more bytes",
                 r.remaining()
             )));
         }
 
-        let model = Model { surface_resolution, feature_points, feature_normals, descriptors, views, symmetries_deg };
+        let model =
+            Model { surface_resolution, feature_points, feature_normals, descriptors, views, symmetries_deg, origin };
         model.validate()?;
         // A file from `camplace model` always has both; an estimator cannot run without.
         if model.feature_points.is_empty() || model.views.is_empty() {
@@ -272,6 +307,49 @@ impl Model {
         }
         Ok(model)
     }
+}
+
+fn encode_origin(o: &ModelOrigin) -> Vec<u8> {
+    let mut out = Vec::new();
+    out.extend_from_slice(&o.cell_hash.0);
+    out.extend_from_slice(&o.tray_hash.0);
+    out.extend_from_slice(&o.seed.to_le_bytes());
+    for text in [&o.tray, &o.method, &o.placement] {
+        // Names and placements are short; a longer text is cut (at a character) to what reads back.
+        let end = (0..=text.len().min(MAX_ORIGIN_TEXT)).rev().find(|&i| text.is_char_boundary(i)).unwrap_or(0);
+        put_u32(&mut out, end as u32);
+        out.extend_from_slice(&text.as_bytes()[..end]);
+    }
+    out
+}
+
+/// The `ORIG` section: empty for an unknown origin.
+fn decode_origin(mut s: Reader<'_>) -> Result<Option<ModelOrigin>> {
+    if s.remaining() == 0 {
+        return Ok(None);
+    }
+    let mut hash =
+        |what: &str| -> Result<ContentHash> { Ok(ContentHash(s.take(32, what)?.try_into().expect("32 bytes"))) };
+    let cell_hash = hash("the cell hash")?;
+    let tray_hash = hash("the tray hash")?;
+    let seed = u64::from_le_bytes(s.take(8, "the seed")?.try_into().expect("8 bytes"));
+    let mut text = |what: &str| -> Result<String> {
+        let n = s.u32(what)? as usize;
+        if n > MAX_ORIGIN_TEXT {
+            return Err(Error::new(
+                ErrorKind::Model,
+                format!("model: corrupted: expected {what} of at most {MAX_ORIGIN_TEXT} bytes, found length {n}"),
+            ));
+        }
+        let bytes = s.take(n, what)?;
+        String::from_utf8(bytes.to_vec())
+            .map_err(|_| Error::new(ErrorKind::Model, format!("model: corrupted: expected {what} as UTF-8 text")))
+    };
+    let tray = text("the tray name")?;
+    let method = text("the method")?;
+    let placement = text("the placement")?;
+    s.finish()?;
+    Ok(Some(ModelOrigin { cell_hash, tray, tray_hash, method, seed, placement }))
 }
 
 fn finite3(v: &Vector3<f32>) -> bool {
@@ -428,7 +506,30 @@ mod tests {
             feature_points,
             views,
             symmetries_deg: vec![90.0, 180.0, 270.0],
+            origin: Some(ModelOrigin {
+                cell_hash: ContentHash::of(&seed.to_le_bytes()),
+                tray: "tray-8".to_string(),
+                tray_hash: ContentHash::of(b"tray"),
+                method: "one-shot".to_string(),
+                seed,
+                placement: "r=605,alpha=32,baseline=81,vergence=3.5".to_string(),
+            }),
         }
+    }
+
+    /// `m` (which must have no origin) in the layout of format version 1: no `ORIG` section.
+    fn version_1_bytes(m: &Model) -> Vec<u8> {
+        assert!(m.origin.is_none());
+        let v2 = m.to_bytes();
+        let end = v2.len() - 4 - 12;
+        assert_eq!(&v2[end..end + 4], b"ORIG");
+        let mut b = v2[..end].to_vec();
+        b[8..12].copy_from_slice(&1u32.to_le_bytes());
+        let body_len = (end - PREAMBLE_LEN) as u64;
+        b[12..20].copy_from_slice(&body_len.to_le_bytes());
+        let crc = crc32(&b);
+        b.extend_from_slice(&crc.to_le_bytes());
+        b
     }
 
     #[test]
@@ -439,6 +540,47 @@ mod tests {
         }
         let tray = testing::tray(false, 1);
         assert_eq!(Model::from_bytes(&tray.to_bytes()).unwrap(), tray);
+        let unknown = Model { origin: None, ..small_model(1) };
+        assert_eq!(Model::from_bytes(&unknown.to_bytes()).unwrap(), unknown);
+    }
+
+    #[test]
+    fn a_version_1_file_reads_without_an_origin() {
+        let m = Model { origin: None, ..small_model(6) };
+        let v1 = version_1_bytes(&m);
+        assert_eq!(Model::from_bytes(&v1).unwrap(), m);
+        for len in 0..v1.len() {
+            assert!(Model::from_bytes(&v1[..len]).is_err());
+        }
+    }
+
+    /// Damage inside the `ORIG` section with the checksum made to fit again: the texts'
+    /// lengths and UTF-8 are checked, and nothing panics.
+    #[test]
+    fn a_damaged_origin_is_an_error_or_another_origin_never_a_panic() {
+        let bytes = small_model(7).to_bytes();
+        let end = bytes.len() - 4;
+        let orig = end - 12 - encode_origin(small_model(7).origin.as_ref().unwrap()).len();
+        assert_eq!(&bytes[orig..orig + 4], b"ORIG");
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let mut failures = 0;
+        for _ in 0..3000 {
+            let mut b = bytes.clone();
+            for _ in 0..rng.random_range(1..4) {
+                let i = rng.random_range(orig..end);
+                b[i] ^= rng.random_range(1..=255u8);
+            }
+            let crc = crc32(&b[..end]);
+            b[end..].copy_from_slice(&crc.to_le_bytes());
+            match Model::from_bytes(&b) {
+                Ok(m) => assert_eq!(m.feature_points, small_model(7).feature_points),
+                Err(e) => {
+                    assert_eq!(e.kind(), ErrorKind::Model);
+                    failures += 1;
+                }
+            }
+        }
+        assert!(failures > 0);
     }
 
     #[test]
@@ -512,7 +654,7 @@ mod tests {
         let mut b = small_model(4).to_bytes();
         b[8..12].copy_from_slice(&7u32.to_le_bytes());
         let e = Model::from_bytes(&b).unwrap_err();
-        assert!(e.to_string().contains("version 1") && e.to_string().contains("version 7"), "{e}");
+        assert!(e.to_string().contains("version 1 to 2") && e.to_string().contains("version 7"), "{e}");
         let mut b = small_model(4).to_bytes();
         b.push(0);
         assert_eq!(Model::from_bytes(&b).unwrap_err().kind(), ErrorKind::Model);

@@ -9,13 +9,13 @@ use std::sync::Mutex;
 
 use camplace_config::write_atomic;
 use camplace_config::{Cell, Placement};
-use camplace_estimator::Model;
+use camplace_estimator::{Model, ModelOrigin};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::evaluate::Evaluator;
 use super::results::{ResultLine, ResultsStore, SceneKey};
 use super::shard::Shard;
-use crate::model_builder::build_model;
+use crate::model_builder::{build_model, model_origin};
 use crate::render::Method;
 use crate::{Error, Result};
 
@@ -153,6 +153,10 @@ impl<'a> JobEvaluator<'a> {
         }
     }
 
+    /// The model of `placement`: from the cache when it holds one built from this cell,
+    /// method, seed and placement; built (and cached) when it holds none, or one that does not
+    /// decode or records no origin. One built from anything else is refused: the cache belongs
+    /// to another cell.
     fn model(&self, placement: &Placement, seed: u64) -> Result<Model> {
         let Some(dir) = &self.model_cache else { return build_model(self.cell, placement, self.method, seed) };
         let name: String = format!("{}-seed{seed}-{placement}.model", self.method)
@@ -160,9 +164,14 @@ impl<'a> JobEvaluator<'a> {
             .map(|c| if c.is_ascii_alphanumeric() || "-.=".contains(c) { c } else { '_' })
             .collect();
         let path = dir.join(name);
+        let origin = model_origin(self.cell, placement, self.method, seed)?;
         if let Ok(bytes) = std::fs::read(&path) {
             if let Ok(model) = Model::from_bytes(&bytes) {
-                return Ok(model);
+                match &model.origin {
+                    Some(o) if *o == origin => return Ok(model),
+                    Some(o) => return Err(Error::Other(format!("{}: {}", path.display(), cache_mismatch(o, &origin)))),
+                    None => {}
+                }
             }
         }
         let model = build_model(self.cell, placement, self.method, seed)?;
@@ -170,4 +179,20 @@ impl<'a> JobEvaluator<'a> {
         write_atomic(&path, &model.to_bytes())?;
         Ok(model)
     }
+}
+
+/// What differs between a cached model's origin and the one wanted, in words.
+fn cache_mismatch(cached: &ModelOrigin, wanted: &ModelOrigin) -> String {
+    if cached.cell_hash != wanted.cell_hash {
+        return format!(
+            "built for a cell with hash {} (tray {}); this cell hashes to {} — use a new folder",
+            cached.cell_hash.short(),
+            cached.tray,
+            wanted.cell_hash.short()
+        );
+    }
+    format!(
+        "built for {} seed {} at {}, wanted {} seed {} at {} — use a new folder",
+        cached.method, cached.seed, cached.placement, wanted.method, wanted.seed, wanted.placement
+    )
 }

@@ -1,11 +1,14 @@
 //! Joining the folders of shards (or of any runs with the same settings) into one: the
 //! union of their results (a scene found twice is kept once), then the summaries and plots
-//! computed again. A study's folder tree is merged folder by folder.
+//! computed again. A study's folder tree is merged folder by folder. Every folder given must
+//! be a study folder (`settings.json`) or hold study folders below it, laid out alike.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-use super::results::{read_lines, write_lines, ResultLine, ResultsStore};
+use camplace_config::remove_stale_temp_files;
+
+use super::results::{append_rejected, read_results, write_lines, ResultLine, ResultsStore, REJECTED_FILE};
 use super::settings::RunSettings;
 use super::summary::Summary;
 use super::sweep::load_sweep;
@@ -13,49 +16,84 @@ use crate::report::sweep_panels::write_sweep_outputs;
 use crate::report::table::{write_summary_csv, write_summary_json, SummaryRow};
 use crate::{Error, Result};
 
-/// Merges `dirs` into `out`, recursing where no settings are found; returns scenes joined.
+/// Merges `dirs` into `out`; returns the scenes joined. Each of `dirs` is a study folder, or
+/// a tree of them (a study's `TRAY/METHOD/` folders) merged folder by folder.
 pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<usize> {
-    let with_settings: Vec<&PathBuf> = dirs.iter().filter(|d| d.join("settings.json").exists()).collect();
-    if !with_settings.is_empty() {
-        return merge_leaf(&with_settings, out);
-    }
-    let mut names = BTreeSet::new();
+    let mut leaves: BTreeMap<PathBuf, Vec<PathBuf>> = BTreeMap::new();
     for d in dirs {
-        let cannot_list = |e: std::io::Error| Error::Other(format!("{}: cannot list: {e}", d.display()));
-        for entry in std::fs::read_dir(d).map_err(cannot_list)? {
-            let entry = entry.map_err(cannot_list)?;
-            if entry.path().is_dir() {
-                names.insert(entry.file_name());
-            }
+        let found = study_folders(d, Path::new(""))?;
+        if found.is_empty() {
+            return Err(Error::Other(format!(
+                "{}: not a study folder: no settings.json in it or in its sub-folders",
+                d.display()
+            )));
+        }
+        for rel in found {
+            leaves.entry(rel).or_default().push(d.clone());
+        }
+    }
+    // A study folder merged with a tree of them: their results cannot be put side by side.
+    if let Some(top) = leaves.get(Path::new("")) {
+        if let Some(other) = dirs.iter().find(|d| !top.contains(d)) {
+            return Err(Error::Other(format!(
+                "{}: expected a study folder (settings.json) like {}, found a folder of study folders",
+                other.display(),
+                top[0].display()
+            )));
         }
     }
     let mut total = 0;
-    for name in names {
-        let subs: Vec<PathBuf> = dirs.iter().map(|d| d.join(&name)).filter(|p| p.is_dir()).collect();
-        total += merge(&subs, &out.join(&name))?;
+    for (rel, sources) in leaves {
+        let sources: Vec<PathBuf> = sources.iter().map(|d| d.join(&rel)).collect();
+        total += merge_leaf(&sources, &out.join(&rel))?;
     }
     Ok(total)
 }
 
-fn merge_leaf(dirs: &[&PathBuf], out: &Path) -> Result<usize> {
-    let mut settings: Option<RunSettings> = None;
+/// The study folders at or below `dir`, relative to it (`""` for `dir` itself); a study
+/// folder's own sub-folders (its model cache) are not searched.
+fn study_folders(dir: &Path, rel: &Path) -> Result<Vec<PathBuf>> {
+    let here = dir.join(rel);
+    if here.join("settings.json").exists() {
+        return Ok(vec![rel.to_path_buf()]);
+    }
+    let cannot_list = |e: std::io::Error| Error::Other(format!("{}: cannot list: {e}", here.display()));
+    let mut names = BTreeSet::new();
+    for entry in std::fs::read_dir(&here).map_err(cannot_list)? {
+        let entry = entry.map_err(cannot_list)?;
+        if entry.path().is_dir() {
+            names.insert(entry.file_name());
+        }
+    }
+    let mut found = Vec::new();
+    for name in names {
+        found.extend(study_folders(dir, &rel.join(name))?);
+    }
+    Ok(found)
+}
+
+fn merge_leaf(dirs: &[PathBuf], out: &Path) -> Result<usize> {
+    let mut settings: Option<(PathBuf, RunSettings)> = None;
     let mut sweep = None;
     let mut lines: BTreeMap<_, ResultLine> = BTreeMap::new();
-    let mut sources: Vec<PathBuf> = dirs.iter().map(|d| d.to_path_buf()).collect();
+    let mut sources: Vec<PathBuf> = dirs.to_vec();
     if out.join("settings.json").exists() && !sources.iter().any(|s| same(s, out)) {
         sources.push(out.to_path_buf());
     }
+    let rejected_to = out.join(REJECTED_FILE);
+    let mut rejected = Vec::new();
     for d in &sources {
-        let s =
-            RunSettings::load(d)?.ok_or_else(|| Error::Other(format!("{}: expected settings.json", d.display())))?;
-        match &settings {
-            None => settings = Some(s),
-            Some(first) => {
-                if let Err(what) = s.agrees_with(first) {
-                    return Err(Error::Other(format!(
-                        "{}: {what} (the folders were run with other settings)",
-                        d.join("settings.json").display()
-                    )));
+        let s = RunSettings::load(d)?
+            .ok_or_else(|| Error::Other(format!("{}: expected a study folder (settings.json)", d.display())))?;
+        match &mut settings {
+            None => settings = Some((d.clone(), s)),
+            Some((first_dir, first)) => {
+                if let Some(d2) = first.difference(&s) {
+                    return Err(Error::Other(d2.between(first_dir, d)));
+                }
+                // Keep settings that record the cell's hash, if any folder has them.
+                if first.cell_hash.is_none() && s.cell_hash.is_some() {
+                    *first = s;
                 }
             }
         }
@@ -64,18 +102,27 @@ fn merge_leaf(dirs: &[&PathBuf], out: &Path) -> Result<usize> {
         }
         let path = d.join("results.jsonl");
         if path.exists() {
-            for l in read_lines(&path)? {
+            let read = read_results(&path)?;
+            if !read.rejected.is_empty() {
+                rejected.push((path, read.clone()));
+            }
+            for l in read.lines {
                 lines.entry(l.key()).or_insert(l);
             }
         }
     }
-    let settings = settings.expect("at least one folder");
+    let (_, settings) = settings.expect("at least one folder");
     std::fs::create_dir_all(out)
         .map_err(|e| Error::Other(format!("{}: cannot create the folder: {e}", out.display())))?;
+    remove_stale_temp_files(out)?;
+    for (path, read) in &rejected {
+        append_rejected(&rejected_to, read)?;
+        let became = format!("copied to {}; their scenes are left out of the merge", rejected_to.display());
+        eprintln!("{}", read.rejected_note(path, &became));
+    }
     let joined: Vec<ResultLine> = lines.into_values().collect();
     write_lines(&out.join("results.jsonl"), &joined)?;
-    let text = serde_json::to_string_pretty(&settings).expect("plain data");
-    camplace_config::write_atomic(&out.join("settings.json"), text.as_bytes())?;
+    settings.save(out)?;
     let method = settings.method()?;
     let store = ResultsStore::open(&out.join("results.jsonl"))?;
     if let Some((grid, n, base)) = sweep {

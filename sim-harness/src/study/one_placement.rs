@@ -6,7 +6,7 @@ use std::path::Path;
 
 use camplace_config::{Cell, Placement};
 
-use super::folder::open_folder;
+use super::folder::{open_folder, MODELS_FOLDER};
 use super::jobs::{shard_jobs, JobEvaluator};
 use super::results::ResultsStore;
 use super::shard::Shard;
@@ -30,7 +30,7 @@ pub fn evaluate_placement(
 ) -> Result<Summary> {
     let store = open_folder(dir, cell, method, seed)?;
     let jobs = shard_jobs(&[*placement], seed, scenarios, shard);
-    JobEvaluator::new(cell, method, &store).with_model_cache(&dir.join("models")).evaluate(&jobs, "evaluate")?;
+    JobEvaluator::new(cell, method, &store).with_model_cache(&dir.join(MODELS_FOLDER)).evaluate(&jobs, "evaluate")?;
     let summary = Summary::from_records(&store.records(placement, method, seed, scenarios));
     let rows =
         [SummaryRow { placement: placement.to_string(), method: method.to_string(), seed, summary: summary.clone() }];
@@ -56,7 +56,7 @@ pub fn acceptance_summary(
     let jobs = shard_jobs(&[*placement], seed, scenarios, Shard::WHOLE);
     let mut runner = JobEvaluator::new(cell, method, &store);
     if let Some(dir) = dir {
-        runner = runner.with_model_cache(&dir.join("models"));
+        runner = runner.with_model_cache(&dir.join(MODELS_FOLDER));
     }
     runner.evaluate(&jobs, "accept")?;
     Ok(Summary::from_records(&store.records(placement, method, seed, scenarios)))

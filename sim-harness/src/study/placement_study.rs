@@ -103,6 +103,8 @@ pub fn run_study(
     mut say: impl FnMut(&str),
 ) -> Result<Option<PathBuf>> {
     let grid = Grid { x: preset.x.clone(), y: preset.y.clone() };
+    // report.html is written here; each combination's folder is cleaned as it is opened.
+    camplace_config::remove_stale_temp_files(out)?;
     let mut combos = Vec::new();
     for (tray, kind) in [("tray-8", TrayKind::Tray8), ("tray-4", TrayKind::Tray4)] {
         for method in [Method::OneShot, Method::Phase12] {

@@ -1,10 +1,11 @@
 //! A recorded dataset through the estimator, shared by `estimate --dataset`, `replay` and
-//! `run --source dir:`: the estimator set up from the dataset's rig and background, each
-//! frame's record scored against its `truth.json`, and `poses.jsonl` written.
+//! `run --source dir:`: the model read (and checked against the cell's tray when a cell
+//! file is given), the estimator set up from the dataset's rig and background, each frame's
+//! record scored against its `truth.json`, and `poses.jsonl` written.
 
 use std::path::{Path, PathBuf};
 
-use camplace_config::write_atomic;
+use camplace_config::{remove_stale_temp_files, write_atomic};
 use camplace_config::{Cell, TruthFile};
 use camplace_estimator::isometry_from_rows;
 use camplace_estimator::{ErrorKind, Estimator, Method, Model, PoseEstimate, Rig};
@@ -18,6 +19,31 @@ pub fn load_model(path: &Path) -> Result<Model> {
     let bytes =
         std::fs::read(path).map_err(|e| Error::Other(format!("{}: cannot read the model: {e}", path.display())))?;
     Model::from_bytes(&bytes).map_err(|e| Error::Other(format!("{}: not a usable model file: {e}", path.display())))
+}
+
+/// Reads a model file and checks that it was built for the tray of `cell` (read from
+/// `cell_file`): the same tray and items geometry. A model that records no origin (written by
+/// an earlier camplace) is refused too, as it cannot be checked.
+pub fn load_model_for(path: &Path, cell: &Cell, cell_file: &Path) -> Result<Model> {
+    let model = load_model(path)?;
+    let tray_hash = cell.hashes()?.tray;
+    let rebuild = format!("rebuild it with camplace model --cell {}", cell_file.display());
+    match &model.origin {
+        None => Err(Error::Other(format!(
+            "{}: the model records no tray it was built for (an earlier camplace wrote it); {rebuild}",
+            path.display()
+        ))),
+        Some(o) if o.tray_hash != tray_hash => Err(Error::Other(format!(
+            "{}: built for tray {} (geometry {}), but {} has tray {} (geometry {}); {rebuild}",
+            path.display(),
+            o.tray,
+            o.tray_hash.short(),
+            cell_file.display(),
+            cell.tray_name(),
+            tray_hash.short()
+        ))),
+        Some(_) => Ok(model),
+    }
 }
 
 /// The method a source of `shots` images per side was captured with.
@@ -75,10 +101,16 @@ pub fn truth_path(dir: &Path, name: &str) -> Option<PathBuf> {
     p.is_file().then_some(p)
 }
 
+/// The summary of a dataset's poses, beside `poses.jsonl`.
+pub const DATASET_SUMMARY: &str = "summary.json";
+
 /// Every frame of the dataset `dir` estimated in order; writes `dir/poses.jsonl` and
-/// returns the records and the method.
+/// returns the records and the method. A `summary.json` of an earlier run is removed
+/// before the new poses are written, so it never stands beside poses it does not describe
+/// (`replay` writes a new one when the frames carry their truth).
 pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> Result<(Vec<FrameRecord>, Method)> {
     let source = RecordedSource::open(dir)?;
+    remove_stale_temp_files(dir)?;
     let method = method_for(source.shots());
     let rig = Rig::from_file(source.rig());
     let mut frames = Frames::new(source.shots());
@@ -98,6 +130,12 @@ pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> Result<(Vec<Fr
     }
     if records.is_empty() {
         return Err(Error::Other(format!("{}: the dataset has no frames", dir.display())));
+    }
+    let summary = dir.join(DATASET_SUMMARY);
+    match std::fs::remove_file(&summary) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => return Err(Error::Other(format!("{}: cannot remove the earlier summary: {e}", summary.display()))),
     }
     write_atomic(&dir.join("poses.jsonl"), lines.as_bytes())?;
     Ok((records, method))

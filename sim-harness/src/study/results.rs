@@ -1,7 +1,8 @@
 //! The study's results file `results.jsonl`: one line per finished (placement, scenario),
 //! appended the moment the scene is done, so a killed run loses only the scenes in flight.
 //! It owns the line format ([`ResultLine`]), reading a file back (a torn last line from a
-//! kill is cut off), and the in-memory index a re-run uses to skip finished scenes.
+//! kill is cut off; a damaged complete line is moved aside to `results.rejected.jsonl` and
+//! its scene computed again), and the in-memory index a re-run uses to skip finished scenes.
 
 use std::collections::HashMap;
 use std::fs::{File, OpenOptions};
@@ -79,12 +80,18 @@ impl ResultsStore {
     }
 
     /// Opens (or creates) `path`, reading the lines already there. A last line without
-    /// its newline is what a kill mid-write leaves: it is cut off and its scene redone.
+    /// its newline is what a kill mid-write leaves: it is cut off and its scene redone. A
+    /// complete line that is not a result line (a damaged disk block, a hand edit) is moved
+    /// to [`REJECTED_FILE`] beside it, said in one line on stderr, and its scene redone.
     /// A scene found twice keeps its first line.
     pub fn open(path: &Path) -> Result<ResultsStore> {
         let mut lines = HashMap::new();
         if path.exists() {
-            for line in read_lines(path)? {
+            let read = read_results(path)?;
+            if !read.rejected.is_empty() {
+                set_rejected_aside(path, &read)?;
+            }
+            for line in read.lines {
                 lines.entry(line.key()).or_insert(line);
             }
         }
@@ -132,15 +139,46 @@ impl ResultsStore {
     }
 }
 
-/// Reads every complete line of a results file; a torn last line is cut off the file.
-pub fn read_lines(path: &Path) -> Result<Vec<ResultLine>> {
-    let text =
-        std::fs::read_to_string(path).map_err(|e| Error::Other(format!("{}: cannot read: {e}", path.display())))?;
-    let complete = match text.rfind('\n') {
-        Some(i) => i + 1,
-        None => 0,
-    };
-    if complete < text.len() {
+/// The file beside `results.jsonl` that keeps its damaged lines, appended to, never read back.
+pub const REJECTED_FILE: &str = "results.rejected.jsonl";
+
+/// A results file read back.
+#[derive(Debug, Clone, Default)]
+pub struct ReadResults {
+    /// The result lines, in file order.
+    pub lines: Vec<ResultLine>,
+    /// The complete lines that are not result lines: (1-based line number, the line's bytes).
+    pub rejected: Vec<(usize, Vec<u8>)>,
+    /// The bytes of the good lines, each with its newline.
+    kept: Vec<u8>,
+}
+
+impl ReadResults {
+    /// One line saying which lines were rejected from `path` and what became of them.
+    pub fn rejected_note(&self, path: &Path, what_became: &str) -> String {
+        let numbers: Vec<String> = self.rejected.iter().take(10).map(|(n, _)| n.to_string()).collect();
+        let more = if self.rejected.len() > 10 { ", ..." } else { "" };
+        let (count, s) = (self.rejected.len(), if self.rejected.len() == 1 { "" } else { "s" });
+        format!(
+            "note: {}: {count} damaged line{s} (line{s} {}{more}) {what_became}",
+            path.display(),
+            numbers.join(", ")
+        )
+    }
+}
+
+/// One line of a results file (without its newline) as a result line; `Err` says why not.
+pub fn parse_line(bytes: &[u8]) -> std::result::Result<ResultLine, String> {
+    let text = std::str::from_utf8(bytes).map_err(|e| format!("not UTF-8 text: {e}"))?;
+    serde_json::from_str(text).map_err(|e| format!("expected a study result line: {e}"))
+}
+
+/// Reads a results file: every complete line, the good ones parsed and the damaged ones set
+/// apart; a torn last line (no newline: a kill mid-write) is cut off the file.
+pub fn read_results(path: &Path) -> Result<ReadResults> {
+    let bytes = std::fs::read(path).map_err(|e| Error::Other(format!("{}: cannot read: {e}", path.display())))?;
+    let complete = bytes.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+    if complete < bytes.len() {
         let f = OpenOptions::new()
             .write(true)
             .open(path)
@@ -148,17 +186,50 @@ pub fn read_lines(path: &Path) -> Result<Vec<ResultLine>> {
         f.set_len(complete as u64)
             .map_err(|e| Error::Other(format!("{}: cannot repair a torn last line: {e}", path.display())))?;
     }
-    let mut out = Vec::new();
-    for (n, line) in text[..complete].lines().enumerate() {
-        if line.trim().is_empty() {
+    let mut out = ReadResults::default();
+    for (n, line) in bytes[..complete].split(|&b| b == b'\n').enumerate() {
+        if line.iter().all(u8::is_ascii_whitespace) {
             continue;
         }
-        let parsed: ResultLine = serde_json::from_str(line).map_err(|e| {
-            Error::Other(format!("{}: line {}: expected a study result line: {e}", path.display(), n + 1))
-        })?;
-        out.push(parsed);
+        match parse_line(line) {
+            Ok(parsed) => {
+                out.lines.push(parsed);
+                out.kept.extend_from_slice(line);
+                out.kept.push(b'\n');
+            }
+            Err(_) => out.rejected.push((n + 1, line.to_vec())),
+        }
     }
     Ok(out)
+}
+
+/// Appends `read`'s rejected lines to `to`, each on its own line.
+pub fn append_rejected(to: &Path, read: &ReadResults) -> Result<()> {
+    let mut text = Vec::new();
+    for (_, line) in &read.rejected {
+        text.extend_from_slice(line);
+        text.push(b'\n');
+    }
+    let mut f = OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(to)
+        .map_err(|e| Error::Other(format!("{}: cannot open for appending: {e}", to.display())))?;
+    f.write_all(&text)
+        .and_then(|_| f.sync_all())
+        .map_err(|e| Error::Other(format!("{}: cannot append: {e}", to.display())))
+}
+
+/// Moves `read`'s rejected lines out of `path` into [`REJECTED_FILE`] beside it: appended
+/// there first, then `path` rewritten atomically with the good lines as they were, so a kill
+/// in between loses no line (at worst one is kept twice in the rejected file).
+fn set_rejected_aside(path: &Path, read: &ReadResults) -> Result<()> {
+    let to = path.with_file_name(REJECTED_FILE);
+    append_rejected(&to, read)?;
+    camplace_config::write_atomic(path, &read.kept)?;
+    let became = format!("moved to {}; their scenes will be computed again", to.display());
+    eprintln!("{}", read.rejected_note(path, &became));
+    Ok(())
 }
 
 /// Writes `lines` as a whole results file, atomically.
@@ -202,6 +273,78 @@ mod tests {
         let store = ResultsStore::open(&path).unwrap();
         assert_eq!(store.all(), vec![line(0), line(1)]);
         store.add(line(2)).unwrap();
-        assert_eq!(read_lines(&path).unwrap(), vec![line(0), line(1), line(2)]);
+        assert_eq!(read_results(&path).unwrap().lines, vec![line(0), line(1), line(2)]);
+    }
+
+    #[test]
+    fn a_damaged_line_is_moved_aside_and_its_scene_left_to_do() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("results.jsonl");
+        let rejected = dir.path().join(REJECTED_FILE);
+        let text = |l: &ResultLine| serde_json::to_string(l).unwrap();
+        let damaged = format!("X{}", &text(&line(1))[1..]);
+        std::fs::write(&path, format!("{}\n{damaged}\n{}\n", text(&line(0)), text(&line(2)))).unwrap();
+        let store = ResultsStore::open(&path).unwrap();
+        assert_eq!(store.all(), vec![line(0), line(2)]);
+        assert_eq!(std::fs::read_to_string(&rejected).unwrap(), format!("{damaged}\n"));
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), format!("{}\n{}\n", text(&line(0)), text(&line(2))));
+        drop(store);
+        // Opened again: nothing more to move; a line damaged later is appended to the rest.
+        let store = ResultsStore::open(&path).unwrap();
+        assert_eq!(store.all(), vec![line(0), line(2)]);
+        assert_eq!(std::fs::read_to_string(&rejected).unwrap(), format!("{damaged}\n"));
+        store.add(line(1)).unwrap();
+        drop(store);
+        let mut bytes = std::fs::read(&path).unwrap();
+        bytes[0] = 0xff;
+        std::fs::write(&path, &bytes).unwrap();
+        let store = ResultsStore::open(&path).unwrap();
+        assert_eq!(store.all(), vec![line(1), line(2)]);
+        assert_eq!(std::fs::read(&rejected).unwrap().split(|&b| b == b'\n').filter(|l| !l.is_empty()).count(), 2);
+    }
+
+    /// Every cut of a result line and seeded random byte changes: the parser returns, never
+    /// panics, and a cut line is never taken for a result; a damaged file opens, keeps what
+    /// reads, and reads back the same when opened again.
+    #[test]
+    fn result_lines_survive_truncation_and_flips() {
+        use rand::{RngExt, SeedableRng};
+        let mut good = line(4);
+        good.record.score = Some(crate::study::Score {
+            position_error_mm: 1.25,
+            rotation_error_deg: 0.5,
+            correct_matches: 17,
+            success: true,
+        });
+        let text = serde_json::to_string(&good).unwrap();
+        assert_eq!(parse_line(text.as_bytes()).unwrap(), good);
+        for n in 0..text.len() {
+            assert!(parse_line(&text.as_bytes()[..n]).is_err(), "cut at {n}");
+        }
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
+        for _ in 0..3000 {
+            let mut b = text.as_bytes().to_vec();
+            for _ in 0..rng.random_range(1..4) {
+                let i = rng.random_range(0..b.len());
+                b[i] = rng.random();
+            }
+            let _ = parse_line(&b);
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("results.jsonl");
+        let whole: String = (0..6).map(|i| serde_json::to_string(&line(i)).unwrap() + "\n").collect();
+        for _ in 0..200 {
+            let mut b = whole.as_bytes().to_vec();
+            for _ in 0..rng.random_range(1..6) {
+                let i = rng.random_range(0..b.len());
+                b[i] = rng.random();
+            }
+            std::fs::write(&path, &b).unwrap();
+            let first = ResultsStore::open(&path).unwrap().all();
+            let rejected = std::fs::metadata(dir.path().join(REJECTED_FILE)).map_or(0, |m| m.len());
+            assert_eq!(ResultsStore::open(&path).unwrap().all(), first);
+            assert_eq!(std::fs::metadata(dir.path().join(REJECTED_FILE)).map_or(0, |m| m.len()), rejected);
+            assert!(read_results(&path).unwrap().rejected.is_empty());
+        }
     }
 }

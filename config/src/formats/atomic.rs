@@ -1,0 +1,131 @@
+//! Atomic writes (a temporary file beside the target, then a rename) and the clean-up of the
+//! temporary files a killed process leaves behind. Temporary names are recognisable, so a
+//! folder camplace owns can be cleaned without touching anything else.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, SystemTime};
+
+use crate::Error;
+
+/// What a temporary file's name carries between the target's name and the writer's process id.
+const TEMP_MARK: &str = ".camplace-tmp-";
+
+/// Without /proc a writer cannot be asked whether it still runs: a temporary file older than
+/// this is taken to be left over.
+const STALE_WITHOUT_PROC: Duration = Duration::from_secs(3600);
+
+/// Writes `bytes` to `path` through a temporary file (`.NAME.camplace-tmp-PID` in the same
+/// folder) and a rename, so a reader never sees half a file.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let tmp = dir.join(format!(".{name}{TEMP_MARK}{}", std::process::id()));
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    result.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        Error::io(path, &e)
+    })
+}
+
+/// Whether `file_name` is an atomic write's temporary file (this version's or an earlier one's).
+pub fn is_temp_file_name(file_name: &str) -> bool {
+    temp_file_writer(file_name).is_some()
+}
+
+/// The process id in a temporary file's name: `.NAME.camplace-tmp-PID`, or `.NAME.tmpPID` as
+/// earlier versions named them. `None` for any other name.
+pub(crate) fn temp_file_writer(file_name: &str) -> Option<u32> {
+    let rest = file_name.strip_prefix('.')?;
+    let digits = match rest.rfind(TEMP_MARK) {
+        Some(i) => &rest[i + TEMP_MARK.len()..],
+        None => &rest[rest.rfind(".tmp")? + ".tmp".len()..],
+    };
+    if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    digits.parse().ok()
+}
+
+/// Removes, from `dir` itself (not its sub-folders), the temporary files of atomic writes
+/// whose writer is gone: a process that no longer runs, or one with this process's id (this
+/// process has no write in flight when it opens a folder, so such a file is an earlier
+/// process's whose id came round again). Call it before writing into the folder. Returns
+/// what was removed; a missing folder has nothing to remove.
+pub fn remove_stale_temp_files(dir: &Path) -> Result<Vec<PathBuf>, Error> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(Error::io(dir, &e)),
+    };
+    let proc_fs = Path::new("/proc/self").exists();
+    let mut removed = Vec::new();
+    for entry in entries {
+        let entry = entry.map_err(|e| Error::io(dir, &e))?;
+        let Some(pid) = temp_file_writer(&entry.file_name().to_string_lossy()) else { continue };
+        let path = entry.path();
+        if !path.is_file() {
+            continue;
+        }
+        let stale = if proc_fs {
+            pid == std::process::id() || !Path::new("/proc").join(pid.to_string()).exists()
+        } else {
+            let modified = entry.metadata().and_then(|m| m.modified()).unwrap_or(SystemTime::now());
+            modified.elapsed().unwrap_or_default() > STALE_WITHOUT_PROC
+        };
+        if stale {
+            match std::fs::remove_file(&path) {
+                Ok(()) => removed.push(path),
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                Err(e) => return Err(Error::io(&path, &e)),
+            }
+        }
+    }
+    removed.sort();
+    Ok(removed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn temporary_names_are_recognised_and_nothing_else() {
+        assert_eq!(temp_file_writer(".a.model.camplace-tmp-1234"), Some(1234));
+        assert_eq!(temp_file_writer(".summary.json.tmp77"), Some(77));
+        for other in ["a.model", ".a.model", ".a.tmp", ".a.tmpx1", "a.model.camplace-tmp-12", ".x.camplace-tmp-"] {
+            assert_eq!(temp_file_writer(other), None, "{other}");
+        }
+    }
+
+    #[test]
+    #[cfg(target_os = "linux")]
+    fn stale_temporary_files_go_and_live_ones_and_others_stay() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        write_atomic(&d.join("kept.json"), b"{}").unwrap();
+        // No process has the largest id; process 1 always runs.
+        let dead = d.join(format!(".big.model{TEMP_MARK}{}", u32::MAX));
+        let legacy = d.join(format!(".old.model.tmp{}", u32::MAX));
+        let mine = d.join(format!(".mine.model{TEMP_MARK}{}", std::process::id()));
+        let live = d.join(format!(".live.model{TEMP_MARK}1"));
+        for p in [&dead, &legacy, &mine, &live] {
+            std::fs::write(p, b"partial").unwrap();
+        }
+        std::fs::write(d.join("notes.tmp1"), b"user's").unwrap();
+        let removed = remove_stale_temp_files(d).unwrap();
+        let mut want = vec![dead, legacy, mine];
+        want.sort();
+        assert_eq!(removed, want);
+        let mut left: Vec<String> =
+            std::fs::read_dir(d).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+        left.sort();
+        assert_eq!(left, [format!(".live.model{TEMP_MARK}1"), "kept.json".into(), "notes.tmp1".into()]);
+        assert!(remove_stale_temp_files(&d.join("missing")).unwrap().is_empty());
+    }
+}
