@@ -68,7 +68,7 @@ fn replay_equals_the_evaluation_and_run_equals_replay() {
     assert!(String::from_utf8_lossy(&o.stdout).contains(&summary.line()[..20]));
 
     // The evaluator of the same placement, seed and model, scene by scene.
-    let evaluated = evaluated(&f);
+    let evaluated = evaluated(f);
 
     assert_eq!(replayed.len(), SCENES as usize);
     for (r, e) in replayed.iter().zip(&evaluated) {
