@@ -7,3 +7,4 @@ mod estimate;
 mod reconstruct;
 mod reconstruct_errors;
 mod study;
+mod study_folder;
