@@ -2,6 +2,7 @@
 
 mod camplace_cmd;
 mod cli_errors;
+mod cluster;
 mod deploy;
 mod estimate;
 mod reconstruct;
