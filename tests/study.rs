@@ -10,6 +10,7 @@ use std::time::Duration;
 use serde_json::Value;
 
 use crate::camplace_cmd::{camplace, stderr};
+use crate::study_folder::{results_without_timings, summary_without_timings};
 
 const SCENES: &str = "6";
 
@@ -28,34 +29,6 @@ fn evaluate(dir: &Path, out: &str, threads: &str, extra: &[&str]) {
         .output()
         .expect("camplace runs");
     assert!(o.status.success(), "{}", stderr(&o));
-}
-
-/// summary.json without the timings, which differ run to run.
-fn summary_without_timings(path: &Path) -> Value {
-    let mut v: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    for row in v.as_array_mut().unwrap() {
-        let row = row.as_object_mut().unwrap();
-        row.remove("median_timings_ms");
-        row.remove("median_ms");
-    }
-    v
-}
-
-/// Result lines keyed by scenario, without the timings.
-fn results_without_timings(path: &Path) -> Vec<(u64, Value)> {
-    let mut v: Vec<(u64, Value)> = std::fs::read_to_string(path)
-        .unwrap()
-        .lines()
-        .map(|l| {
-            let mut v: Value = serde_json::from_str(l).unwrap();
-            let o = v.as_object_mut().unwrap();
-            o.remove("timings_ms");
-            o.remove("ms");
-            (o["scenario"].as_u64().unwrap(), v)
-        })
-        .collect();
-    v.sort_by_key(|(i, _)| *i);
-    v
 }
 
 #[test]
@@ -107,7 +80,7 @@ fn a_killed_evaluate_resumes_to_the_uninterrupted_result() {
     assert!(before < 6, "the run finished before the kill ({before} lines)");
     evaluate(d, "resumed", "2", &[]);
     let resumed = results_without_timings(&results);
-    let scenarios: Vec<u64> = resumed.iter().map(|(i, _)| *i).collect();
+    let scenarios: Vec<u64> = resumed.iter().map(|((_, i), _)| *i).collect();
     assert_eq!(scenarios, (0..6).collect::<Vec<_>>(), "each scenario once");
     assert_eq!(resumed, results_without_timings(&d.join("whole/results.jsonl")));
     assert_eq!(

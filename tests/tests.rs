@@ -2,9 +2,11 @@
 
 mod camplace_cmd;
 mod cli_errors;
+mod cluster;
 mod deploy;
 mod estimate;
 mod integrity;
 mod reconstruct;
 mod reconstruct_errors;
 mod study;
+mod study_folder;
