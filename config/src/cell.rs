@@ -410,23 +410,28 @@ impl Cell {
             return Err(Error::value("stereo.gap_width", format!("expected 0 to 1000 pixels, got {}", st.gap_width)));
         }
         unit("stereo.support_uniqueness", st.support_uniqueness)?;
-        nonneg("stereo.lr_tolerance", st.lr_tolerance)?;
-        nonneg("stereo.speckle_similarity", st.speckle_similarity)?;
+        at_most("stereo.lr_tolerance", st.lr_tolerance, 100.0, "pixels")?;
+        at_most("stereo.speckle_similarity", st.speckle_similarity, 100.0, "pixels")?;
         if !(1..=1000).contains(&st.grid_size) {
             return Err(Error::value("stereo.grid_size", "expected a cell side from 1 to 1000 pixels"));
         }
-        pos("stereo.prior_sigma", st.prior_sigma)?;
-        pos("stereo.prior_gamma", st.prior_gamma)?;
-        pos("stereo.prior_beta", st.prior_beta)?;
+        for (key, v) in [
+            ("stereo.prior_sigma", st.prior_sigma),
+            ("stereo.prior_gamma", st.prior_gamma),
+            ("stereo.prior_beta", st.prior_beta),
+        ] {
+            pos(key, v)?;
+            at_most(key, v, 1000.0, "")?;
+        }
         if st.prior_radius > 64 {
             return Err(Error::value("stereo.prior_radius", "expected 0 to 64 pixels"));
         }
         if st.subpixel_radius > 8 {
             return Err(Error::value("stereo.subpixel_radius", "expected 0 to 8 pixels"));
         }
-        nonneg("phase.min_modulation", self.phase.min_modulation)?;
-        nonneg("phase.lr_tolerance", self.phase.lr_tolerance)?;
-        nonneg("reconstruction.background_margin", self.reconstruction.background_margin)?;
+        at_most("phase.min_modulation", self.phase.min_modulation, 255.0, "grey levels")?;
+        at_most("phase.lr_tolerance", self.phase.lr_tolerance, 100.0, "pixels")?;
+        at_most("reconstruction.background_margin", self.reconstruction.background_margin, 1000.0, "mm")?;
         if self.reconstruction.background_dilation > 64 {
             return Err(Error::value("reconstruction.background_dilation", "expected 0 to 64 pixels"));
         }
@@ -608,6 +613,16 @@ fn nonneg(key: &str, v: f64) -> Result<(), Error> {
     }
 }
 
+/// `v` from 0 to `most` (in `unit`).
+fn at_most(key: &str, v: f64, most: f64, unit: &str) -> Result<(), Error> {
+    if v.is_finite() && (0.0..=most).contains(&v) {
+        Ok(())
+    } else {
+        let unit = if unit.is_empty() { String::new() } else { format!(" {unit}") };
+        Err(Error::value(key, format!("expected 0 to {most}{unit}, got {v}")))
+    }
+}
+
 fn unit(key: &str, v: f64) -> Result<(), Error> {
     if v.is_finite() && (0.0..=1.0).contains(&v) {
         Ok(())
@@ -687,6 +702,11 @@ mod tests {
             ("[lighting]\nlamp_distance = 1e-300\n", "lighting.lamp_distance"),
             ("[lighting]\nlamp_distance = 4294967296\n", "lighting.lamp_distance"),
             ("[work_volume]\nz = [0.0, 0.0]\n", "work_volume.z"),
+            ("[stereo]\nspeckle_similarity = 1e308\n", "stereo.speckle_similarity"),
+            ("[stereo]\nlr_tolerance = 4294967296\n", "stereo.lr_tolerance"),
+            ("[stereo]\nprior_sigma = 1e308\n", "stereo.prior_sigma"),
+            ("[phase]\nmin_modulation = 1e9\n", "phase.min_modulation"),
+            ("[reconstruction]\nbackground_margin = 1e308\n", "reconstruction.background_margin"),
         ];
         for (text, key) in cases {
             let e = Cell::from_toml_str(text, Path::new(".")).unwrap_err();
