@@ -605,14 +605,6 @@ fn pos(key: &str, v: f64) -> Result<(), Error> {
     }
 }
 
-fn nonneg(key: &str, v: f64) -> Result<(), Error> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(())
-    } else {
-        Err(Error::value(key, format!("expected a number >= 0, got {v}")))
-    }
-}
-
 /// `v` from 0 to `most` (in `unit`).
 fn at_most(key: &str, v: f64, most: f64, unit: &str) -> Result<(), Error> {
     if v.is_finite() && (0.0..=most).contains(&v) {
