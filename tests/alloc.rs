@@ -16,15 +16,21 @@ struct Counting;
 static COUNTING: AtomicBool = AtomicBool::new(false);
 static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
 
+// SAFETY: every method hands its arguments unchanged to the system allocator, which keeps
+// GlobalAlloc's contract, and returns its result; the counting beside it touches only
+// atomics and never allocates, so it cannot re-enter the allocator.
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
         if COUNTING.load(Ordering::Relaxed) {
             ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
         }
+        // SAFETY: the caller's `layout` meets `GlobalAlloc::alloc`'s terms, which are
+        // `System.alloc`'s.
         unsafe { System.alloc(layout) }
     }
 
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: `ptr` came from this allocator, that is from `System`, with `layout`.
         unsafe { System.dealloc(ptr, layout) }
     }
 
@@ -32,6 +38,8 @@ unsafe impl GlobalAlloc for Counting {
         if COUNTING.load(Ordering::Relaxed) {
             ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
         }
+        // SAFETY: `ptr` came from `System` with `layout`, and the caller's `new_size` meets
+        // `GlobalAlloc::realloc`'s terms, which are `System.realloc`'s.
         unsafe { System.realloc(ptr, layout, new_size) }
     }
 }

@@ -5,11 +5,16 @@
 //! operations lane by lane, and Rust never fuses a multiply and an add, so every version
 //! gives the same bits.
 
-/// Whether this machine runs AVX2.
+// Enabling a feature for the compiler enables the ones it implies too, which CPUID reports
+// separately: AVX2 implies AVX, AVX-512 F implies AVX2, FMA and F16C, and AVX-512 BW and
+// VNNI imply F. Each check below covers those as well, so it vouches for everything the
+// code it guards is compiled with.
+
+/// Whether this machine runs AVX2 (and AVX).
 pub fn avx2_available() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        std::arch::is_x86_feature_detected!("avx2")
+        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("avx")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
@@ -18,15 +23,14 @@ pub fn avx2_available() -> bool {
 }
 
 /// Whether this machine runs the AVX-512 subsets the wide loops use: F, BW, DQ and VL
-/// (and with them AVX2).
+/// (and with them AVX2, FMA and F16C).
 pub fn avx512_available() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        std::arch::is_x86_feature_detected!("avx512f")
+        avx512f_available()
             && std::arch::is_x86_feature_detected!("avx512bw")
             && std::arch::is_x86_feature_detected!("avx512dq")
             && std::arch::is_x86_feature_detected!("avx512vl")
-            && std::arch::is_x86_feature_detected!("avx2")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
@@ -35,10 +39,10 @@ pub fn avx512_available() -> bool {
 }
 
 /// Whether this machine runs AVX2 with FMA (feature matching's AVX2 kernel).
-pub fn avx2_fma_available() -> bool {
+fn avx2_fma_available() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        avx2_available() && std::arch::is_x86_feature_detected!("fma")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
@@ -46,11 +50,15 @@ pub fn avx2_fma_available() -> bool {
     }
 }
 
-/// Whether this machine runs AVX-512 F (feature matching's AVX-512 kernel).
-pub fn avx512f_available() -> bool {
+/// Whether this machine runs AVX-512 F and what it implies: AVX2, FMA and F16C (feature
+/// matching's AVX-512 kernel).
+fn avx512f_available() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
         std::arch::is_x86_feature_detected!("avx512f")
+            && avx2_available()
+            && std::arch::is_x86_feature_detected!("fma")
+            && std::arch::is_x86_feature_detected!("f16c")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
@@ -59,10 +67,10 @@ pub fn avx512f_available() -> bool {
 }
 
 /// Whether this machine runs AVX-512 F and BW with VNNI (feature matching's byte kernel).
-pub fn avx512_vnni_available() -> bool {
+fn avx512_vnni_available() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        std::arch::is_x86_feature_detected!("avx512f")
+        avx512f_available()
             && std::arch::is_x86_feature_detected!("avx512bw")
             && std::arch::is_x86_feature_detected!("avx512vnni")
     }
@@ -72,9 +80,57 @@ pub fn avx512_vnni_available() -> bool {
     }
 }
 
+/// Declares a proof that this machine runs a set of instructions: a type with a private
+/// field whose one constructor is run-time detection, so holding a value is the check.
+/// Code that runs functions compiled with `#[target_feature]` takes the matching proof
+/// instead of trusting its caller.
+macro_rules! cpu_proof {
+    ($(#[$meta:meta])* $name:ident, $available:path) => {
+        $(#[$meta])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+        // Elsewhere only the scalar code runs and no proof is asked for.
+        #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+        pub struct $name(());
+
+        impl $name {
+            /// The proof, when this machine has the instructions.
+            pub fn detect() -> Option<$name> {
+                $available().then_some($name(()))
+            }
+        }
+    };
+}
+
+cpu_proof!(
+    /// This machine runs AVX2.
+    Avx2,
+    avx2_available
+);
+cpu_proof!(
+    /// This machine runs AVX2 and FMA.
+    Avx2Fma,
+    avx2_fma_available
+);
+cpu_proof!(
+    /// This machine runs AVX-512 F (and AVX2, FMA and F16C).
+    Avx512F,
+    avx512f_available
+);
+cpu_proof!(
+    /// This machine runs AVX-512 F, BW, DQ and VL (and AVX2, FMA and F16C).
+    Avx512,
+    avx512_available
+);
+cpu_proof!(
+    /// This machine runs AVX-512 F, BW and VNNI (and AVX2, FMA and F16C).
+    Avx512Vnni,
+    avx512_vnni_available
+);
+
 /// Defines `fn $name(args)` that calls the `#[inline(always)]` function `$body(args)`
 /// inlined into a copy compiled with AVX-512 (F, BW, DQ, VL) and AVX2, a copy with AVX2,
-/// or the baseline, whichever this machine runs best.
+/// or the baseline, whichever this machine runs best. The copies are local to the function
+/// and only called after the check that vouches for their features.
 #[macro_export]
 macro_rules! multiversion {
     ($(#[$meta:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) => $body:path) => {
@@ -83,19 +139,21 @@ macro_rules! multiversion {
             #[cfg(target_arch = "x86_64")]
             {
                 #[target_feature(enable = "avx2,avx512f,avx512bw,avx512dq,avx512vl")]
-                unsafe fn wide($($arg: $ty),*) {
+                fn wide($($arg: $ty),*) {
                     $body($($arg),*)
                 }
                 #[target_feature(enable = "avx2")]
-                unsafe fn narrow($($arg: $ty),*) {
+                fn narrow($($arg: $ty),*) {
                     $body($($arg),*)
                 }
                 if $crate::avx512_available() {
-                    // SAFETY: AVX-512 F, BW, DQ and VL and AVX2 were detected.
+                    // SAFETY: `wide` needs AVX-512 F, BW, DQ and VL and AVX2 (and what they
+                    // imply), which `avx512_available` just detected.
                     return unsafe { wide($($arg),*) };
                 }
                 if $crate::avx2_available() {
-                    // SAFETY: AVX2 was detected.
+                    // SAFETY: `narrow` needs AVX2 (and AVX), which `avx2_available` just
+                    // detected.
                     return unsafe { narrow($($arg),*) };
                 }
             }

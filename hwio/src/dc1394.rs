@@ -6,6 +6,8 @@
 use std::ffi::{c_char, c_int, c_void, CStr};
 use std::ptr;
 
+use camplace_config::GrayImage;
+
 use crate::devices::FirewireDevice;
 use crate::frames::{frame_name, FrameInfo, FrameSource, Frames};
 use crate::pixels::{self, InterleavedOrder};
@@ -280,20 +282,12 @@ impl FrameSource for Dc1394Source {
         if frame.is_null() {
             return Err(Error::device(device(), "capture gave no frame"));
         }
-        // SAFETY: a dequeued frame is valid until it is enqueued again.
+        // SAFETY: a successful dequeue gives a frame that libdc1394 neither frees nor
+        // writes until it is enqueued again below, with `image` null or pointing to the
+        // `image_bytes` bytes the driver filled, as `split_frame` needs.
         let result = unsafe {
             let f = &*frame;
-            let (w, h) = (f.size[0] as usize, f.size[1] as usize);
-            let stride = if f.stride == 0 { 2 * w } else { f.stride as usize };
-            // The slice is exactly what the driver says it filled; `deinterleave16` then
-            // refuses a frame whose rows do not fit in it, so a short buffer is an error,
-            // never a read past its end.
-            let len = f.image_bytes as usize;
-            // SAFETY: libdc1394 documents `image` as pointing to `image_bytes` bytes of the
-            // dequeued frame, valid until the enqueue below; a null image reads as empty.
-            let bytes: &[u8] = if f.image.is_null() { &[] } else { std::slice::from_raw_parts(f.image, len) };
-            let r = pixels::deinterleave16(bytes, w, h, stride, self.order, &mut frames.left[0], &mut frames.right[0]);
-            (r, f.timestamp)
+            (split_frame(f, self.order, &mut frames.left[0], &mut frames.right[0]), f.timestamp)
         };
         // SAFETY: the frame came from dequeue on this camera.
         let enqueued = unsafe { ffi::dc1394_capture_enqueue(self.camera, frame) };
@@ -321,9 +315,105 @@ impl Drop for Dc1394Source {
     }
 }
 
+/// Splits the 16-bit stereo pixels of frame `f` into `left` and `right`, reading exactly
+/// the `image_bytes` the driver says it filled: a frame whose rows do not fit in them is
+/// refused with an error by `pixels::deinterleave16`'s size check, never read past its end.
+/// A null image reads as no bytes.
+///
+/// # Safety
+///
+/// `f.image` is null or points to `f.image_bytes` bytes that stay readable and unchanged
+/// during the call, as a dequeued frame's do until it is enqueued again.
+unsafe fn split_frame(
+    f: &ffi::VideoFrame,
+    order: InterleavedOrder,
+    left: &mut GrayImage,
+    right: &mut GrayImage,
+) -> Result<()> {
+    let (w, h) = (f.size[0] as usize, f.size[1] as usize);
+    let stride = if f.stride == 0 { 2 * w } else { f.stride as usize };
+    let bytes: &[u8] = if f.image.is_null() {
+        &[]
+    } else {
+        // SAFETY: the caller vouches for `image_bytes` readable, unchanging bytes at `image`,
+        // which as one buffer hold at most isize::MAX bytes.
+        unsafe { std::slice::from_raw_parts(f.image, f.image_bytes as usize) }
+    };
+    pixels::deinterleave16(bytes, w, h, stride, order, left, right)
+}
+
 fn list_guids(found: &[u64]) -> String {
     if found.is_empty() {
         return "none".into();
     }
     found.iter().map(|g| format!("{g:016x}")).collect::<Vec<_>>().join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A frame as libdc1394 hands it over: `width` x `height` pixels `stride` bytes apart
+    /// (0: packed), of which the driver says it filled `image_bytes` of `buffer`.
+    fn frame(buffer: &mut [u8], width: u32, height: u32, stride: u32, image_bytes: u32) -> ffi::VideoFrame {
+        assert!(image_bytes as usize <= buffer.len(), "the test's buffer holds what the driver filled");
+        ffi::VideoFrame {
+            image: buffer.as_mut_ptr(),
+            size: [width, height],
+            position: [0, 0],
+            color_coding: ffi::COLOR_CODING_MONO16,
+            color_filter: 0,
+            yuv_byte_order: 0,
+            data_depth: 16,
+            stride,
+            video_mode: ffi::VIDEO_MODE_FORMAT7_3,
+            total_bytes: buffer.len() as u64,
+            image_bytes,
+            padding_bytes: 0,
+            packet_size: 0,
+            packets_per_frame: 0,
+            timestamp: 0,
+        }
+    }
+
+    /// `split_frame` of a frame, on fresh images.
+    fn split(f: &ffi::VideoFrame) -> Result<(GrayImage, GrayImage)> {
+        let (mut left, mut right) = (GrayImage::default(), GrayImage::default());
+        // SAFETY: every frame here points into a live buffer of at least `image_bytes`.
+        unsafe { split_frame(f, InterleavedOrder::RightFirst, &mut left, &mut right) }?;
+        Ok((left, right))
+    }
+
+    #[test]
+    fn frames_are_read_within_the_bytes_the_driver_filled() {
+        // 4 x 3 pixels of 2 bytes at a stride of 10: the last row ends at 2 x 10 + 8 = 28.
+        let mut buffer: Vec<u8> = (0..40).collect();
+        let (left, right) = split(&frame(&mut buffer, 4, 3, 10, 28)).unwrap();
+        // Right sensor first: byte 0 of each pixel is the right camera's.
+        assert_eq!(left.data, [1, 3, 5, 7, 11, 13, 15, 17, 21, 23, 25, 27]);
+        assert_eq!(right.data, [0, 2, 4, 6, 10, 12, 14, 16, 20, 22, 24, 26]);
+        for short in [27, 20, 1, 0] {
+            let e = split(&frame(&mut buffer, 4, 3, 10, short)).unwrap_err();
+            assert!(e.to_string().contains(&format!("camera buffer holds {short} bytes, expected at least 28")), "{e}");
+        }
+    }
+
+    #[test]
+    fn packed_null_and_oversized_frames() {
+        let mut buffer: Vec<u8> = (0..24).collect();
+        // Stride 0 is packed rows.
+        let (left, _) = split(&frame(&mut buffer, 4, 3, 0, 24)).unwrap();
+        assert_eq!(left.data, [1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23]);
+        assert!(split(&frame(&mut buffer, 4, 3, 0, 23)).is_err());
+        // No image is no bytes: only an empty frame fits.
+        let mut f = frame(&mut buffer, 4, 3, 0, 24);
+        f.image = ptr::null_mut();
+        assert!(split(&f).is_err());
+        f.size = [0, 0];
+        assert!(split(&f).is_ok());
+        // Sizes far beyond the bytes the driver filled are refused, not overflowed.
+        for (w, h, stride) in [(u32::MAX, u32::MAX, 0), (4, u32::MAX, u32::MAX), (u32::MAX, 1, 0)] {
+            assert!(split(&frame(&mut buffer, w, h, stride, 24)).is_err(), "{w}x{h} at {stride}");
+        }
+    }
 }

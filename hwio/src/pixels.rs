@@ -222,23 +222,26 @@ fn rgb_to_gray(
 }
 
 /// The effective stride, or an error when `src` is too short for the image it should hold.
+/// Counted in u128 (saturating), so sizes a device reports too large for any buffer are
+/// errors too rather than an overflow.
 fn check(src: &[u8], width: usize, height: usize, stride: usize, bytes_per_pixel: usize) -> Result<usize> {
-    let packed = width * bytes_per_pixel;
-    let stride = if stride == 0 { packed } else { stride };
+    let packed = width as u128 * bytes_per_pixel as u128;
+    let stride = if stride == 0 { packed } else { stride as u128 };
     if stride < packed {
         return Err(Error::new(
             ErrorKind::Format,
             format!("camera row stride {stride} bytes is shorter than {width} pixels of {bytes_per_pixel} bytes"),
         ));
     }
-    let need = if height == 0 { 0 } else { (height - 1) * stride + packed };
-    if src.len() < need {
+    let need = if height == 0 { 0 } else { (height as u128 - 1).saturating_mul(stride).saturating_add(packed) };
+    if (src.len() as u128) < need {
         return Err(Error::new(
             ErrorKind::Format,
             format!("camera buffer holds {} bytes, expected at least {need} for {width}x{height}", src.len()),
         ));
     }
-    Ok(stride)
+    // Without rows nothing is read, whatever the stride; with them it fits in `src`.
+    Ok(usize::try_from(stride).unwrap_or(usize::MAX))
 }
 
 #[cfg(test)]
@@ -366,6 +369,22 @@ mod tests {
         assert!(e.to_string().contains("stride"), "{e}");
         let (mut l, mut r) = (GrayImage::default(), GrayImage::default());
         assert!(deinterleave16(&[0; 15], 4, 2, 0, InterleavedOrder::LeftFirst, &mut l, &mut r).is_err());
+    }
+
+    #[test]
+    fn sizes_whose_byte_count_overflows_are_errors() {
+        // Sizes a device could report: the bytes they need do not fit a usize, so no buffer
+        // is long enough, and the answer is an error rather than an overflow.
+        let big = usize::MAX / 2;
+        let (mut l, mut r) = (GrayImage::default(), GrayImage::default());
+        let e = deinterleave16(&[0; 64], 4, big, big, InterleavedOrder::LeftFirst, &mut l, &mut r).unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::Format);
+        assert!(e.to_string().contains("camera buffer holds 64 bytes"), "{e}");
+        let mut out = GrayImage::default();
+        let e = rgb24_to_gray(&[0; 64], big, 1, 0, &mut out).unwrap_err();
+        assert!(e.to_string().contains("camera buffer holds 64 bytes"), "{e}");
+        let e = rgb24_to_gray(&[0; 64], usize::MAX, usize::MAX, 0, &mut out).unwrap_err();
+        assert!(e.to_string().contains("camera buffer holds 64 bytes"), "{e}");
     }
 
     #[test]

@@ -20,6 +20,8 @@ use rayon::prelude::*;
 use std::f32::consts::PI;
 
 use super::ecsad::{Descriptor, ECSAD_DIM};
+#[cfg(target_arch = "x86_64")]
+use crate::cpu::{Avx2Fma, Avx512F, Avx512Vnni};
 use crate::{Correspondence, Error, ErrorKind, Result};
 
 /// Largest k the matcher keeps per scene key point.
@@ -82,16 +84,24 @@ struct ByteBlock {
     pads: [f32; LANES],
 }
 
-/// Which build of the search kernel the CPU runs.
+// The VNNI kernel reads every row and both per-lane arrays with aligned 64-byte loads.
+const _: () = assert!(
+    (4 * LANES).is_multiple_of(64)
+        && std::mem::offset_of!(ByteBlock, offsets).is_multiple_of(64)
+        && std::mem::offset_of!(ByteBlock, pads).is_multiple_of(64)
+);
+
+/// Which build of the search kernel the CPU runs. Each vector build holds the proof that
+/// this machine runs its instructions, which only run-time detection makes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Kernel {
     Baseline,
     #[cfg(target_arch = "x86_64")]
-    Avx2,
+    Avx2(Avx2Fma),
     #[cfg(target_arch = "x86_64")]
-    Avx512,
+    Avx512(Avx512F),
     #[cfg(target_arch = "x86_64")]
-    Avx512Vnni,
+    Avx512Vnni(Avx512Vnni),
 }
 
 /// The k best matches of one query so far, sorted by (distance, model index).
@@ -191,14 +201,14 @@ impl FeatureMatcher {
     fn detect() -> Kernel {
         #[cfg(target_arch = "x86_64")]
         {
-            if crate::cpu::avx512_vnni_available() {
-                return Kernel::Avx512Vnni;
+            if let Some(proof) = Avx512Vnni::detect() {
+                return Kernel::Avx512Vnni(proof);
             }
-            if crate::cpu::avx512f_available() {
-                return Kernel::Avx512;
+            if let Some(proof) = Avx512F::detect() {
+                return Kernel::Avx512(proof);
             }
-            if crate::cpu::avx2_fma_available() {
-                return Kernel::Avx2;
+            if let Some(proof) = Avx2Fma::detect() {
+                return Kernel::Avx2(proof);
             }
         }
         Kernel::Baseline
@@ -291,13 +301,17 @@ fn search(
 ) {
     match kernel {
         Kernel::Baseline => search_tiles::<false>(blocks, queries, norms, k, tops),
-        // SAFETY: `detect` chose these only after the CPU reported the features.
+        // SAFETY: the proof shows this machine runs AVX2 and FMA, all `search_avx2` enables.
         #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 => unsafe { search_avx2(blocks, queries, norms, k, tops) },
+        Kernel::Avx2(_) => unsafe { search_avx2(blocks, queries, norms, k, tops) },
+        // SAFETY: the proof shows this machine runs AVX-512 F with AVX2 and FMA, all
+        // `search_avx512` enables.
         #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512 => unsafe { search_avx512(blocks, queries, norms, k, tops) },
+        Kernel::Avx512(_) => unsafe { search_avx512(blocks, queries, norms, k, tops) },
+        // SAFETY: the proof shows this machine runs AVX-512 F, BW and VNNI, all
+        // `search_vnni` enables.
         #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512Vnni => unsafe { search_vnni(byte_blocks, queries, norms, k, tops) },
+        Kernel::Avx512Vnni(_) => unsafe { search_vnni(byte_blocks, queries, norms, k, tops) },
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = byte_blocks;
@@ -326,14 +340,16 @@ fn search_vnni(blocks: &[ByteBlock], queries: &[[f32; ECSAD_DIM]], norms: &[f32]
             for (b, block) in tile_blocks.iter().enumerate() {
                 let mut acc = [_mm512_setzero_si512(); TILE_QUERIES];
                 for g in 0..BYTE_GROUPS {
-                    // SAFETY: a 64-byte row of an aligned block.
+                    // SAFETY: a 64-byte row of a block, 64-byte aligned (the block is, and its
+                    // rows are 64 bytes long; asserted with the type).
                     let m = unsafe { _mm512_load_si512(block.groups[g].as_ptr().cast()) };
                     for qi in 0..TILE_QUERIES {
                         acc[qi] = _mm512_dpbusd_epi32(acc[qi], m, _mm512_set1_epi32(q[qi][g]));
                     }
                 }
-                // SAFETY: 16 i32 and 16 f32 of an aligned block.
+                // SAFETY: 16 i32 of a block, 64-byte aligned (asserted with the type).
                 let offsets = unsafe { _mm512_load_si512(block.offsets.as_ptr().cast()) };
+                // SAFETY: 16 f32 of a block, 64-byte aligned (asserted with the type).
                 let pads = unsafe { _mm512_load_ps(block.pads.as_ptr()) };
                 let base = ((first_block + b) * LANES) as u32;
                 for (qi, top) in tops.iter_mut().enumerate() {
@@ -472,15 +488,9 @@ mod tests {
         let mut kernels = vec![Kernel::Baseline];
         #[cfg(target_arch = "x86_64")]
         {
-            if crate::cpu::avx2_fma_available() {
-                kernels.push(Kernel::Avx2);
-            }
-            if crate::cpu::avx512f_available() {
-                kernels.push(Kernel::Avx512);
-            }
-            if crate::cpu::avx512_vnni_available() {
-                kernels.push(Kernel::Avx512Vnni);
-            }
+            kernels.extend(Avx2Fma::detect().map(Kernel::Avx2));
+            kernels.extend(Avx512F::detect().map(Kernel::Avx512));
+            kernels.extend(Avx512Vnni::detect().map(Kernel::Avx512Vnni));
         }
         assert!(kernels.contains(&FeatureMatcher::detect()));
         kernels

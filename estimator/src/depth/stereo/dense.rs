@@ -7,9 +7,16 @@
 //! together, the prior energies looked up in an 8-entry register table, and the first
 //! lowest candidate kept as the minimum of a packed (energy, order) key, so ties go where
 //! the scalar loop sends them.
+//!
+//! The vector kernels read the other image through raw pointers. What keeps those reads
+//! inside it is checked rather than assumed: a vector [`Kernel`] holds the proof that the
+//! CPU runs it, a [`DisparityRange`] starts at 0 or above, [`check_row`] asserts the row
+//! and the buffer sizes, and every disparity read is clamped to the pixel's limit,
+//! whatever the candidate lists hold.
 
 use super::descriptor::{sad, texture, Descriptor, DescriptorImage, BORDER};
 use super::triangulation::{CandidateGrid, LIST_PAD};
+use crate::cpu::{Avx2, Avx512};
 
 // The vector kernel's last band step reads up to three descriptors past the band.
 const _: () = assert!(BORDER > 3);
@@ -27,11 +34,38 @@ pub struct Side<'a> {
     pub grid: &'a CandidateGrid,
 }
 
+/// A disparity search range `d_min ..= d_max` that starts at 0 or above. The vector kernels
+/// read the other image at x - d (left image) or x + d (right image) through raw pointers,
+/// which stay inside the row only for d >= 0, so only [`DisparityRange::new`] makes one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DisparityRange {
+    d_min: i32,
+    d_max: i32,
+}
+
+impl DisparityRange {
+    /// The range, or none unless 0 <= `d_min` <= `d_max`.
+    pub fn new(d_min: i32, d_max: i32) -> Option<DisparityRange> {
+        (0 <= d_min && d_min <= d_max).then_some(DisparityRange { d_min, d_max })
+    }
+
+    /// The lowest disparity searched, px (never negative).
+    #[inline(always)]
+    pub fn d_min(self) -> i32 {
+        self.d_min
+    }
+
+    /// The highest disparity searched, px.
+    #[inline(always)]
+    pub fn d_max(self) -> i32 {
+        self.d_max
+    }
+}
+
 /// What every pixel of one matching pass shares.
 #[derive(Clone, Copy)]
 pub struct Search<'a> {
-    pub d_min: i32,
-    pub d_max: i32,
+    pub range: DisparityRange,
     /// Half width of the band tried around the prior, px.
     pub radius: i32,
     pub min_texture: i32,
@@ -68,30 +102,46 @@ impl VectorPrior {
     }
 }
 
-/// Which kernel [`match_row`] runs.
+/// Which kernel [`match_row`] and [`run_costs`] run. A vector kernel holds the proof that
+/// this machine runs its instructions, which only run-time detection makes, so no caller
+/// can choose one the machine lacks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kernel {
     Scalar,
     /// x86_64 with AVX2.
-    Avx2,
+    Avx2(Avx2),
     /// x86_64 with AVX2 and AVX-512 F, BW, DQ and VL: runs of candidates sixteen at a time.
-    Avx512,
+    Avx512(Avx512),
 }
 
 impl Kernel {
     /// The fastest kernel this machine runs.
     pub fn detect() -> Kernel {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if crate::cpu::avx512_available() {
-                return Kernel::Avx512;
-            }
-            if crate::cpu::avx2_available() {
-                return Kernel::Avx2;
-            }
+        if let Some(proof) = Avx512::detect() {
+            return Kernel::Avx512(proof);
+        }
+        if let Some(proof) = Avx2::detect() {
+            return Kernel::Avx2(proof);
         }
         Kernel::Scalar
     }
+}
+
+/// Panics unless row `y` lies at least BORDER rows inside the image and both descriptor
+/// images hold the same whole w x h buffers: what the vector kernels' pointer reads rely on
+/// (with the disparity limits of [`disparity_limit`]).
+#[inline]
+fn check_row(s: &Side<'_>, y: usize) {
+    let (w, h) = (s.own.width, s.own.height);
+    assert!(
+        s.other.width == w && s.other.height == h && s.own.data.len() == w * h && s.other.data.len() == w * h,
+        "descriptor images of {w}x{h} and {}x{} with {} and {} descriptors",
+        s.other.width,
+        s.other.height,
+        s.own.data.len(),
+        s.other.data.len()
+    );
+    assert!(y >= BORDER && y + BORDER < h, "row {y} is not BORDER rows inside the image");
 }
 
 /// Matches row `y` of one image into `out`: each pixel's energy minimiser, or [`INVALID`].
@@ -99,13 +149,16 @@ impl Kernel {
 /// x + d). Row `y` lies at least BORDER rows inside the image. Runs `kernel` (a vector one
 /// only where the prior allows it, see [`VectorPrior`]).
 pub fn match_row<const LEFT: bool>(s: &Side<'_>, q: &Search<'_>, y: usize, out: &mut [f32], kernel: Kernel) {
-    assert!(y >= BORDER && y + BORDER < s.own.height, "row {y} is not BORDER rows inside the image");
+    check_row(s, y);
     #[cfg(target_arch = "x86_64")]
     if let VectorPrior(Some(table)) = q.vector {
         match kernel {
-            // SAFETY: `detect` found AVX2 (and AVX-512 F, BW, VL) on this machine.
-            Kernel::Avx2 => return unsafe { avx2::match_row::<LEFT>(s, q, y, out, &table) },
-            Kernel::Avx512 => return unsafe { avx2::match_row_wide::<LEFT>(s, q, y, out, &table) },
+            // SAFETY: the proof in the kernel shows this machine runs AVX2, and `check_row`
+            // passed.
+            Kernel::Avx2(_) => return unsafe { avx2::match_row::<LEFT>(s, q, y, out, &table) },
+            // SAFETY: the proof in the kernel shows this machine runs AVX2 and AVX-512 F, BW
+            // and VL, and `check_row` passed.
+            Kernel::Avx512(_) => return unsafe { avx2::match_row_wide::<LEFT>(s, q, y, out, &table) },
             Kernel::Scalar => {}
         }
     }
@@ -118,6 +171,7 @@ pub fn match_row<const LEFT: bool>(s: &Side<'_>, q: &Search<'_>, y: usize, out: 
 /// the right one. `other` is the whole image and `at` a pixel of a row at least BORDER rows
 /// inside it whose disparities up to d0 + costs.len() - 1 keep the descriptor window
 /// inside the row (the wide kernel reads up to fifteen further, still inside the buffer).
+/// Panics on a negative `d0` or a read outside `other`.
 pub fn run_costs<const LEFT: bool>(
     own: &Descriptor,
     other: &[Descriptor],
@@ -126,9 +180,11 @@ pub fn run_costs<const LEFT: bool>(
     costs: &mut [i32],
     kernel: Kernel,
 ) {
+    assert!(d0 >= 0, "disparity {d0} is negative");
     #[cfg(target_arch = "x86_64")]
-    if kernel == Kernel::Avx512 {
-        // SAFETY: `detect` found AVX-512 F, BW and VL on this machine.
+    if let Kernel::Avx512(_) = kernel {
+        // SAFETY: the proof in the kernel shows this machine runs AVX2 and AVX-512 F, BW and
+        // VL; the function checks its reads itself.
         return unsafe { avx2::run_costs_wide::<LEFT>(own, other, at, d0, costs) };
     }
     let _ = kernel;
@@ -158,11 +214,14 @@ pub fn match_row_scalar<const LEFT: bool>(s: &Side<'_>, q: &Search<'_>, y: usize
 }
 
 /// The largest disparity pixel `x` of a `w`-wide row may take, so that the other pixel's
-/// descriptor window stays inside the image.
+/// descriptor window stays inside the image: negative where there is none, as in rows
+/// narrower than 2 BORDER + 1 px (signed arithmetic, so no width wraps around).
 #[inline(always)]
 fn disparity_limit<const LEFT: bool>(x: usize, w: usize, d_max: i32) -> i32 {
-    let d_hi = if LEFT { x as i32 - BORDER as i32 } else { (w - 1 - BORDER) as i32 - x as i32 };
-    d_hi.min(d_max)
+    let (x, w, border) = (x as isize, w as isize, BORDER as isize);
+    let d_hi = if LEFT { x - border } else { w - 1 - border - x };
+    // Between -BORDER - 1 and d_max, so an i32.
+    d_hi.min(d_max as isize) as i32
 }
 
 /// The energy minimiser of pixel `x` of a row, or [`INVALID`]: the grid candidates `list`
@@ -181,8 +240,8 @@ fn match_pixel<const LEFT: bool>(
     if texture(desc) < q.min_texture {
         return INVALID;
     }
-    let d_hi = disparity_limit::<LEFT>(x, own.len(), q.d_max);
-    if d_hi < q.d_min {
+    let d_hi = disparity_limit::<LEFT>(x, own.len(), q.range.d_max());
+    if d_hi < q.range.d_min() {
         return INVALID;
     }
     let cost = |d: i32| sad(desc, &other[if LEFT { x - d as usize } else { x + d as usize }]);
@@ -206,7 +265,7 @@ fn match_pixel<const LEFT: bool>(
                 best_d = d;
             }
         }
-        for d in (mu_i - q.radius).max(q.d_min)..=(mu_i + q.radius).min(d_hi) {
+        for d in (mu_i - q.radius).max(q.range.d_min())..=(mu_i + q.radius).min(d_hi) {
             let e = cost(d) + p(d);
             if e < best_e {
                 best_e = e;
@@ -240,6 +299,10 @@ mod avx2 {
     use super::*;
 
     /// [`super::match_row`]'s vector kernel with AVX2: the same disparities as the scalar one.
+    ///
+    /// # Safety
+    ///
+    /// The machine runs AVX2, and `s` and `y` pass [`check_row`].
     #[target_feature(enable = "avx2")]
     pub unsafe fn match_row<const LEFT: bool>(
         s: &Side<'_>,
@@ -248,11 +311,15 @@ mod avx2 {
         out: &mut [f32],
         table: &[i32; 8],
     ) {
-        // SAFETY: AVX2 is enabled here.
+        // SAFETY: AVX2 is enabled here and the caller ran `check_row`.
         unsafe { row::<LEFT, false>(s, q, y, out, table) }
     }
 
     /// The same with AVX-512 (BW, VL) as well: runs of candidates sixteen at a time.
+    ///
+    /// # Safety
+    ///
+    /// The machine runs AVX2 and AVX-512 F, BW and VL, and `s` and `y` pass [`check_row`].
     #[target_feature(enable = "avx2,avx512f,avx512bw,avx512vl")]
     pub unsafe fn match_row_wide<const LEFT: bool>(
         s: &Side<'_>,
@@ -261,11 +328,17 @@ mod avx2 {
         out: &mut [f32],
         table: &[i32; 8],
     ) {
-        // SAFETY: AVX2 and AVX-512 F, BW and VL are enabled here.
+        // SAFETY: AVX2 and AVX-512 F, BW and VL are enabled here and the caller ran
+        // `check_row`.
         unsafe { row::<LEFT, true>(s, q, y, out, table) }
     }
 
-    /// [`super::run_costs`] sixteen disparities a step.
+    /// [`super::run_costs`] sixteen disparities a step. Panics when a read would leave
+    /// `other` (the last step reads up to fifteen disparities past the run).
+    ///
+    /// # Safety
+    ///
+    /// The machine runs AVX2 and AVX-512 F, BW and VL.
     #[target_feature(enable = "avx2,avx512f,avx512bw,avx512vl")]
     pub unsafe fn run_costs_wide<const LEFT: bool>(
         own: &Descriptor,
@@ -276,7 +349,9 @@ mod avx2 {
     ) {
         let n = costs.len();
         let last = at as i64 + if LEFT { -(d0 as i64 + n as i64 + 15) } else { d0 as i64 + n as i64 + 15 };
-        assert!(last >= 0 && (last as usize) < other.len() && at < other.len(), "run leaves the image");
+        // The reads span `other[at - d0 - n - 14 ..= at - d0]` (left) or
+        // `other[at + d0 ..= at + d0 + n + 14]` (right): inside when d0 >= 0 and both ends are.
+        assert!(d0 >= 0 && last >= 0 && (last as usize) < other.len() && at < other.len(), "run leaves the image");
         // SAFETY: an unaligned 32-byte read of one descriptor.
         let own = _mm512_broadcast_i64x4(unsafe { _mm256_loadu_si256(own.as_ptr().cast()) });
         let pattern = if LEFT { &WIDE_LEFT } else { &WIDE_RIGHT };
@@ -299,8 +374,12 @@ mod avx2 {
         }
     }
 
-    /// The row loop of both vector kernels; inlined into a caller that enables AVX2, and
-    /// AVX-512 F, BW and VL when `WIDE`. Row `y` lies BORDER rows inside the image.
+    /// The row loop of both vector kernels.
+    ///
+    /// # Safety
+    ///
+    /// Inlined into a caller that enables AVX2, and AVX-512 F, BW and VL when `WIDE`, on a
+    /// machine that runs them; `s` and `y` pass [`check_row`].
     #[inline(always)]
     unsafe fn row<const LEFT: bool, const WIDE: bool>(
         s: &Side<'_>,
@@ -315,25 +394,20 @@ mod avx2 {
         // SAFETY: an unaligned 32-byte read of an [i32; 8].
         let table = unsafe { _mm256_loadu_si256(table.as_ptr().cast()) };
         for (columns, padded) in cells(s.grid, w, y) {
-            // The wide kernel's membership bits: bit d - d_min for each list entry d.
-            let mut words = [0u32; 16];
+            // The wide kernel's membership bits: bit d - d_min for each list entry d. A plain
+            // array, so that the AVX2 kernel never touches a 512-bit register.
+            let mut member = [0u32; 16];
             if WIDE {
                 for &d in &padded[..padded.len() - LIST_PAD] {
-                    let k = (d as i32 - q.d_min) as usize;
-                    words[k >> 5] |= 1 << (k & 31);
+                    let k = (d as i32 - q.range.d_min()) as usize;
+                    member[k >> 5] |= 1 << (k & 31);
                 }
             }
-            // SAFETY: an unaligned 64-byte read of [u32; 16]; only used when WIDE.
-            let member = if WIDE {
-                unsafe { _mm512_loadu_si512(words.as_ptr().cast()) }
-            } else {
-                unsafe { _mm512_setzero_si512() }
-            };
             for x in columns {
-                // SAFETY: the caller enabled the features; `padded` holds LIST_PAD entries
-                // past its list; y is BORDER rows inside the image.
+                // SAFETY: the caller enabled the features and ran `check_row`, which
+                // `match_pixel` needs of `own`, `other`, `row` and `x` (x < w).
                 out[x] = unsafe {
-                    match_pixel::<LEFT, WIDE>(own, &s.other.data, row, prior[x], padded, x, q, table, member)
+                    match_pixel::<LEFT, WIDE>(own, &s.other.data, row, prior[x], padded, x, q, table, &member)
                 };
             }
         }
@@ -341,9 +415,15 @@ mod avx2 {
 
     /// The best packed key of the candidates in `start ..= end`, sixteen disparities a step:
     /// the band `lo ..= hi` (when `band`) in band order, and the cell's list entries (bit
-    /// d - d_min of the sixteen 32-bit words `member`) in grid order. The last step may
-    /// score up to fifteen past `end`, which a row BORDER rows inside the image leaves
-    /// inside `base`'s buffer.
+    /// d - d_min of the sixteen 32-bit words `member`) in grid order.
+    ///
+    /// # Safety
+    ///
+    /// The caller enabled AVX-512 F, BW and VL on a machine that runs them, and the sixteen
+    /// descriptors at every disparity from `start` to `end + 15` lie inside the buffer
+    /// `base` points into: `base - d` for the left image, `base + d` for the right one. (A
+    /// pixel's `end` at most its disparity limit, in a row BORDER rows inside a whole image
+    /// at least BORDER + 1 px wide, leaves those reads inside the image.)
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     unsafe fn window16<const LEFT: bool>(
@@ -355,10 +435,12 @@ mod avx2 {
         (lo, hi): (i32, i32),
         band: bool,
         d_min: i32,
-        member: __m512i,
+        member: &[u32; 16],
     ) -> __m128i {
-        // SAFETY: the caller enabled AVX-512 F, BW and VL; see `sad16` for the reads.
+        // SAFETY: the caller enabled AVX-512 F, BW and VL; the reads are those the caller
+        // vouches for (see `sad16`), and `member` is 64 readable bytes.
         unsafe {
+            let member = _mm512_loadu_si512(member.as_ptr().cast());
             let own = _mm512_broadcast_i64x4(own);
             // Indices below 8 read the low half.
             let table = _mm512_broadcast_i64x4(table);
@@ -424,10 +506,15 @@ mod avx2 {
     /// 64-bit partial sums per descriptor. Pairs of registers share 64-bit lanes, unpacking
     /// lines up four registers' partial sums per 128-bit lane, and adding 128-bit lanes 0 + 1
     /// (low halves) and 2 + 3 (high halves) totals them.
+    ///
+    /// # Safety
+    ///
+    /// The caller enabled AVX-512 F and BW on a machine that runs them, and the sixteen
+    /// descriptors from `first` lie inside one buffer.
     #[inline(always)]
     unsafe fn sad16(own: __m512i, first: *const Descriptor) -> __m512i {
-        // SAFETY: the caller enabled AVX-512 F and BW and promises sixteen whole descriptors
-        // from `first`.
+        // SAFETY: the caller enabled AVX-512 F and BW and vouches for sixteen whole
+        // descriptors from `first`.
         unsafe {
             let s = |k: usize| _mm512_sad_epu8(own, _mm512_loadu_si512(first.add(2 * k).cast()));
             let pair = |k: usize| _mm512_or_si512(s(k), _mm512_slli_epi64::<32>(s(k + 1)));
@@ -445,9 +532,14 @@ mod avx2 {
     /// Each 64-bit lane of a 256-bit SAD holds a partial sum below 2^11. Candidates 0 and 1
     /// (2 and 3) share 64-bit lanes, one in each half; unpacking and adding the two registers
     /// lines up the four candidates' partial sums, and adding the 128-bit halves totals them.
+    ///
+    /// # Safety
+    ///
+    /// The caller enabled AVX2 on a machine that runs it, and each pointer is to a whole
+    /// descriptor inside a buffer.
     #[inline(always)]
     unsafe fn sad4(own: __m256i, c: [*const Descriptor; 4]) -> __m128i {
-        // SAFETY: the caller enabled AVX2 and points at four whole descriptors.
+        // SAFETY: the caller enabled AVX2 and vouches for four whole descriptors.
         unsafe {
             let s = |p: *const Descriptor| _mm256_sad_epu8(own, _mm256_loadu_si256(p.cast()));
             let a = _mm256_or_si256(s(c[0]), _mm256_slli_epi64::<32>(s(c[1])));
@@ -460,6 +552,18 @@ mod avx2 {
     /// The scalar [`super::match_pixel`] four candidates at a time (runs sixteen at a time
     /// when `WIDE`); `padded` is the cell's list with its LIST_PAD trailing entries, `other`
     /// the other image's whole descriptor buffer and `row` the offset of this row in it.
+    ///
+    /// Every read of the other image is at a disparity from 0 (the range starts there or
+    /// above) to the pixel's limit d_hi (the list is read clamped to it) plus three (plus
+    /// fifteen when `WIDE`): inside the row for the four-wide steps, since d_hi keeps x - d
+    /// or x + d BORDER > 3 px inside it; inside the image for the sixteen-wide ones.
+    /// Whatever the list holds, the reads stay there; only the result depends on its order.
+    ///
+    /// # Safety
+    ///
+    /// The caller enabled AVX2 (and AVX-512 F, BW and VL when `WIDE`) on a machine that runs
+    /// them; `own` is row `row / own.len()` of an image whose rows `other_image` holds whole,
+    /// as [`check_row`] ensures, and `x < own.len()`.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     unsafe fn match_pixel<const LEFT: bool, const WIDE: bool>(
@@ -471,17 +575,20 @@ mod avx2 {
         x: usize,
         q: &Search<'_>,
         table: __m256i,
-        member: __m512i,
+        member: &[u32; 16],
     ) -> f32 {
-        // SAFETY: the caller enabled AVX2 (and AVX-512 F, BW, VL when WIDE).
+        // SAFETY: the caller enabled AVX2 (and AVX-512 F, BW, VL when WIDE) on a machine
+        // that runs them; the pointer reads stay where the comment above says, because the
+        // range starts at 0 or above and every disparity read is clamped to d_hi.
         unsafe {
             let other = &other_image[row..row + own.len()];
             let desc = &own[x];
             if texture(desc) < q.min_texture {
                 return INVALID;
             }
-            let d_hi = disparity_limit::<LEFT>(x, own.len(), q.d_max);
-            if d_hi < q.d_min {
+            let d_min = q.range.d_min();
+            let d_hi = disparity_limit::<LEFT>(x, own.len(), q.range.d_max());
+            if d_hi < d_min {
                 return INVALID;
             }
             let list = &padded[..padded.len() - LIST_PAD];
@@ -493,10 +600,9 @@ mod avx2 {
             // The other image's descriptor at disparity d is base - d (left) or base + d
             // (right).
             let base = other.as_ptr().wrapping_add(x);
+            // Only called with 0 <= d <= d_hi + 3, which d_hi keeps inside the row (see above).
             let at = |d: i32| -> *const Descriptor {
                 debug_assert!(d >= 0 && d <= d_hi + 3);
-                // SAFETY: 0 <= d <= d_hi + 3 (the caller's promise), and d_hi keeps x - d (left)
-                // or x + d (right) at least BORDER > 3 px inside the row.
                 if LEFT {
                     base.wrapping_sub(d as usize)
                 } else {
@@ -521,7 +627,7 @@ mod avx2 {
             let pack = |e: __m128i, order: __m128i| _mm_or_si128(_mm_slli_epi32::<{ ORDER_BITS as i32 }>(e), order);
             let mut best = invalid;
             // The band around the prior (empty without one) and the prefix of the list.
-            let (lo, hi) = ((mu_i - radius).max(q.d_min), (mu_i + radius).min(d_hi));
+            let (lo, hi) = ((mu_i - radius).max(d_min), (mu_i + radius).min(d_hi));
             let (first, last) =
                 (list.first().map_or(0, |&d| d as i32), list.get(n.wrapping_sub(1)).map_or(0, |&d| d as i32));
             let band = has_prior && lo <= hi;
@@ -536,8 +642,11 @@ mod avx2 {
                         (true, false) => (first, last),
                         _ => (lo, hi),
                     };
+                    // An ascending list's prefix ends at d_hi at most: the clamp changes
+                    // nothing then and bounds the reads whatever the list holds.
+                    let end = end.min(d_hi);
                     let base = other_image.as_ptr().wrapping_add(row + x);
-                    best = window16::<LEFT>(base, own_v, table, mu_i, (start, end), (lo, hi), band, q.d_min, member);
+                    best = window16::<LEFT>(base, own_v, table, mu_i, (start, end), (lo, hi), band, d_min, member);
                 }
             } else if run && band_touches && (n > 0 || band) {
                 // The prefix is a run of consecutive disparities that the band overlaps or
@@ -548,9 +657,11 @@ mod avx2 {
                     (true, false) => (first, last),
                     _ => (lo, hi),
                 };
+                // As above: no change for an ascending list, and bounded reads for any.
+                let end = end.min(d_hi);
                 let (mut d0, mut d) = (start, _mm_add_epi32(_mm_set1_epi32(start), lanes));
                 let (lo_v, hi_v, end_v) = (_mm_set1_epi32(lo - 1), _mm_set1_epi32(hi + 1), _mm_set1_epi32(end + 1));
-                let (band_shift, grid_shift) = (_mm_set1_epi32(BAND_ORDER - lo), _mm_set1_epi32(-q.d_min));
+                let (band_shift, grid_shift) = (_mm_set1_epi32(BAND_ORDER - lo), _mm_set1_epi32(-d_min));
                 while d0 <= end {
                     let sad = sad4(own_v, [at(d0), at(d0 + 1), at(d0 + 2), at(d0 + 3)]);
                     let (e, _) = energy(d, sad);
@@ -565,13 +676,14 @@ mod avx2 {
             } else {
                 // Grid candidates in the prefix and outside the band (which tries the rest). Past
                 // the list come LIST_PAD entries of d_min; entries past the prefix are scored at
-                // d_hi (only near the image border) and ignored.
-                let clamp = if n < list.len() { d_hi } else { i32::MAX };
+                // d_hi (only near the image border) and ignored. Reading every entry clamped to
+                // d_hi changes no score of an ascending list (its prefix and the pads lie at
+                // d_hi or below) and keeps the reads inside the row for any list.
                 let (mut i, mut index, n_v) = (0, lanes, _mm_set1_epi32(n as i32));
-                let grid_shift = _mm_set1_epi32(-q.d_min);
+                let grid_shift = _mm_set1_epi32(-d_min);
                 while i < n {
                     let p = &padded[i..i + 4];
-                    let c = |k: usize| at((p[k] as i32).min(clamp));
+                    let c = |k: usize| at((p[k] as i32).min(d_hi));
                     let sad = sad4(own_v, [c(0), c(1), c(2), c(3)]);
                     // SAFETY: an unaligned 8-byte read of four list entries.
                     let d = _mm_cvtepu16_epi32(_mm_loadl_epi64(p.as_ptr().cast()));
@@ -605,7 +717,7 @@ mod avx2 {
                 return INVALID;
             }
             let order = key & ((1 << ORDER_BITS) - 1);
-            let d = if order >= BAND_ORDER { lo + order - BAND_ORDER } else { q.d_min + order };
+            let d = if order >= BAND_ORDER { lo + order - BAND_ORDER } else { d_min + order };
             d as f32
         }
     }
@@ -634,9 +746,28 @@ mod tests {
         (l, r)
     }
 
+    /// The vector kernels this machine runs.
+    fn vector_kernels() -> Vec<Kernel> {
+        let mut kernels: Vec<Kernel> = Avx2::detect().map(Kernel::Avx2).into_iter().collect();
+        kernels.extend(Avx512::detect().map(Kernel::Avx512));
+        kernels
+    }
+
+    /// Row `y` of the left image (`left`) or the right one, by `kernel`, or by the scalar
+    /// reference without one.
+    fn row_of(left: bool, s: &Side<'_>, q: &Search<'_>, y: usize, out: &mut [f32], kernel: Option<Kernel>) {
+        match (left, kernel) {
+            (true, Some(kernel)) => match_row::<true>(s, q, y, out, kernel),
+            (false, Some(kernel)) => match_row::<false>(s, q, y, out, kernel),
+            (true, None) => match_row_scalar::<true>(s, q, y, out),
+            (false, None) => match_row_scalar::<false>(s, q, y, out),
+        }
+    }
+
     #[test]
     fn vector_kernels_match_scalar_kernel() {
-        if !crate::cpu::avx2_available() {
+        let kernels = vector_kernels();
+        if kernels.is_empty() {
             eprintln!("no AVX2 here: only the scalar kernel runs");
             return;
         }
@@ -645,6 +776,7 @@ mod tests {
         for trial in 0..60 {
             let (d_min, span) = (rng.random_range(0..20), rng.random_range(4..40));
             let d_max = d_min + span;
+            let range = DisparityRange::new(d_min, d_max).unwrap();
             let (left, right) = images(&mut rng, w, h, (d_min + span / 2) as usize);
             let points: Vec<SupportPoint> = (0..rng.random_range(0..40))
                 .map(|_| SupportPoint {
@@ -654,7 +786,7 @@ mod tests {
                 })
                 .collect();
             let mut grid = CandidateGrid::new(w, h, rng.random_range(4..30), span as usize);
-            grid.compute(&points, d_min, d_max, trial % 2 == 1);
+            grid.compute(&points, range, trial % 2 == 1);
             // Priors: planes, holes and values off the range.
             let prior: Vec<f32> = (0..w * h)
                 .map(|i| match rng.random_range(0..10) {
@@ -670,35 +802,22 @@ mod tests {
                 _ => (0..12).map(|k| if k < 7 { rng.random_range(-30..5) } else { 3 }).collect(),
             };
             let q = Search {
-                d_min,
-                d_max,
+                range,
                 radius: rng.random_range(0..5),
                 min_texture: rng.random_range(0..60),
                 prior_energy: &energy,
                 vector: VectorPrior::new(&energy, span as usize + 1),
             };
-            let VectorPrior(Some(table)) = q.vector else { panic!("table {energy:?} should fit the vector kernel") };
+            assert!(q.vector.0.is_some(), "table {energy:?} should fit the vector kernel");
             let side = Side { own: &left, other: &right, prior: &prior, grid: &grid };
-            let wide = crate::cpu::avx512_available();
+            let left_image = trial % 2 == 0;
             for y in BORDER..h - BORDER {
-                let (mut slow, mut fast, mut widest) = (vec![0.0; w], vec![0.0; w], vec![0.0; w]);
-                // SAFETY: AVX2 (and AVX-512 F, BW, VL for the wide kernel) were detected.
-                if trial % 2 == 0 {
-                    match_row_scalar::<true>(&side, &q, y, &mut slow);
-                    unsafe { avx2::match_row::<true>(&side, &q, y, &mut fast, &table) };
-                    if wide {
-                        unsafe { avx2::match_row_wide::<true>(&side, &q, y, &mut widest, &table) };
-                    }
-                } else {
-                    match_row_scalar::<false>(&side, &q, y, &mut slow);
-                    unsafe { avx2::match_row::<false>(&side, &q, y, &mut fast, &table) };
-                    if wide {
-                        unsafe { avx2::match_row_wide::<false>(&side, &q, y, &mut widest, &table) };
-                    }
-                }
-                assert_eq!(slow, fast, "AVX2 kernel, trial {trial}, row {y}");
-                if wide {
-                    assert_eq!(slow, widest, "AVX-512 kernel, trial {trial}, row {y}");
+                let mut slow = vec![0.0; w];
+                row_of(left_image, &side, &q, y, &mut slow, None);
+                for &kernel in &kernels {
+                    let mut fast = vec![-1.0; w];
+                    row_of(left_image, &side, &q, y, &mut fast, Some(kernel));
+                    assert_eq!(slow, fast, "{kernel:?}, trial {trial}, row {y}");
                 }
                 assert!(slow.iter().any(|d| d.is_finite()), "trial {trial}, row {y} matched nothing");
             }
@@ -706,11 +825,91 @@ mod tests {
     }
 
     #[test]
+    fn narrow_rows_agree_in_every_kernel() {
+        // Rows with no room for a disparity on either side of the other pixel's descriptor
+        // window (under 2 BORDER + 1 px, down to none), and a little wider. Every kernel
+        // gives the scalar one's disparities, and each lands on a pixel whose window lies
+        // inside the row, whatever the prior, the candidates and the texture threshold.
+        let mut rng = ChaCha8Rng::seed_from_u64(29);
+        let kernels: Vec<Option<Kernel>> =
+            [None, Some(Kernel::Scalar)].into_iter().chain(vector_kernels().into_iter().map(Some)).collect();
+        let energy = [-14, -9, -2, 0, 0];
+        for w in 0..=24 {
+            for h in [11, 12, 14] {
+                for trial in 0..8 {
+                    let (d_min, span) = (rng.random_range(0..6), rng.random_range(0..12));
+                    let range = DisparityRange::new(d_min, d_min + span).unwrap();
+                    let (left, right) = images(&mut rng, w, h, 1);
+                    let points: Vec<SupportPoint> = (0..rng.random_range(0..12))
+                        .map(|_| SupportPoint {
+                            u: rng.random_range(-2..w as i32 + 2),
+                            v: rng.random_range(0..h as i32),
+                            d: rng.random_range(d_min - 2..=d_min + span + 2),
+                        })
+                        .collect();
+                    let mut grid = CandidateGrid::new(w, h, rng.random_range(1..8), span as usize);
+                    grid.compute(&points, range, trial % 2 == 1);
+                    let prior: Vec<f32> = (0..w * h)
+                        .map(|_| match rng.random_range(0..4) {
+                            0 => f32::NAN,
+                            _ => rng.random_range(-3.0..20.0),
+                        })
+                        .collect();
+                    let q = Search {
+                        range,
+                        radius: rng.random_range(0..4),
+                        min_texture: if trial < 4 { 0 } else { rng.random_range(0..200) },
+                        prior_energy: &energy,
+                        vector: VectorPrior::new(&energy, span as usize + 1),
+                    };
+                    let side = Side { own: &left, other: &right, prior: &prior, grid: &grid };
+                    let left_image = trial % 2 == 0;
+                    for y in BORDER..h - BORDER {
+                        let mut slow = vec![0.0; w];
+                        row_of(left_image, &side, &q, y, &mut slow, None);
+                        for (x, &d) in slow.iter().enumerate().filter(|(_, d)| d.is_finite()) {
+                            // The pixel looked at keeps BORDER px to the row end it moves to.
+                            let (x, border) = (x as f32, BORDER as f32);
+                            let inside = if left_image { x - d >= border } else { x + d <= w as f32 - 1.0 - border };
+                            assert!(inside && d >= d_min as f32, "{w}x{h}: pixel {x} took {d}");
+                        }
+                        for &kernel in &kernels {
+                            let mut fast = vec![-1.0; w];
+                            row_of(left_image, &side, &q, y, &mut fast, kernel);
+                            assert_eq!(slow, fast, "{kernel:?}, {w}x{h}, trial {trial}, row {y}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn negative_disparities_are_refused() {
+        assert_eq!(DisparityRange::new(-1, 5), None);
+        assert_eq!(DisparityRange::new(4, 3), None);
+        assert_eq!(DisparityRange::new(0, 0).map(|r| (r.d_min(), r.d_max())), Some((0, 0)));
+        let mut rng = ChaCha8Rng::seed_from_u64(31);
+        let (w, h) = (40, 12);
+        let (left, right) = images(&mut rng, w, h, 3);
+        let at = 6 * w + 20;
+        for kernel in [Kernel::Scalar].into_iter().chain(vector_kernels()) {
+            for d0 in [-1, -16, i32::MIN] {
+                let run = std::panic::AssertUnwindSafe(|| {
+                    let mut costs = [0; 4];
+                    run_costs::<true>(&left.data[at], &right.data, at, d0, &mut costs, kernel);
+                });
+                assert!(std::panic::catch_unwind(run).is_err(), "{kernel:?} ran from disparity {d0}");
+            }
+        }
+    }
+
+    #[test]
     fn wide_run_costs_match_scalar_ones() {
-        if Kernel::detect() != Kernel::Avx512 {
+        let Some(proof) = Avx512::detect() else {
             eprintln!("no AVX-512 here: only the scalar costs run");
             return;
-        }
+        };
         let mut rng = ChaCha8Rng::seed_from_u64(23);
         let (w, h) = (120, 16);
         let (left, right) = images(&mut rng, w, h, 20);
@@ -730,10 +929,10 @@ mod tests {
             let at = y * w + x;
             if left_side {
                 run_costs::<true>(&own.data[at], &other.data, at, d0, &mut slow, Kernel::Scalar);
-                run_costs::<true>(&own.data[at], &other.data, at, d0, &mut fast, Kernel::Avx512);
+                run_costs::<true>(&own.data[at], &other.data, at, d0, &mut fast, Kernel::Avx512(proof));
             } else {
                 run_costs::<false>(&own.data[at], &other.data, at, d0, &mut slow, Kernel::Scalar);
-                run_costs::<false>(&own.data[at], &other.data, at, d0, &mut fast, Kernel::Avx512);
+                run_costs::<false>(&own.data[at], &other.data, at, d0, &mut fast, Kernel::Avx512(proof));
             }
             assert_eq!(slow, fast, "pixel ({x}, {y}), d0 {d0}, {n} disparities");
         }

@@ -9,7 +9,7 @@
 use camplace_config::StereoParams;
 use rayon::prelude::*;
 
-use super::dense::{match_row, Kernel, Search, Side, VectorPrior, INVALID};
+use super::dense::{match_row, DisparityRange, Kernel, Search, Side, VectorPrior, INVALID};
 use super::descriptor::{DescriptorImage, BORDER};
 use super::postprocess::{interpolate_gaps, remove_speckles, SpeckleScratch};
 use super::subpixel::{refine_subpixel, SubpixelScratch};
@@ -38,6 +38,8 @@ pub struct Elas {
     prior_energy: Vec<i32>,
     /// The same energies as the vector kernel reads them, when it can.
     vector_prior: VectorPrior,
+    /// The fastest kernel this machine runs.
+    kernel: Kernel,
     desc_left: DescriptorImage,
     desc_right: DescriptorImage,
     support: SupportGrid,
@@ -81,6 +83,7 @@ impl Elas {
             subpixel_radius: params.subpixel_radius as usize,
             prior_energy,
             vector_prior,
+            kernel: Kernel::detect(),
             desc_left: DescriptorImage::new(width, height),
             desc_right: DescriptorImage::new(width, height),
             support,
@@ -98,9 +101,18 @@ impl Elas {
     pub fn support_points(&self) -> &[SupportPoint] {
         &self.points
     }
+
+    /// Matches with `kernel` instead of the fastest one (tests compare them).
+    #[cfg(test)]
+    pub(super) fn set_kernel(&mut self, kernel: Kernel) {
+        self.kernel = kernel;
+    }
 }
 
 impl DisparityMatcher for Elas {
+    /// Searches from 0 when `range` starts below it. Images too small for a descriptor
+    /// window (2 BORDER + 1 = 11 px across and down), down to none at all, are not an
+    /// error: no pixel matches, so the map is all +inf.
     fn compute(&mut self, left: &GrayImage, right: &GrayImage, range: (f32, f32), out: &mut FloatImage) -> Result<()> {
         let (w, h) = (self.width, self.height);
         if left.width != w
@@ -120,6 +132,7 @@ impl DisparityMatcher for Elas {
         if !(range.0.is_finite() && range.1.is_finite() && range.0 <= range.1) {
             return Err(Error::new(ErrorKind::Input, format!("disparity range: expected min <= max, got {range:?}")));
         }
+        // Disparities below 0 cannot occur on a rectified pair: the search starts at 0.
         let d_min = range.0.floor().max(0.0) as i32;
         let d_max = range.1.ceil().max(0.0) as i32;
         if (d_max - d_min) as usize > self.max_span {
@@ -128,12 +141,18 @@ impl DisparityMatcher for Elas {
                 format!("disparity range: spans {} px, the matcher was built for {} px", d_max - d_min, self.max_span),
             ));
         }
+        let disparities = DisparityRange::new(d_min, d_max).ok_or_else(|| {
+            Error::new(ErrorKind::Input, format!("disparity range: cannot search {d_min} to {d_max}"))
+        })?;
         out.reset(w, h, INVALID);
+        // An image without pixels has nothing to match: its map is empty.
+        if w == 0 || h == 0 {
+            return Ok(());
+        }
 
-        let kernel = Kernel::detect();
+        let kernel = self.kernel;
         let sp = SupportParams {
-            d_min,
-            d_max,
+            range: disparities,
             uniqueness: self.support_uniqueness,
             min_texture: self.min_texture,
             lr_tolerance: self.lr_tolerance.round().max(1.0) as i32,
@@ -143,8 +162,8 @@ impl DisparityMatcher for Elas {
         self.desc_right.compute(right);
         self.support.compute(&self.desc_left, &self.desc_right, &sp);
         self.support.points(&mut self.points);
-        self.grid_left.compute(&self.points, d_min, d_max, false);
-        self.grid_right.compute(&self.points, d_min, d_max, true);
+        self.grid_left.compute(&self.points, disparities, false);
+        self.grid_right.compute(&self.points, disparities, true);
         self.prior.compute(&self.support);
 
         let left_side =
@@ -152,8 +171,7 @@ impl DisparityMatcher for Elas {
         let right_side =
             Side { own: &self.desc_right, other: &self.desc_left, prior: &self.prior.right, grid: &self.grid_right };
         let q = Search {
-            d_min,
-            d_max,
+            range: disparities,
             radius: self.prior_radius,
             min_texture: self.min_texture,
             prior_energy: &self.prior_energy,

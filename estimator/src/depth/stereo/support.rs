@@ -4,7 +4,7 @@
 
 use rayon::prelude::*;
 
-use super::dense::{run_costs, Kernel};
+use super::dense::{run_costs, DisparityRange, Kernel};
 use super::descriptor::{sad, texture, DescriptorImage, BORDER};
 
 /// Marks a grid node without a support point.
@@ -37,8 +37,7 @@ pub struct SupportGrid {
 /// What support matching needs to know.
 #[derive(Debug, Clone, Copy)]
 pub struct SupportParams {
-    pub d_min: i32,
-    pub d_max: i32,
+    pub range: DisparityRange,
     pub uniqueness: f32,
     pub min_texture: i32,
     pub lr_tolerance: i32,
@@ -128,14 +127,15 @@ fn support_match(
     if texture(dl) < p.min_texture {
         return None;
     }
+    let (d_min, d_max) = (p.range.d_min(), p.range.d_max());
     // Right pixel u - d must keep its descriptor window.
-    let d_hi = p.d_max.min(u as i32 - BORDER as i32);
-    if d_hi < p.d_min {
+    let d_hi = d_max.min(u as i32 - BORDER as i32);
+    if d_hi < d_min {
         return None;
     }
-    let (c1, d1, c2) = if (d_hi - p.d_min) as usize >= COSTS {
+    let (c1, d1, c2) = if (d_hi - d_min) as usize >= COSTS {
         let mut best = Best4::new();
-        for d in p.d_min..=d_hi {
+        for d in d_min..=d_hi {
             best.push(sad(dl, &right.data[row + u - d as usize]), d);
         }
         let (c1, d1) = best.first();
@@ -143,13 +143,13 @@ fn support_match(
     } else {
         // All costs first, then the two minima: no data-dependent branch per disparity.
         let mut costs = [0i32; COSTS];
-        let costs = &mut costs[..(d_hi - p.d_min + 1) as usize];
-        run_costs::<true>(dl, &right.data, row + u, p.d_min, costs, p.kernel);
+        let costs = &mut costs[..(d_hi - d_min + 1) as usize];
+        run_costs::<true>(dl, &right.data, row + u, d_min, costs, p.kernel);
         let (c1, k1) = first_min(costs);
         // The second best excludes the winner's neighbours: on band-limited images they are
         // nearly as good whenever the true disparity falls between two integers.
         let apart = costs.iter().enumerate().filter(|&(k, _)| k.abs_diff(k1) > 1).map(|(_, &c)| c).min();
-        (c1, p.d_min + k1 as i32, apart)
+        (c1, d_min + k1 as i32, apart)
     };
     let c2 = c2?;
     if c1 as f32 >= p.uniqueness * c2 as f32 {
@@ -160,12 +160,12 @@ fn support_match(
     if texture(dr) < p.min_texture {
         return None;
     }
-    let d_hi_r = p.d_max.min((w - BORDER - 1 - ur) as i32);
+    let d_hi_r = d_max.min((w - BORDER - 1 - ur) as i32);
     // The first lowest cost, COSTS disparities at a time (a later chunk wins only when
     // strictly lower).
     let mut best_r = (i32::MAX, -1);
     let mut costs = [0i32; COSTS];
-    let mut d0 = p.d_min;
+    let mut d0 = d_min;
     while d0 <= d_hi_r {
         let chunk = &mut costs[..((d_hi_r - d0 + 1) as usize).min(COSTS)];
         run_costs::<false>(dr, &left.data, row + ur, d0, chunk, p.kernel);

@@ -7,7 +7,9 @@ use camplace_config::{Cell, StereoParams};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use super::dense::Kernel;
 use super::{DisparityMatcher, Elas};
+use crate::cpu::{Avx2, Avx512};
 use crate::{FloatImage, GrayImage};
 
 /// A disparity plane d = c + a x + b y in left-image pixels.
@@ -366,4 +368,74 @@ fn rejects_wrong_sizes_and_ranges() {
     // A flat pair has no texture: nothing is matched, nothing fails.
     elas.compute(&img, &img, (0.0, 20.0), &mut out).unwrap();
     assert!(out.data.iter().all(|d| d.is_infinite()));
+}
+
+/// Every dense-matching kernel this machine runs, the scalar one first.
+fn kernels() -> Vec<Kernel> {
+    let vector = Avx2::detect().map(Kernel::Avx2).into_iter().chain(Avx512::detect().map(Kernel::Avx512));
+    std::iter::once(Kernel::Scalar).chain(vector).collect()
+}
+
+/// The map of `left` and `right` by a matcher for spans up to 128 px with `kernel`, as bits.
+fn map_bits(p: &StereoParams, kernel: Kernel, left: &GrayImage, right: &GrayImage, range: (f32, f32)) -> Vec<u32> {
+    let mut elas = Elas::new(p, left.width, left.height, 128);
+    elas.set_kernel(kernel);
+    let mut out = FloatImage::default();
+    elas.compute(left, right, range, &mut out).unwrap();
+    assert_eq!((out.width, out.height), (left.width, left.height));
+    out.data.iter().map(|d| d.to_bits()).collect()
+}
+
+#[test]
+fn every_kernel_gives_the_same_map() {
+    let scene = box_scene(5);
+    let mut rng = ChaCha8Rng::seed_from_u64(400);
+    let (left, right) = (scene.render(false, &mut rng), scene.render(true, &mut rng));
+    let maps: Vec<Vec<u32>> =
+        kernels().into_iter().map(|k| map_bits(&params(), k, &left, &right, (85.0, 135.0))).collect();
+    assert!(maps.iter().all(|m| *m == maps[0]), "{} kernels differ", maps.len());
+    assert!(maps[0].iter().filter(|&&d| f32::from_bits(d).is_finite()).count() > left.data.len() / 2);
+}
+
+#[test]
+fn tiny_images_match_nothing_in_every_kernel() {
+    // Images narrower than a descriptor window on both sides of a pixel (2 BORDER + 1 px),
+    // down to none, and too low for one or just high enough for a row or two: the whole
+    // path (descriptors, support points, prior, dense matching of both images, the checks
+    // and the post-processing) returns a map of their size without a panic, the same in
+    // every kernel. No pixel is a support point, so nothing is matched, even without a
+    // texture threshold and with ranges that start below 0 or beyond the image.
+    let mut rng = ChaCha8Rng::seed_from_u64(41);
+    for w in 0..=8 {
+        for h in (0..=4).chain([11, 12, 13]) {
+            let mut image = || {
+                let pixels = (0..w * h).map(|_| rng.random_range(0..=255u8)).collect();
+                GrayImage::from_vec(w, h, pixels).unwrap()
+            };
+            let (left, right) = (image(), image());
+            for min_texture in [params().min_texture, 0] {
+                let p = StereoParams { min_texture, ..params() };
+                for range in [(0.0, 4.0), (-6.0, 3.0), (2.5, 9.0), (40.0, 50.0), (0.0, 0.0)] {
+                    for kernel in kernels() {
+                        let map = map_bits(&p, kernel, &left, &right, range);
+                        assert!(map.iter().all(|&d| d == f32::INFINITY.to_bits()), "{w}x{h} {range:?} {kernel:?}");
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn a_range_below_zero_is_searched_from_zero() {
+    // Disparities below 0 cannot occur on a rectified pair: the search starts at 0, and
+    // the map is that of the range clipped there, in every kernel.
+    let scene = box_scene(6);
+    let mut rng = ChaCha8Rng::seed_from_u64(500);
+    let (left, right) = (scene.render(false, &mut rng), scene.render(true, &mut rng));
+    for kernel in kernels() {
+        let clipped = map_bits(&params(), kernel, &left, &right, (0.0, 120.0));
+        assert_eq!(map_bits(&params(), kernel, &left, &right, (-8.0, 120.0)), clipped, "{kernel:?}");
+        assert_eq!(map_bits(&params(), kernel, &left, &right, (-0.5, 120.0)), clipped, "{kernel:?}");
+    }
 }

@@ -18,6 +18,7 @@
 
 use rayon::prelude::*;
 
+use super::dense::DisparityRange;
 use super::support::{SupportGrid, SupportPoint, NONE};
 
 /// The filled support grid and the per-pixel plane priors it gives (NaN where no triangle).
@@ -462,10 +463,13 @@ impl CandidateGrid {
         }
     }
 
-    /// Fills the lists from `points`; `right` places each point at its right-image column.
-    pub fn compute(&mut self, points: &[SupportPoint], d_min: i32, d_max: i32, right: bool) {
+    /// Fills the lists from `points` within `range`; `right` places each point at its
+    /// right-image column. The lists hold u16, so disparities above u16::MAX (far wider
+    /// than any image a rig file allows) are left out.
+    pub fn compute(&mut self, points: &[SupportPoint], range: DisparityRange, right: bool) {
+        let (d_min, d_max) = (range.d_min(), range.d_max());
         self.bits.fill(0);
-        let span = (d_max - d_min).min(self.slot as i32 - 1);
+        let span = (d_max - d_min).min(self.slot as i32 - 1).min(u16::MAX as i32 - d_min);
         for p in points {
             let u = if right { p.u - p.d } else { p.u };
             if u < 0 || p.v < 0 {
@@ -501,7 +505,7 @@ impl CandidateGrid {
                         n += 1;
                     }
                 }
-                list[n..n + LIST_PAD].fill(d_min as u16);
+                list[n..n + LIST_PAD].fill(d_min.min(u16::MAX as i32) as u16);
                 self.counts[cy * self.cols + cx] = n as u16;
             }
         }
