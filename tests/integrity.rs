@@ -9,9 +9,9 @@ use std::sync::OnceLock;
 
 use camplace_config::Cell;
 use camplace_sim::{open_folder, Method};
-use serde_json::Value;
 
 use crate::camplace_cmd::{assert_one_line_error, camplace, stderr};
+use crate::study_folder::results_without_timings;
 
 fn small_cell() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/small_cell.toml").display().to_string()
@@ -53,23 +53,6 @@ fn copy_dir(from: &Path, to: &Path) {
             std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
         }
     }
-}
-
-/// Result lines keyed by scenario, without the timings.
-fn results_without_timings(path: &Path) -> Vec<(u64, Value)> {
-    let mut v: Vec<(u64, Value)> = std::fs::read_to_string(path)
-        .unwrap()
-        .lines()
-        .map(|l| {
-            let mut v: Value = serde_json::from_str(l).unwrap();
-            let o = v.as_object_mut().unwrap();
-            o.remove("timings_ms");
-            o.remove("ms");
-            (o["scenario"].as_u64().unwrap(), v)
-        })
-        .collect();
-    v.sort_by_key(|(i, _)| *i);
-    v
 }
 
 /// A small study folder of 2 scenes (with its cached model), evaluated once for the tests
