@@ -489,6 +489,7 @@ impl Cell {
             return Err(Error::value("estimator.k", format!("expected 1 to 64 nearest neighbours, got {}", e.k)));
         }
         pos("estimator.height_band", e.height_band)?;
+        at_most("estimator.height_band", e.height_band, MAX_DISTANCE_MM, "mm")?;
         if !(1..=MAX_ITERATIONS).contains(&e.ransac_iterations) {
             return Err(Error::value(
                 "estimator.ransac_iterations",
@@ -508,11 +509,18 @@ impl Cell {
             ));
         }
         unit("estimator.edge_similarity", e.edge_similarity)?;
-        pos("estimator.table_height", e.table_height)?;
         angle_open("estimator.table_tilt", e.table_tilt, 0.0, 90.0)?;
-        pos("estimator.inlier_distance", e.inlier_distance)?;
         unit("estimator.min_inlier_share", e.min_inlier_share)?;
-        pos("estimator.icp_max_distance", e.icp_max_distance)?;
+        // Distances a spatial index is built with: far beyond the tray they gather the whole
+        // cloud in one cell and a frame takes minutes.
+        for (key, v) in [
+            ("estimator.table_height", e.table_height),
+            ("estimator.inlier_distance", e.inlier_distance),
+            ("estimator.icp_max_distance", e.icp_max_distance),
+        ] {
+            pos(key, v)?;
+            at_most(key, v, 1000.0, "mm")?;
+        }
         if !(e.icp_trim.is_finite() && (0.0..=0.9).contains(&e.icp_trim)) {
             return Err(Error::value(
                 "estimator.icp_trim",
@@ -520,9 +528,14 @@ impl Cell {
             ));
         }
         let m = &self.metrics;
-        pos("metrics.correct_match", m.correct_match)?;
-        pos("metrics.success_position", m.success_position)?;
-        pos("metrics.success_rotation", m.success_rotation)?;
+        for (key, v, most, unit) in [
+            ("metrics.correct_match", m.correct_match, MAX_DISTANCE_MM, "mm"),
+            ("metrics.success_position", m.success_position, MAX_DISTANCE_MM, "mm"),
+            ("metrics.success_rotation", m.success_rotation, 180.0, "degrees"),
+        ] {
+            pos(key, v)?;
+            at_most(key, v, most, unit)?;
+        }
         Ok(())
     }
 }
@@ -695,6 +708,10 @@ mod tests {
             ("[lighting]\nlamp_distance = 4294967296\n", "lighting.lamp_distance"),
             ("[work_volume]\nz = [0.0, 0.0]\n", "work_volume.z"),
             ("[stereo]\nspeckle_similarity = 1e308\n", "stereo.speckle_similarity"),
+            ("[estimator]\nheight_band = 1e308\n", "estimator.height_band"),
+            ("[estimator]\nicp_max_distance = 1e308\n", "estimator.icp_max_distance"),
+            ("[estimator]\ninlier_distance = 4294967296\n", "estimator.inlier_distance"),
+            ("[metrics]\nsuccess_rotation = 1e9\n", "metrics.success_rotation"),
             ("[stereo]\nlr_tolerance = 4294967296\n", "stereo.lr_tolerance"),
             ("[stereo]\nprior_sigma = 1e308\n", "stereo.prior_sigma"),
             ("[phase]\nmin_modulation = 1e9\n", "phase.min_modulation"),
