@@ -210,3 +210,19 @@ fn every_dataset_command_checks_the_poses_it_reads() {
         }
     }
 }
+
+#[test]
+fn endless_files_and_empty_budgets_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cases: [(&[&str], &[&str]); 4] = [
+        (&["render", "--cell", "/dev/zero", "--out", "o"], &["/dev/zero", "at most"]),
+        (&["optimize", "--budget", "0", "--out", "o"], &["--budget"]),
+        (&["optimize", "--test-function", "branin", "--budget", "100000000"], &["--budget"]),
+        (&["optimize", "--top", "0", "--out", "o"], &["--top"]),
+    ];
+    for (args, names) in cases {
+        let o = camplace(d, args);
+        assert_one_line_error(o.status.code().unwrap_or(-1), &stderr(&o), names);
+    }
+}

@@ -223,7 +223,7 @@ impl Default for Cell {
 impl Cell {
     /// Reads a cell file, laid over the built-in default, and checks every value.
     pub fn load(path: &Path) -> Result<Cell, Error> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, &e))?;
+        let text = crate::formats::read::read_text(path)?;
         let base = path.parent().unwrap_or(Path::new("."));
         Cell::from_toml_str(&text, base).map_err(|e| e.in_file(path))
     }

@@ -165,7 +165,8 @@ impl Cell {
 }
 
 fn mesh_hash(key: &'static str, path: &Path) -> Result<MeshHash, Error> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e).under_key(key))?;
+    let bytes =
+        crate::formats::read::read_bounded(path, crate::formats::read::MAX_DATA_BYTES).map_err(|e| e.under_key(key))?;
     Ok(MeshHash { key, path: path.to_path_buf(), hash: ContentHash::of(&bytes) })
 }
 

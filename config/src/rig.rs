@@ -49,7 +49,7 @@ pub struct RigFile {
 impl RigFile {
     /// Reads and checks a `rig.json`.
     pub fn load(path: &Path) -> Result<RigFile, Error> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, &e))?;
+        let text = crate::formats::read::read_text(path)?;
         Self::from_json(&text).map_err(|e| e.in_file(path))
     }
 

@@ -47,7 +47,7 @@ pub struct TruthFile {
 impl TruthFile {
     /// Reads a `truth.json`.
     pub fn load(path: &Path) -> Result<TruthFile, Error> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, &e))?;
+        let text = crate::formats::read::read_text(path)?;
         Self::from_json(&text).map_err(|e| e.in_file(path))
     }
 

@@ -25,15 +25,15 @@ pub struct Args {
     /// Parameters searched, comma separated, each optionally with its box (baseline=40:200).
     #[arg(long, default_value = "r,alpha,baseline,vergence", value_delimiter = ',', value_parser = parse_param)]
     params: Vec<SearchParameter>,
-    /// Evaluations the search may spend (default 100; 300 with --test-function).
-    #[arg(long)]
-    budget: Option<usize>,
+    /// Evaluations the search may spend, 1 to 10000 (default 100; 300 with --test-function).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+    budget: Option<u64>,
     /// Scenarios per evaluation.
     #[arg(long, default_value_t = 250)]
     scenarios: u64,
-    /// Candidates evaluated again on fresh scenarios (the next seed).
-    #[arg(long, default_value_t = 3)]
-    top: usize,
+    /// Candidates evaluated again on fresh scenarios (the next seed), 1 to 100.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=100))]
+    top: u64,
     /// Search a standard function instead: branin, goldstein-price, hartmann3 or hartmann6.
     #[arg(long, value_name = "NAME")]
     test_function: Option<String>,
@@ -54,7 +54,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             bail!("--test-function: expected branin, goldstein-price, hartmann3 or hartmann6, got \"{name}\"");
         }
         let seed = a.run.scene.seed.unwrap_or(1);
-        let run = run_test_function(&key, seed, a.budget.unwrap_or(300));
+        let run = run_test_function(&key, seed, a.budget.unwrap_or(300) as usize);
         let line = serde_json::json!({
             "function": name,
             "seed": seed,
@@ -77,10 +77,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     let plan = SearchPlan {
         parameters: a.params.clone(),
-        budget: a.budget.unwrap_or(100).max(1),
+        budget: a.budget.unwrap_or(100) as usize,
         scenarios: check_scenarios(a.scenarios)?,
         optimizer_seed: seed,
-        top: a.top.max(1),
+        top: a.top as usize,
         recheck_scenarios: a.scenarios,
     };
     let outcome = optimize(out, &cell, &base, a.run.method(), seed, &plan, "optimize")?;

@@ -12,5 +12,6 @@ pub(crate) mod mesh;
 pub(crate) mod pfm;
 pub(crate) mod ply;
 pub(crate) mod png;
+pub(crate) mod read;
 
 pub use atomic::{is_temp_file_name, remove_stale_temp_files, write_atomic};

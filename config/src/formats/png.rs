@@ -14,7 +14,7 @@ pub struct Gray {
 
 /// Reads a PNG (or any image the `image` crate decodes) as 8-bit grey.
 pub fn read_gray(path: &Path) -> Result<Gray, Error> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, &e))?;
+    let bytes = super::read::read_bounded(path, super::read::MAX_DATA_BYTES)?;
     let img = image::load_from_memory(&bytes).map_err(|e| {
         Error::new(ErrorKind::Format, "", format!("not a readable image: {e}")).in_file(path).with_source(e)
     })?;
