@@ -79,7 +79,10 @@ fn replay_equals_the_evaluation_and_run_equals_replay() {
     // Not a vacuous comparison: the estimator found trays here.
     assert!(summary.found > 0, "{summary:?}");
 
-    let o = camplace(&f.root, &["run", "--source", "dir:data", "--model", "tray.model", "--out", "run.jsonl"]);
+    let o = camplace(
+        &f.root,
+        &["run", "--source", "dir:data", "--model", "tray.model", "--out", "run.jsonl", "--latency-plot", "latency"],
+    );
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     let text = read(&f.root.join("run.jsonl"));
@@ -91,10 +94,25 @@ fn replay_equals_the_evaluation_and_run_equals_replay() {
     for (i, line) in text.lines().enumerate() {
         let v: serde_json::Value = serde_json::from_str(line).unwrap();
         assert_eq!(v["sequence"], i as u64, "{line}");
-        assert!(v["latency_ms"].as_f64().unwrap() > 0.0, "{line}");
+        let (latency, cpu) = (v["latency_ms"].as_f64().unwrap(), v["cpu_ms"].as_f64().unwrap());
+        assert!(latency > 0.0, "{line}");
+        // One thread cannot use more CPU than the wall time it ran (1 ms for clock steps).
+        assert!(cpu > 0.0 && cpu <= latency + 1.0, "{line}");
     }
     assert!(err.contains(&format!("{SCENES} frames estimated, 0 dropped")), "{err}");
     assert!(err.contains("p50") && err.contains("p90") && err.contains("p99"), "{err}");
+    // Each one-shot stage's percentiles, and the CPU time per frame.
+    for stage in camplace_estimator::StageTimings::STAGES {
+        assert!(err.lines().any(|l| l.split_whitespace().next() == Some(stage)), "no {stage} row: {err}");
+    }
+    assert!(err.contains("CPU time per frame: estimator thread p50"), "{err}");
+    if err.contains("latency plot:") {
+        for ext in ["svg", "png"] {
+            assert!(f.root.join(format!("latency.{ext}")).is_file(), "latency.{ext} not written: {err}");
+        }
+    } else {
+        assert!(err.contains("plots skipped"), "neither a plot nor why not: {err}");
+    }
 }
 
 /// The evaluator's records of the fixture's scenes.
@@ -134,13 +152,19 @@ fn the_deployed_loop_in_process_gives_the_evaluations_poses() {
         .unwrap();
 
     assert_eq!(stats.dropped, 0);
-    assert_eq!(stats.latencies_ms.len(), SCENES as usize);
+    assert_eq!(stats.frames.len(), SCENES as usize);
     assert!(stats.line().starts_with(&format!("{SCENES} frames estimated, 0 dropped")), "{}", stats.line());
     let evaluated = evaluated(f);
     assert_eq!(got.len(), evaluated.len(), "one pose per frame");
     for (i, (g, e)) in got.iter().zip(&evaluated).enumerate() {
-        assert_eq!(g.sequence, i as u64);
-        assert!(g.latency_ms > 0.0);
+        let t = &g.timing;
+        assert_eq!(t.sequence, i as u64);
+        assert_eq!(stats.frames[i], *t, "the stats keep what was handed over");
+        // The estimator's time is part of the capture-to-pose latency, and its thread's CPU
+        // time cannot exceed the wall time it ran (1 ms for clock steps).
+        assert!(t.stages.total_ms > 0.0 && t.stages.total_ms <= t.latency_ms, "{t:?}");
+        assert!(t.cpu_ms > 0.0 && t.cpu_ms <= t.latency_ms + 1.0, "{t:?}");
+        assert!(t.stages.by_stage().iter().sum::<f64>() <= t.stages.total_ms, "{t:?}");
         assert_eq!(untimed(&g.record), FrameRecord { score: None, ..untimed(e) }, "frame {}", e.frame);
     }
 }
@@ -208,6 +232,11 @@ fn bad_run_flags_are_one_line_errors() {
     assert_one_line_error(&o, &["--fps", "positive"]);
     let o = camplace(&f.root, &["run", "--source", "dir:nowhere", "--model", "tray.model"]);
     assert_one_line_error(&o, &["nowhere"]);
+    let o = camplace(
+        &f.root,
+        &["run", "--source", "dir:data", "--model", "tray.model", "--latency-plot", "no/such/folder/latency"],
+    );
+    assert_one_line_error(&o, &["--latency-plot", "no/such/folder/latency", "existing folder"]);
 }
 
 #[test]

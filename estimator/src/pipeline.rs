@@ -49,6 +49,27 @@ pub struct StageTimings {
     pub total_ms: f64,
 }
 
+impl StageTimings {
+    /// The stages' names in pipeline order, as [`StageTimings::by_stage`] gives their times.
+    pub const STAGES: [&'static str; 9] =
+        ["rectify", "disparity", "cloud", "downsample", "normals", "features", "matching", "ransac", "icp"];
+
+    /// Each stage's time in pipeline order (the whole frame not included), ms.
+    pub fn by_stage(&self) -> [f64; 9] {
+        [
+            self.rectify_ms,
+            self.disparity_ms,
+            self.cloud_ms,
+            self.downsample_ms,
+            self.normals_ms,
+            self.features_ms,
+            self.matching_ms,
+            self.ransac_ms,
+            self.icp_ms,
+        ]
+    }
+}
+
 /// The pose of one frame, as [`Estimator::process`] returns it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PoseEstimate {

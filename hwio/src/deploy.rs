@@ -15,9 +15,10 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use camplace_config::RigFile;
-use camplace_estimator::{Estimator, PoseEstimate};
+use camplace_estimator::{Estimator, PoseEstimate, StageTimings};
 
 use crate::capture::{Capture, WhenBehind};
+use crate::cpu_time::{process_cpu_time, thread_cpu_time};
 use crate::frames::{FrameInfo, FrameSource, Frames};
 use crate::paced::Paced;
 use crate::recorded::{read_background, RecordedSource};
@@ -99,40 +100,103 @@ fn read_given_background(dir: &Path, rig: &RigFile, shots: usize) -> Result<Fram
 /// One estimated frame as the loop hands it over.
 #[derive(Debug, Clone)]
 pub struct Estimated<T> {
-    /// Position in the source's stream, from 0 (gaps are dropped frames).
-    pub sequence: u64,
     /// The source's capture time, µs (a camera's driver clock; a recording's file time).
     pub timestamp_us: u64,
-    /// From the frame being in memory to its pose, ms.
-    pub latency_ms: f64,
+    /// The frame's place in the stream, where its time went and the CPU time it took.
+    pub timing: FrameTiming,
     /// What the caller made of the frame's pose.
     pub record: T,
+}
+
+/// The times of one estimated frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FrameTiming {
+    /// Position in the source's stream, from 0 (gaps are dropped frames).
+    pub sequence: u64,
+    /// From the frame being in memory to its pose, ms: the estimator's stages plus any wait
+    /// for the frame before it.
+    pub latency_ms: f64,
+    /// Each stage of the estimator on this frame.
+    pub stages: StageTimings,
+    /// CPU time the estimator thread spent on this frame, ms.
+    pub cpu_ms: f64,
 }
 
 /// What a finished loop measured.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct DeployStats {
-    /// Capture-to-pose latency of every frame handed over, ms, in stream order.
-    pub latencies_ms: Vec<f64>,
+    /// The times of every frame handed over, in stream order.
+    pub frames: Vec<FrameTiming>,
     /// Frames the capture dropped because the estimator was behind.
     pub dropped: u64,
+    /// Wall time of the whole run, s.
+    pub wall_s: f64,
+    /// CPU time of the whole process over the run (capture, estimator and output threads), s.
+    pub process_cpu_s: f64,
 }
 
 impl DeployStats {
     /// The end-of-run line: frames, drops and latency percentiles.
     pub fn line(&self) -> String {
-        let mut sorted = self.latencies_ms.clone();
-        sorted.sort_by(f64::total_cmp);
-        let p = |q| percentile(&sorted, q).map_or("n/a".to_string(), |v| format!("{v:.1} ms"));
+        let latencies: Vec<f64> = self.frames.iter().map(|f| f.latency_ms).collect();
+        let (p50, p90, p99) = (p_text(&latencies, 50.0), p_text(&latencies, 90.0), p_text(&latencies, 99.0));
         format!(
-            "{} frames estimated, {} dropped; capture-to-pose latency p50 {}, p90 {}, p99 {}",
-            self.latencies_ms.len(),
+            "{} frames estimated, {} dropped; capture-to-pose latency p50 {p50}, p90 {p90}, p99 {p99}",
+            self.frames.len(),
             self.dropped,
-            p(50.0),
-            p(90.0),
-            p(99.0)
         )
     }
+
+    /// The end-of-run report: [`DeployStats::line`], then each stage's p50 and p99, and
+    /// the CPU time per frame (the estimator thread's, and the whole process's share).
+    pub fn report(&self) -> String {
+        let mut text = self.line();
+        if self.frames.is_empty() {
+            return text;
+        }
+        text.push_str(&format!("\n  {:<11} {:>9} {:>9}", "stage", "p50 ms", "p99 ms"));
+        for (k, name) in StageTimings::STAGES.iter().enumerate() {
+            let times: Vec<f64> = self.frames.iter().map(|f| f.stages.by_stage()[k]).collect();
+            if times.iter().all(|&t| t == 0.0) {
+                continue; // a stage this method skips
+            }
+            text.push_str(&format!("\n  {name:<11} {:>9.1} {:>9.1}", p_value(&times, 50.0), p_value(&times, 99.0)));
+        }
+        let totals: Vec<f64> = self.frames.iter().map(|f| f.stages.total_ms).collect();
+        text.push_str(&format!(
+            "\n  {:<11} {:>9.1} {:>9.1}",
+            "estimator",
+            p_value(&totals, 50.0),
+            p_value(&totals, 99.0)
+        ));
+        let cpu: Vec<f64> = self.frames.iter().map(|f| f.cpu_ms).collect();
+        let per_frame = 1e3 * self.process_cpu_s / self.frames.len() as f64;
+        let busy = if self.wall_s > 0.0 { self.process_cpu_s / self.wall_s } else { 0.0 };
+        text.push_str(&format!(
+            "\nCPU time per frame: estimator thread p50 {:.1} ms, p99 {:.1} ms; whole process {per_frame:.1} ms a \
+             frame ({:.1} s of CPU in {:.1} s: {busy:.2} cores busy)",
+            p_value(&cpu, 50.0),
+            p_value(&cpu, 99.0),
+            self.process_cpu_s,
+            self.wall_s,
+        ));
+        text
+    }
+}
+
+/// The nearest-rank `q`-th percentile of `values` in any order; 0 when empty.
+fn p_value(values: &[f64], q: f64) -> f64 {
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    percentile(&sorted, q).unwrap_or(0.0)
+}
+
+/// [`p_value`] as text with its unit, "n/a" when empty.
+fn p_text(values: &[f64], q: f64) -> String {
+    if values.is_empty() {
+        return "n/a".to_string();
+    }
+    format!("{:.1} ms", p_value(values, q))
 }
 
 /// The deployed loop over one source.
@@ -178,6 +242,7 @@ impl Deployment {
         W: FnMut(Estimated<T>) -> std::result::Result<(), E>,
     {
         let Deployment { source, when_behind, mut estimator, stop, extra_delay } = self;
+        let (wall_start, cpu_start) = (std::time::Instant::now(), process_cpu_time());
         let capture = Capture::spawn_with(source, BUFFERS, when_behind)?;
         let (tx, rx) = crossbeam_channel::bounded::<Estimated<T>>(64);
         let stopping = stop.clone();
@@ -186,6 +251,7 @@ impl Deployment {
             .spawn(move || -> std::result::Result<u64, E> {
                 while !stopping.load(Ordering::SeqCst) {
                     let Some(c) = capture.recv()? else { break };
+                    let cpu_start = thread_cpu_time();
                     let pose = estimator
                         .process(&c.frames.left, &c.frames.right)
                         .map_err(|e| Error::new(ErrorKind::Estimate, format!("frame {}: {e}", c.info.name)))?;
@@ -193,9 +259,11 @@ impl Deployment {
                         std::thread::sleep(extra_delay);
                     }
                     let latency_ms = c.at.elapsed().as_secs_f64() * 1e3;
+                    let cpu_ms = (thread_cpu_time() - cpu_start).as_secs_f64() * 1e3;
                     capture.recycle(c.frames);
                     let record = record(&estimator, &pose, &c.info)?;
-                    let e = Estimated { sequence: c.info.index, timestamp_us: c.info.timestamp_us, latency_ms, record };
+                    let timing = FrameTiming { sequence: c.info.index, latency_ms, stages: pose.timings, cpu_ms };
+                    let e = Estimated { timestamp_us: c.info.timestamp_us, timing, record };
                     if tx.send(e).is_err() {
                         break;
                     }
@@ -204,23 +272,25 @@ impl Deployment {
             })
             .map_err(|e| Error::new(ErrorKind::Estimate, format!("cannot start the estimator thread: {e}")))?;
 
-        let mut latencies_ms = Vec::new();
+        let mut frames = Vec::new();
         let mut emitted = Ok(());
         for e in rx {
-            let latency_ms = e.latency_ms;
+            let timing = e.timing;
             emitted = emit(e);
             if emitted.is_err() {
                 stop.store(true, Ordering::SeqCst);
                 break;
             }
-            latencies_ms.push(latency_ms);
+            frames.push(timing);
         }
         let dropped = match estimator_thread.join() {
             Ok(result) => result?,
             Err(_) => return Err(Error::new(ErrorKind::Estimate, "the estimator thread stopped unexpectedly").into()),
         };
         emitted?;
-        Ok(DeployStats { latencies_ms, dropped })
+        let wall_s = wall_start.elapsed().as_secs_f64();
+        let process_cpu_s = (process_cpu_time() - cpu_start).as_secs_f64();
+        Ok(DeployStats { frames, dropped, wall_s, process_cpu_s })
     }
 }
 
@@ -254,5 +324,41 @@ mod tests {
         }
         assert_eq!(percentile(&[7.0], 99.0), Some(7.0));
         assert_eq!(percentile(&[], 50.0), None);
+    }
+
+    /// The report's row for `name`: its p50 and p99 as printed.
+    fn row(report: &str, name: &str) -> Option<(f64, f64)> {
+        let line = report.lines().find(|l| l.split_whitespace().next() == Some(name))?;
+        let v: Vec<f64> = line.split_whitespace().skip(1).map(|t| t.parse().unwrap()).collect();
+        Some((v[0], v[1]))
+    }
+
+    #[test]
+    fn the_report_gives_each_stages_percentiles_and_the_cpu_time() {
+        // 100 frames: RANSAC takes 1..=100 ms, ICP 2 ms, the 12-shot stages none.
+        let frames: Vec<FrameTiming> = (1..=100u32)
+            .map(|i| {
+                let stages = StageTimings {
+                    disparity_ms: 20.0,
+                    ransac_ms: f64::from(i),
+                    icp_ms: 2.0,
+                    total_ms: 22.0 + f64::from(i),
+                    ..StageTimings::default()
+                };
+                FrameTiming { sequence: u64::from(i), latency_ms: 30.0 + f64::from(i), stages, cpu_ms: f64::from(i) }
+            })
+            .collect();
+        let stats = DeployStats { frames, dropped: 3, wall_s: 10.0, process_cpu_s: 5.0 };
+        let report = stats.report();
+        assert!(report.starts_with("100 frames estimated, 3 dropped; capture-to-pose latency p50 80.0 ms"), "{report}");
+        assert_eq!(row(&report, "ransac"), Some((50.0, 99.0)), "{report}");
+        assert_eq!(row(&report, "icp"), Some((2.0, 2.0)), "{report}");
+        assert_eq!(row(&report, "disparity"), Some((20.0, 20.0)), "{report}");
+        assert_eq!(row(&report, "estimator"), Some((72.0, 121.0)), "{report}");
+        assert_eq!(row(&report, "rectify"), None, "a stage no frame ran is left out: {report}");
+        assert!(report.contains("estimator thread p50 50.0 ms, p99 99.0 ms"), "{report}");
+        assert!(report.contains("whole process 50.0 ms a frame (5.0 s of CPU in 10.0 s: 0.50 cores busy)"), "{report}");
+        let empty = DeployStats::default().report();
+        assert_eq!(empty, "0 frames estimated, 0 dropped; capture-to-pose latency p50 n/a, p90 n/a, p99 n/a");
     }
 }

@@ -4,6 +4,7 @@
 //! estimates a tray pose per captured frame.
 
 mod capture;
+mod cpu_time;
 #[cfg(feature = "dc1394")]
 mod dc1394;
 mod deploy;
@@ -20,7 +21,7 @@ mod spec;
 mod v4l2;
 
 pub use capture::{Capture, Captured, WhenBehind};
-pub use deploy::{DeploySource, DeployStats, Deployment, Estimated};
+pub use deploy::{DeploySource, DeployStats, Deployment, Estimated, FrameTiming};
 pub use devices::{list_devices, DeviceList, FirewireDevice, UsbDevice, V4l2Device};
 #[cfg(feature = "display")]
 pub use display::Projector;

@@ -26,6 +26,8 @@ pub use reconstruction::{
 pub use render::pattern::{fringe_set, one_shot};
 pub use render::render_files::{clear_dataset, render_dataset, render_scene};
 pub use render::{Frame, Method, Simulator};
+pub use report::latency::write_latency_plot;
+pub use report::plot::SavedPlot;
 pub use report::sweep_panels::SweepResult;
 pub use scene::placement_rig::rig_for;
 pub use scene::scenario::{background_scene, draw_scenario, Scenario};

@@ -1,7 +1,8 @@
 //! `camplace run`: the deployed loop (see `camplace_hwio::Deployment`) over a recorded
 //! dataset or cameras, one JSON line per frame on stdout or into a file; at the end (the
 //! source ran out, or Ctrl-C) the capture-to-pose latency percentiles and the drop count on
-//! stderr. Give `--fps` at the camera's rate to measure on a recording what a camera would
+//! stderr, with each stage's p50 and p99 and the CPU time per frame; `--latency-plot` draws
+//! them. Give `--fps` at the camera's rate to measure on a recording what a camera would
 //! see.
 
 use anyhow::{bail, Context};
@@ -9,11 +10,12 @@ use camplace_config::Cell;
 use camplace_estimator::Rig;
 use camplace_hwio::{parse_source, DeploySource, Deployment};
 use camplace_sim::{
-    estimator_for, frame_record, load_model, load_model_for, method_for, truth_path, FrameRecord, Summary,
+    estimator_for, frame_record, load_model, load_model_for, method_for, truth_path, write_latency_plot, FrameRecord,
+    Method, Summary,
 };
 use serde::Serialize;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
@@ -46,6 +48,10 @@ pub struct Args {
     /// dropped); default: every frame, as fast as the estimator goes.
     #[arg(long, value_name = "F")]
     fps: Option<f64>,
+    /// Also draw the latency (per frame stacked by stage, and a histogram) into FILE.svg and
+    /// FILE.png.
+    #[arg(long, value_name = "FILE")]
+    latency_plot: Option<PathBuf>,
     /// For testing only: make the estimator this much slower per frame, ms.
     #[arg(long, value_name = "MS", default_value_t = 0, hide = true)]
     debug_delay_ms: u64,
@@ -60,13 +66,34 @@ struct RunLine<'a> {
     timestamp_us: u64,
     /// From the frame being in memory to its pose, ms.
     latency_ms: f64,
+    /// CPU time the estimator thread spent on the frame, ms.
+    cpu_ms: f64,
     #[serde(flatten)]
     record: &'a FrameRecord,
+}
+
+/// The folder and file name stem of `--latency-plot PATH`, checked before the run so a bad
+/// path cannot end a run whose poses were written.
+fn plot_target(path: &Path) -> anyhow::Result<(PathBuf, String)> {
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    match path.file_name().and_then(|n| n.to_str()) {
+        Some(name) if dir.is_dir() => Ok((dir.to_path_buf(), name.to_string())),
+        _ => bail!("--latency-plot {}: expected a file name (without extension) in an existing folder", path.display()),
+    }
+}
+
+/// The capture-to-pose budget of one frame (docs/architecture.md §8), ms.
+fn frame_budget_ms(method: Method) -> f64 {
+    match method {
+        Method::OneShot => 100.0,
+        Method::Phase12 => 150.0,
+    }
 }
 
 /// Runs `camplace run`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let spec = parse_source(&a.source)?;
+    let plot = a.latency_plot.as_deref().map(plot_target).transpose()?;
     let cell = match &a.cell {
         Some(path) => Cell::load(path)?,
         None => Cell::default(),
@@ -105,9 +132,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         },
         |e| {
             let line = RunLine {
-                sequence: e.sequence,
+                sequence: e.timing.sequence,
                 timestamp_us: e.timestamp_us,
-                latency_ms: e.latency_ms,
+                latency_ms: e.timing.latency_ms,
+                cpu_ms: e.timing.cpu_ms,
                 record: &e.record,
             };
             let text = serde_json::to_string(&line).context("frame record")?;
@@ -120,7 +148,12 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             Ok(())
         },
     )?;
-    eprintln!("{}", stats.line());
+    eprintln!("{}", stats.report());
+    if let Some((dir, name)) = &plot {
+        if let Some(saved) = write_latency_plot(dir, name, &stats.frames, frame_budget_ms(method))? {
+            eprintln!("latency plot: {} and {}", saved.svg.display(), saved.png.display());
+        }
+    }
     let summary = Summary::from_records(&records);
     if summary.scored > 0 {
         eprintln!("{}", summary.line());

@@ -1,5 +1,5 @@
 //! The study's outputs for people: heat maps of a sweep (the paper's Figures 5 and 6), the
-//! search's convergence (Figure 7), a side and top sketch of the rig with its view
+//! search's convergence (Figure 7), the deployed loop's latency, a side and top sketch of the rig with its view
 //! frustums, `summary.csv`, and the self-contained `report.html`. Plots are written as SVG
 //! and PNG with plotters; text needs a TrueType font found on the machine ([`font`]).
 
@@ -8,6 +8,7 @@ pub mod convergence;
 pub mod font;
 pub mod heatmap;
 pub mod html;
+pub mod latency;
 pub mod plot;
 pub mod rig_sketch;
 pub mod study_report;
