@@ -1,11 +1,13 @@
-//! CPU time, for sizing a cell PC: the estimator thread's time per frame and the whole
-//! process's over a run. Wall-clock latency says whether a frame is in time; CPU time says
-//! how much of the machine it took, and so how many cores a given frame rate needs.
+//! CPU time, for sizing a cell PC: the process's CPU clock over each frame's estimation
+//! (the estimator thread and the worker threads its stereo stages use) and over a whole
+//! run. Wall-clock latency says whether a frame is in time; CPU time says how much of the
+//! machine it took, and so how many cores a given frame rate needs.
 
 use std::time::Duration;
 
 /// CPU time used so far by the calling thread.
-pub fn thread_cpu_time() -> Duration {
+#[cfg(test)]
+fn thread_cpu_time() -> Duration {
     clock(libc::CLOCK_THREAD_CPUTIME_ID)
 }
 
@@ -54,6 +56,25 @@ mod tests {
         std::thread::sleep(Duration::from_millis(30));
         let slept = thread_cpu_time() - before;
         assert!(slept < Duration::from_millis(5), "{slept:?} asleep");
-        assert!(process_cpu_time() >= thread_cpu_time());
+    }
+
+    #[test]
+    fn the_process_clock_counts_every_threads_work() {
+        let before = process_cpu_time();
+        let spun: Duration = (0..2)
+            .map(|_| {
+                std::thread::spawn(|| {
+                    let start = thread_cpu_time();
+                    std::hint::black_box(spin(Duration::from_millis(20)));
+                    thread_cpu_time() - start
+                })
+            })
+            .collect::<Vec<_>>()
+            .into_iter()
+            .map(|h| h.join().unwrap())
+            .sum();
+        let process = process_cpu_time() - before;
+        assert!(spun > Duration::ZERO);
+        assert!(process >= spun, "the process clock {process:?} missed the threads' {spun:?}");
     }
 }

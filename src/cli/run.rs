@@ -66,7 +66,7 @@ struct RunLine<'a> {
     timestamp_us: u64,
     /// From the frame being in memory to its pose, ms.
     latency_ms: f64,
-    /// CPU time the estimator thread spent on the frame, ms.
+    /// CPU time of the process while the frame was estimated (every thread), ms.
     cpu_ms: f64,
     #[serde(flatten)]
     record: &'a FrameRecord,

@@ -70,10 +70,12 @@ impl Plot for LatencyPlot {
 
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> std::result::Result<(), String> {
         let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
-        let (left, right) = root.split_horizontally(800);
+        let (left, rest) = root.split_horizontally(680);
+        let (legend, right) = rest.split_horizontally(150);
         let top = self.top_ms();
         let first = self.frames.first().map_or(0, |f| f.sequence) as f64;
         let last = self.frames.last().map_or(1, |f| f.sequence) as f64;
+        let whole = |v: &f64| format!("{v:.0}");
         let mut chart = ChartBuilder::on(&left)
             .caption("per frame: the estimator's stages and capture to pose", (FAMILY, 18))
             .margin(12)
@@ -84,12 +86,16 @@ impl Plot for LatencyPlot {
         chart
             .configure_mesh()
             .disable_x_mesh()
+            .x_labels(12)
+            .x_label_formatter(&whole)
+            .y_label_formatter(&whole)
             .x_desc("frame (stream sequence; gaps are dropped frames)")
             .y_desc("ms")
             .label_style((FAMILY, 13))
             .axis_desc_style((FAMILY, 15))
             .draw()
             .map_err(e)?;
+        let mut keys: Vec<(String, ShapeStyle)> = Vec::new();
         for (k, name) in StageTimings::STAGES.iter().enumerate() {
             if self.frames.iter().all(|f| f.stages.by_stage()[k] == 0.0) {
                 continue;
@@ -101,32 +107,27 @@ impl Plot for LatencyPlot {
                 let x = f.sequence as f64;
                 Rectangle::new([(x - 0.4, below), (x + 0.4, below + times[k])], colour.filled())
             });
-            chart
-                .draw_series(bars)
-                .map_err(e)?
-                .label(*name)
-                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], colour.filled()));
+            chart.draw_series(bars).map_err(e)?;
+            keys.push((name.to_string(), colour.filled()));
         }
         let latency = self.frames.iter().map(|f| Circle::new((f.sequence as f64, f.latency_ms), 3, BLACK.filled()));
-        chart
-            .draw_series(latency)
-            .map_err(e)?
-            .label("capture to pose")
-            .legend(|(x, y)| Circle::new((x + 6, y), 3, BLACK.filled()));
+        chart.draw_series(latency).map_err(e)?;
         let budget = vec![(first - 0.5, self.budget_ms), (last + 0.5, self.budget_ms)];
-        chart
-            .draw_series(DashedLineSeries::new(budget, 8, 6, RED.stroke_width(2)))
-            .map_err(e)?
-            .label(format!("budget {:.0} ms", self.budget_ms))
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], RED.stroke_width(2)));
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .label_font((FAMILY, 12))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(e)?;
+        chart.draw_series(DashedLineSeries::new(budget, 8, 6, RED.stroke_width(2))).map_err(e)?;
+
+        // The key, beside the chart so it hides no frame.
+        let text = (FAMILY, 13).into_font().color(&BLACK);
+        let mut y = 50;
+        for (name, style) in keys.iter().rev() {
+            legend.draw(&Rectangle::new([(4, y - 6), (18, y + 6)], *style)).map_err(e)?;
+            legend.draw(&Text::new(name.clone(), (26, y - 7), text.clone())).map_err(e)?;
+            y += 20;
+        }
+        legend.draw(&Circle::new((11, y), 3, BLACK.filled())).map_err(e)?;
+        legend.draw(&Text::new("capture to pose", (26, y - 7), text.clone())).map_err(e)?;
+        y += 20;
+        legend.draw(&PathElement::new(vec![(2, y), (20, y)], RED.stroke_width(2))).map_err(e)?;
+        legend.draw(&Text::new(format!("budget {:.0} ms", self.budget_ms), (26, y - 7), text)).map_err(e)?;
 
         let counts = self.histogram(top);
         let most = counts.iter().copied().max().unwrap_or(0).max(1);
@@ -139,6 +140,10 @@ impl Plot for LatencyPlot {
             .map_err(e)?;
         hist.configure_mesh()
             .disable_x_mesh()
+            .x_labels(5)
+            .y_labels((most as usize + 1).min(8))
+            .x_label_formatter(&whole)
+            .y_label_formatter(&whole)
             .x_desc("ms")
             .y_desc("frames")
             .label_style((FAMILY, 13))
