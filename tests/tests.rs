@@ -10,3 +10,4 @@ mod reconstruct;
 mod reconstruct_errors;
 mod study;
 mod study_folder;
+mod tolerance;

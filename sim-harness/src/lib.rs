@@ -29,6 +29,7 @@ pub use render::{Frame, Method, Simulator};
 pub use report::latency::write_latency_plot;
 pub use report::plot::SavedPlot;
 pub use report::sweep_panels::SweepResult;
+pub use report::tolerance_plot::write_tolerance_plots;
 pub use scene::placement_rig::rig_for;
 pub use scene::scenario::{background_scene, draw_scenario, Scenario};
 pub use scene::SceneSpec;
@@ -47,4 +48,8 @@ pub use study::recording::{
 };
 pub use study::shard::Shard;
 pub use study::sweep::sweep;
+pub use study::tolerance::{
+    measure_tolerance, AxisTolerance, ToleranceCorner, TolerancePoint, ToleranceReport, ToleranceRequest, WalkEnd,
+    TOLERANCE_STEPS,
+};
 pub use study::{median, score, Evaluator, FrameRecord, Score, Summary};

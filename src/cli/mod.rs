@@ -17,6 +17,7 @@ mod run;
 mod study;
 mod study_args;
 mod sweep;
+mod tolerance;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -50,6 +51,8 @@ enum Command {
     Sweep(sweep::Args),
     /// RBF surrogate search over placement parameters, or over a standard test function.
     Optimize(optimize::Args),
+    /// How far each placement parameter may be off before success drops by a margin.
+    Tolerance(tolerance::Args),
     /// Acceptance test of a placement: exit 0 when the success rate's lower bound reaches the minimum, else 1.
     Accept(accept::Args),
     /// Join the folders of shards into one and compute the summaries again.
@@ -83,6 +86,7 @@ pub fn dispatch() -> anyhow::Result<ExitCode> {
         Command::Evaluate(a) => evaluate::run(a),
         Command::Sweep(a) => sweep::run(a),
         Command::Optimize(a) => optimize::run(a),
+        Command::Tolerance(a) => tolerance::run(a),
         Command::Accept(a) => accept::run(a),
         Command::Merge(a) => merge::run(a),
         Command::Replay(a) => replay::run(a),

@@ -23,6 +23,7 @@ pub mod settings;
 pub mod shard;
 mod summary;
 pub mod sweep;
+pub mod tolerance;
 
 pub use evaluate::Evaluator;
 pub use record::{score, FrameRecord, Score};
