@@ -149,14 +149,14 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         },
     )?;
     eprintln!("{}", stats.report());
+    let summary = Summary::from_records(&records);
+    if summary.scored > 0 {
+        eprintln!("{}", summary.line());
+    }
     if let Some((dir, name)) = &plot {
         if let Some(saved) = write_latency_plot(dir, name, &stats.frames, frame_budget_ms(method))? {
             eprintln!("latency plot: {} and {}", saved.svg.display(), saved.png.display());
         }
-    }
-    let summary = Summary::from_records(&records);
-    if summary.scored > 0 {
-        eprintln!("{}", summary.line());
     }
     Ok(ExitCode::SUCCESS)
 }
