@@ -32,19 +32,19 @@ const BINS: usize = 30;
 
 /// The two-panel latency figure of one run.
 #[derive(Debug, Clone, PartialEq)]
-pub struct LatencyPlot {
+pub struct LatencyPlot<'a> {
     /// Every estimated frame, in stream order.
-    pub frames: Vec<FrameTiming>,
+    pub frames: &'a [FrameTiming],
     /// The capture-to-pose budget drawn as a dashed line, ms.
     pub budget_ms: f64,
 }
 
 /// Draws `frames` into `dir/NAME.svg` and `dir/NAME.png` (see [`save_plot`]).
 pub fn write_latency_plot(dir: &Path, name: &str, frames: &[FrameTiming], budget_ms: f64) -> Result<Option<SavedPlot>> {
-    save_plot(&LatencyPlot { frames: frames.to_vec(), budget_ms }, dir, name)
+    save_plot(&LatencyPlot { frames, budget_ms }, dir, name)
 }
 
-impl LatencyPlot {
+impl LatencyPlot<'_> {
     /// The top of both panels' latency axis, ms: the slowest frame or the budget, with room.
     fn top_ms(&self) -> f64 {
         let slowest = self.frames.iter().map(|f| f.latency_ms.max(f.stages.total_ms)).fold(0.0, f64::max);
@@ -54,7 +54,7 @@ impl LatencyPlot {
     /// Frames per histogram bin of width `top / BINS`, from 0.
     fn histogram(&self, top: f64) -> [u32; BINS] {
         let mut counts = [0u32; BINS];
-        for f in &self.frames {
+        for f in self.frames {
             let bin = ((f.latency_ms / top) * BINS as f64).floor();
             let bin = if bin.is_finite() { (bin.max(0.0) as usize).min(BINS - 1) } else { BINS - 1 };
             counts[bin] += 1;
@@ -63,7 +63,7 @@ impl LatencyPlot {
     }
 }
 
-impl Plot for LatencyPlot {
+impl Plot for LatencyPlot<'_> {
     fn size(&self) -> (u32, u32) {
         (1200, 460)
     }
@@ -179,7 +179,7 @@ mod tests {
     #[test]
     fn the_histogram_counts_every_frame_once_in_its_bin() {
         let frames: Vec<FrameTiming> = (0..200).map(|i| frame(i, 10.0 + (i % 97) as f64)).collect();
-        let plot = LatencyPlot { frames: frames.clone(), budget_ms: 100.0 };
+        let plot = LatencyPlot { frames: &frames, budget_ms: 100.0 };
         let top = plot.top_ms();
         let counts = plot.histogram(top);
         assert_eq!(counts.iter().sum::<u32>(), 200);

@@ -13,8 +13,8 @@ use crate::Result;
 
 /// The plot of one parameter's walk.
 #[derive(Debug, Clone, PartialEq)]
-struct TolerancePlot {
-    axis: AxisTolerance,
+struct TolerancePlot<'a> {
+    axis: &'a AxisTolerance,
     /// Nominal success minus the margin, 0..1.
     floor: f64,
 }
@@ -23,7 +23,7 @@ struct TolerancePlot {
 pub fn write_tolerance_plots(dir: &Path, report: &ToleranceReport) -> Result<Vec<SavedPlot>> {
     let mut saved = Vec::new();
     for axis in &report.axes {
-        let plot = TolerancePlot { axis: axis.clone(), floor: report.nominal.success_rate - report.margin };
+        let plot = TolerancePlot { axis, floor: report.nominal.success_rate - report.margin };
         if let Some(s) = save_plot(&plot, dir, &format!("tolerance_{}", axis.parameter))? {
             saved.push(s);
         }
@@ -31,14 +31,14 @@ pub fn write_tolerance_plots(dir: &Path, report: &ToleranceReport) -> Result<Vec
     Ok(saved)
 }
 
-impl Plot for TolerancePlot {
+impl Plot for TolerancePlot<'_> {
     fn size(&self) -> (u32, u32) {
         (560, 380)
     }
 
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> std::result::Result<(), String> {
         let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
-        let a = &self.axis;
+        let a = self.axis;
         let lo = a.points.iter().map(|p| p.offset).fold(-a.step, f64::min) - 0.5 * a.step;
         let hi = a.points.iter().map(|p| p.offset).fold(a.step, f64::max) + 0.5 * a.step;
         let mut chart = ChartBuilder::on(root)

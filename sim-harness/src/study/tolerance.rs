@@ -204,25 +204,25 @@ struct Walk {
     points: Vec<(f64, Summary)>,
 }
 
-/// Walks from 0 in steps of `step` (signed) up to `max_steps`: `valid(offset)` says whether
-/// a placement exists there, `success(offset)` evaluates it. Stops at the first step whose
-/// success is more than `margin` below `nominal`.
-fn walk(
+/// Walks from 0 in steps of `step` (signed) up to `max_steps`: `at(offset)` is the
+/// placement there (`None` past the valid range), `success` evaluates it. Stops at the first
+/// step whose success is more than `margin` below `nominal`.
+fn walk<P>(
     step: f64,
     max_steps: u32,
     nominal: f64,
     margin: f64,
-    valid: impl Fn(f64) -> bool,
-    mut success: impl FnMut(f64) -> Result<Summary>,
+    at: impl Fn(f64) -> Option<P>,
+    mut success: impl FnMut(P) -> Result<Summary>,
 ) -> Result<Walk> {
     let mut out = Walk { tolerance: 0.0, end: WalkEnd::LastStep, points: Vec::new() };
     for k in 1..=max_steps {
         let offset = step * f64::from(k);
-        if !valid(offset) {
+        let Some(place) = at(offset) else {
             out.end = WalkEnd::RangeEnd;
             return Ok(out);
-        }
-        let summary = success(offset)?;
+        };
+        let summary = success(place)?;
         let rate = summary.success_rate;
         out.points.push((offset, summary));
         // A small tolerance keeps a rate exactly at the margin (in whole scenes) inside it.
@@ -292,14 +292,7 @@ pub fn measure_tolerance(dir: &Path, cell: &Cell, request: &ToleranceRequest) ->
         let mut ends = [(0.0, WalkEnd::LastStep); 2];
         let mut points = vec![point(0.0, &base)];
         for (side, sign) in [-1.0, 1.0].into_iter().enumerate() {
-            let w = walk(
-                sign * step,
-                r.max_steps,
-                base.success_rate,
-                r.margin,
-                |o| along(o).is_some(),
-                |o| evaluate(&along(o).expect("checked valid")),
-            )?;
+            let w = walk(sign * step, r.max_steps, base.success_rate, r.margin, along, |p| evaluate(&p))?;
             points.extend(w.points.iter().map(|(o, s)| point(*o, s)));
             ends[side] = (w.tolerance, w.end);
         }
@@ -401,18 +394,7 @@ mod tests {
             for step in [-1.0, 1.0, -2.5, 2.5] {
                 let nominal = f(0.0).unwrap();
                 let margin = 0.02 * f64::from(1 + shape % 3);
-                let w = walk(
-                    step,
-                    8,
-                    nominal,
-                    margin,
-                    |o| f(o).is_some(),
-                    |o| {
-                        let s = f(o).unwrap();
-                        Ok(rate((s * n as f64).round() as usize, n))
-                    },
-                )
-                .unwrap();
+                let w = walk(step, 8, nominal, margin, f, |s| Ok(rate((s * n as f64).round() as usize, n))).unwrap();
                 let slow = slow_tolerance(step, 8, nominal, margin, &f);
                 assert_eq!(w.tolerance, slow, "shape {shape} step {step}");
                 // Each step evaluated once, in order, and nothing after the one that ended it.
