@@ -11,36 +11,11 @@ use camplace_config::Cell;
 use camplace_sim::{open_folder, Method};
 
 use crate::camplace_cmd::{assert_one_line_error, camplace, stderr};
+use crate::meshes::box_stl;
 use crate::study_folder::results_without_timings;
 
 fn small_cell() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/small_cell.toml").display().to_string()
-}
-
-/// A closed box of `size` mm as a binary STL.
-fn box_stl(size: [f32; 3]) -> Vec<u8> {
-    let [x, y, z] = size;
-    let p = |i: usize, j: usize, k: usize| [[0.0, x][i], [0.0, y][j], [0.0, z][k]];
-    let faces = [
-        [p(0, 0, 0), p(0, 0, 1), p(0, 1, 1), p(0, 1, 0)],
-        [p(1, 0, 0), p(1, 1, 0), p(1, 1, 1), p(1, 0, 1)],
-        [p(0, 0, 0), p(1, 0, 0), p(1, 0, 1), p(0, 0, 1)],
-        [p(0, 1, 0), p(0, 1, 1), p(1, 1, 1), p(1, 1, 0)],
-        [p(0, 0, 0), p(0, 1, 0), p(1, 1, 0), p(1, 0, 0)],
-        [p(0, 0, 1), p(1, 0, 1), p(1, 1, 1), p(0, 1, 1)],
-    ];
-    let mut b = vec![0u8; 80];
-    b.extend(12u32.to_le_bytes());
-    for [a, q, c, d] in faces {
-        for t in [[a, q, c], [a, c, d]] {
-            b.extend([0u8; 12]);
-            for v in t.iter().flatten() {
-                b.extend(v.to_le_bytes());
-            }
-            b.extend([0u8; 2]);
-        }
-    }
-    b
 }
 
 fn copy_dir(from: &Path, to: &Path) {

@@ -6,6 +6,8 @@ mod cluster;
 mod deploy;
 mod estimate;
 mod integrity;
+mod meshes;
+mod own_cell;
 mod reconstruct;
 mod reconstruct_errors;
 mod study;

@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 use crate::formats::mesh;
+use crate::trays::{parse_trays, validate_trays, TrayEntry};
 use crate::{Error, ErrorKind, Placement, MAX_DISTANCE_MM};
 
 /// The commented default cell file, as `camplace init` writes it.
@@ -29,6 +30,9 @@ pub struct Cell {
     pub reconstruction: ReconstructionParams,
     pub estimator: EstimatorParams,
     pub metrics: Metrics,
+    /// The trays of a cell that handles several products (empty: the one `tray`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub trays: Vec<TrayEntry>,
 }
 
 /// The table top.
@@ -230,13 +234,19 @@ impl Cell {
 
     /// Parses cell text laid over the default; mesh paths are resolved against `base`.
     pub fn from_toml_str(text: &str, base: &Path) -> Result<Cell, Error> {
-        let user: toml::Table = text.parse().map_err(|e: toml::de::Error| {
+        let mut user: toml::Table = text.parse().map_err(|e: toml::de::Error| {
             let (key, line) = toml_error_place(text, e.span().map_or(0, |s| s.start));
             let msg = e.message().to_string();
             Error::new(ErrorKind::Format, key, format!("line {line}: not valid TOML: {msg}")).with_source(e)
         })?;
+        let listed = user.remove("trays");
         let mut merged: toml::Table = DEFAULT_CELL_TOML.parse().expect("built-in cell parses");
         merge(&mut merged, user);
+        let section = |name: &str| match merged.get(name) {
+            Some(toml::Value::Table(t)) => t.clone(),
+            _ => toml::Table::new(),
+        };
+        let (tray_table, items_table) = (section("tray"), section("items"));
         let mut cell: Cell = serde_path_to_error::deserialize(toml::Value::Table(merged)).map_err(|e| {
             let key = e.path().to_string();
             let inner = e.into_inner();
@@ -246,6 +256,9 @@ impl Cell {
             if !p.as_os_str().is_empty() && p.is_relative() {
                 *p = base.join(&*p);
             }
+        }
+        if let Some(list) = listed {
+            cell.trays = parse_trays(list, &tray_table, &items_table, base)?;
         }
         cell.validate()?;
         Ok(cell)
@@ -261,6 +274,17 @@ impl Cell {
         let t = &self.table;
         positive("table.size", &t.size)?;
         unit("table.albedo", t.albedo)?;
+        if self.trays.is_empty() {
+            self.validate_tray()?;
+        } else {
+            // The listed trays replace [tray] and [items], which only lend them defaults.
+            validate_trays(self)?;
+        }
+        self.validate_rest()
+    }
+
+    /// Checks `tray` and `items`.
+    pub(crate) fn validate_tray(&self) -> Result<(), Error> {
         let tr = &self.tray;
         unit("tray.albedo", tr.albedo)?;
         if tr.kind == TrayKind::Mesh {
@@ -308,6 +332,11 @@ impl Cell {
         } else if !it.mesh.as_os_str().is_empty() {
             return Err(Error::value("items.mesh", "given with items.kind = \"box\"; set kind = \"mesh\" to use it"));
         }
+        Ok(())
+    }
+
+    /// Checks everything but the table, the tray and the items.
+    fn validate_rest(&self) -> Result<(), Error> {
         let s = &self.sensor;
         if s.camera_resolution.iter().any(|&v| !(16..=8192).contains(&v)) {
             return Err(Error::value(
@@ -577,7 +606,7 @@ fn toml_error_place(text: &str, at: usize) -> (String, usize) {
 }
 
 /// Lays `user` over `base`, table by table.
-fn merge(base: &mut toml::Table, user: toml::Table) {
+pub(crate) fn merge(base: &mut toml::Table, user: toml::Table) {
     for (key, value) in user {
         match (base.get_mut(&key), value) {
             (Some(toml::Value::Table(b)), toml::Value::Table(u)) => merge(b, u),
@@ -589,7 +618,7 @@ fn merge(base: &mut toml::Table, user: toml::Table) {
 }
 
 /// Rewords serde's messages into "expected ..." one-liners.
-fn explain(inner: &str) -> String {
+pub(crate) fn explain(inner: &str) -> String {
     if let Some(rest) = inner.strip_prefix("unknown field ") {
         return format!("unknown key {rest}");
     }

@@ -113,6 +113,15 @@ impl Cell {
         let mut cell = self.settings_value();
         cell["tray"]["mesh"] = mesh_value(tray_mesh);
         cell["items"]["mesh"] = mesh_value(items_mesh);
+        // A listed tray's meshes count by their bytes too.
+        for (i, e) in self.trays.iter().enumerate() {
+            let listed = |key: &'static str, kind_is_mesh: bool, path: &Path| -> Result<Value, Error> {
+                Ok(mesh_value(if kind_is_mesh { Some(mesh_hash(key, path)?.hash) } else { None }))
+            };
+            cell["trays"][i]["tray"]["mesh"] = listed("trays.mesh", e.tray.kind == TrayKind::Mesh, &e.tray.mesh)?;
+            cell["trays"][i]["items"]["mesh"] =
+                listed("trays.items.mesh", e.items.kind == ItemsKind::Mesh, &e.items.mesh)?;
+        }
         let geometry = json!({
             "tray": {
                 "kind": cell["tray"]["kind"],
@@ -154,6 +163,12 @@ impl Cell {
         for v in [&mut a, &mut b] {
             v["tray"]["mesh"] = Value::Null;
             v["items"]["mesh"] = Value::Null;
+            if let Some(Value::Array(list)) = v.get_mut("trays") {
+                for e in list {
+                    e["tray"]["mesh"] = Value::Null;
+                    e["items"]["mesh"] = Value::Null;
+                }
+            }
         }
         first_difference(&a, &b, "")
     }

@@ -10,6 +10,7 @@ mod placement;
 mod pose;
 mod raster;
 mod rig;
+mod trays;
 mod truth;
 
 pub use cell::{
@@ -28,4 +29,5 @@ pub use placement::{Placement, Vergence, MAX_DISTANCE_MM, PARAMETERS};
 pub use pose::{check_rigid, ROTATION_TOLERANCE};
 pub use raster::{FloatImage, GrayImage, Image};
 pub use rig::{CameraFile, RectifiedFile, RigFile, MAX_IMAGE_SIDE};
+pub use trays::{TrayEntry, MAX_TRAYS};
 pub use truth::{LightingTruth, TruthFile};

@@ -13,14 +13,19 @@ pub struct CellArgs {
     /// Placement overrides, e.g. r=605,alpha=32,baseline=81,vergence=3.5 (vergence may be "auto").
     #[arg(long, value_name = "P")]
     pub placement: Option<String>,
+    /// Which of the cell's listed trays (`[[trays]]` name) when it lists several.
+    #[arg(long, value_name = "NAME")]
+    pub tray: Option<String>,
 }
 
 impl CellArgs {
     /// The cell (file or built-in) and the placement with overrides applied.
     pub fn load(&self) -> anyhow::Result<(Cell, Placement)> {
         let cell = match &self.cell {
-            Some(path) => Cell::load(path)?,
-            None => Cell::default(),
+            Some(path) => {
+                Cell::load(path)?.one_tray(self.tray.as_deref()).map_err(|e| anyhow::Error::new(e.in_file(path)))?
+            }
+            None => Cell::default().one_tray(self.tray.as_deref())?,
         };
         let placement = match &self.placement {
             Some(text) => cell.placement.with_overrides(text).context("--placement")?,

@@ -23,13 +23,16 @@ pub struct Args {
     /// given. The model must have been built for its tray.
     #[arg(long, value_name = "FILE")]
     cell: Option<PathBuf>,
+    /// Which of the cell's listed trays (`[[trays]]` name) when it lists several.
+    #[arg(long, value_name = "NAME")]
+    tray: Option<String>,
 }
 
 /// Runs `camplace replay`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (cell, model) = match &a.cell {
         Some(path) => {
-            let cell = Cell::load(path)?;
+            let cell = Cell::load(path)?.one_tray(a.tray.as_deref()).map_err(|e| e.in_file(path))?;
             let model = load_model_for(&a.model, &cell, path)?;
             (cell, model)
         }

@@ -37,6 +37,9 @@ pub struct Args {
     /// model must have been built for its tray.
     #[arg(long, value_name = "FILE")]
     cell: Option<PathBuf>,
+    /// Which of the cell's listed trays (`[[trays]]` name) when it lists several.
+    #[arg(long, value_name = "NAME")]
+    tray: Option<String>,
     /// Calibration of the cameras (needed for cameras; a dataset's own rig.json otherwise).
     #[arg(long, value_name = "FILE")]
     rig: Option<PathBuf>,
@@ -95,8 +98,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let spec = parse_source(&a.source)?;
     let plot = a.latency_plot.as_deref().map(plot_target).transpose()?;
     let cell = match &a.cell {
-        Some(path) => Cell::load(path)?,
-        None => Cell::default(),
+        Some(path) => Cell::load(path)?.one_tray(a.tray.as_deref()).map_err(|e| e.in_file(path))?,
+        None => Cell::default().one_tray(a.tray.as_deref())?,
     };
     let opened = DeploySource::open(&spec, a.rig.as_deref(), a.background.as_deref(), a.fps)?;
     let rig = Rig::from_file(&opened.rig);

@@ -68,7 +68,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         max_steps: a.steps,
         parameters,
     };
-    let report = measure_tolerance(&a.out, &cell, &request)?;
+    let report = measure_tolerance(&a.out, vec![(cell.tray_folder_name(), cell, a.out.clone())], &request)?;
     let plots = write_tolerance_plots(&a.out, &report)?;
     println!("{}", report.table());
     println!("wrote {} ({} plots)", a.out.join("tolerance.json").display(), plots.len());

@@ -63,6 +63,26 @@ impl HtmlPage {
         self.body.push_str("</table>\n");
     }
 
+    /// A two-column table of labelled values, each row marked `data-key="KEY"` so that a
+    /// reader (or a test in a browser) can find a value by its key: rows of (key, label, value).
+    pub fn keyed_table(&mut self, id: &str, rows: &[(String, String, String)]) {
+        self.body.push_str(&format!("<table id=\"{}\">\n", escape(id)));
+        for (key, label, value) in rows {
+            self.body.push_str(&format!(
+                "<tr data-key=\"{}\"><th>{}</th><td>{}</td></tr>\n",
+                escape(key).replace('"', "&quot;"),
+                escape(label),
+                escape(value)
+            ));
+        }
+        self.body.push_str("</table>\n");
+    }
+
+    /// Markup written as it is (the page's own layout only, never outside text).
+    pub fn raw(&mut self, html: &str) {
+        self.body.push_str(html);
+    }
+
     /// Preformatted text (settings).
     pub fn pre(&mut self, text: &str) {
         self.body.push_str(&format!("<pre>{}</pre>\n", escape(text)));
@@ -94,7 +114,7 @@ impl HtmlPage {
             "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{0}</title>\n<style>\
 body{{font-family:sans-serif;max-width:1200px;margin:2em auto;padding:0 1em;color:#222}}\
 table{{border-collapse:collapse;margin:1em 0;font-size:0.9em}}td,th{{border:1px solid #bbb;padding:3px 8px;text-align:right}}\
-th{{background:#eee}}.fig{{display:inline-block;margin:4px}}img{{max-width:100%}}pre{{background:#f6f6f6;padding:1em;overflow:auto;font-size:0.8em}}\
+th{{background:#eee}}.fig{{display:inline-block;margin:4px}}img{{max-width:100%}}pre{{background:#f6f6f6;padding:1em;overflow:auto;font-size:0.8em}}.answer{{display:flex;gap:2em;flex-wrap:wrap}}.answer th{{text-align:left}}\
 </style></head><body>\n<h1>{0}</h1>\n{1}</body></html>\n",
             escape(&self.title),
             self.body

@@ -1,11 +1,12 @@
-//! The study's `report.html`: the findings against the paper first, then the search's
-//! convergence, the best placement (a rendered scene and a sketch of the rig), each
-//! combination's sweep and search, and the settings.
+//! The study's `report.html`, the answer first: the recommended placement with its
+//! success, interval and where the rig's parts are in the world (also `recommended.json`),
+//! its mounting tolerances, then each tray's maps, the placements checked on fresh scenes,
+//! the search, the findings against the paper (`--paper`) and the settings.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use camplace_config::Cell;
+use camplace_config::write_atomic;
 
 use super::convergence::{Convergence, Curve};
 use super::html::HtmlPage;
@@ -20,7 +21,9 @@ use crate::seeds::noise_key;
 use crate::study::findings::{compare, Rate, Verdict};
 use crate::study::grid::{Axis, Grid};
 use crate::study::optimize::recheck_seed;
-use crate::study::placement_study::{Combination, Preset};
+use camplace_estimator::Camera;
+use crate::study::placement_study::{Combination, Preset, Recommendation, StudyRequest};
+use crate::study::tolerance::ToleranceReport;
 use crate::study::Summary;
 use crate::{Error, Result};
 
@@ -33,20 +36,285 @@ fn rate(s: &Summary) -> Rate {
     Rate { successes: s.successes, scenes: s.scored }
 }
 
-/// Writes `report.html` (and its plots) into `out` from the combinations measured.
+/// Writes `report.html` (and its plots, and `recommended.json`) into the study folder.
 pub fn write_report(
     out: &Path,
-    preset: &Preset,
-    seed: u64,
-    base_cell: &Cell,
+    req: &StudyRequest,
     grid: &Grid,
     combos: &[Combination],
+    recommendation: Option<&Recommendation>,
+    tolerance: Option<&ToleranceReport>,
     started: Instant,
 ) -> Result<PathBuf> {
-    let mut page = HtmlPage::new("camplace placement study");
-    let name = |c: &Combination| format!("{} {}", c.tray, c.method);
+    let (preset, seed, base_cell) = (req.preset, req.seed, req.cell);
+    let title = if preset.is_preview() { "camplace placement study (quick preview)" } else { "camplace placement study" };
+    let mut page = HtmlPage::new(title);
+    if preset.is_preview() {
+        page.paragraph(&format!(
+            "A coarse preview: {} scenes per grid cell of a {} × {} grid, no 4-parameter search and no mounting \
+             tolerances, so the intervals are wide. Run camplace study without --quick for a placement to mount by.",
+            preset.sweep_scenarios, grid.x.steps, grid.y.steps
+        ));
+    }
 
-    // Findings first: what the measurements say about the paper's three claims.
+    // The answer first: where to mount, how good that is, and how precisely.
+    page.heading(2, "Recommended placement");
+    match recommendation {
+        Some(r) => answer(&mut page, out, r, seed, preset)?,
+        None => page.paragraph("No placement was checked on fresh scenes, so there is nothing to recommend."),
+    }
+    if let Some(t) = tolerance {
+        page.heading(2, "Mounting tolerances");
+        page.paragraph(&format!(
+            "How far each parameter may be off, alone, before success drops by more than {:.0} points from {} at the \
+             recommended placement (the same {} scenes, seed {}, at every offset). Then the lowest success at the \
+             corners of that box, every parameter off at once.",
+            100.0 * t.margin,
+            pct(t.nominal.success_rate),
+            t.scenarios,
+            t.seed
+        ));
+        page.pre(&t.table());
+        for axis in &t.axes {
+            let svg = out.join("tolerance").join(format!("tolerance_{}.svg", axis.parameter));
+            if svg.exists() {
+                page.svg(&svg)?;
+            }
+        }
+    } else if let Some(r) = recommendation {
+        page.paragraph(&format!(
+            "Mounting tolerances were not measured in this preview: camplace tolerance --placement {} --method {} \
+             measures them.",
+            r.placement, r.method
+        ));
+    }
+
+    // The maps and the search.
+    for c in combos {
+        for t in &c.trays {
+            page.heading(2, &format!("{} {}: success over r and alpha (the paper's Figures 5 and 6)", t.name, c.method));
+            for panel in ["success_rate", "correct_matches", "position_error", "rotation_error"] {
+                let svg = t.dir.join(format!("{panel}.svg"));
+                if svg.exists() {
+                    page.svg(&svg)?;
+                }
+            }
+            if c.trays.len() == 1 {
+                let rows: Vec<Vec<String>> =
+                    t.sweep.rows.iter().map(|r| summary_cells(&r.placement, &r.summary)).collect();
+                page.table(&SUMMARY_HEADER, &rows);
+            }
+        }
+        if c.trays.len() > 1 {
+            page.heading(3, &format!("{}: each grid cell's lowest tray (the placement's objective)", c.name()));
+            let rows: Vec<Vec<String>> = c.sweep.rows.iter().map(|r| summary_cells(&r.placement, &r.summary)).collect();
+            page.table(&SUMMARY_HEADER, &rows);
+        }
+        page.heading(3, &format!("{}: placements checked on fresh scenes", c.name()));
+        let mut header = vec!["from"];
+        header.extend(SUMMARY_HEADER);
+        let rows: Vec<Vec<String>> = c
+            .candidates
+            .iter()
+            .map(|k| {
+                let mut r = summary_cells(&k.placement.to_string(), &k.summary);
+                r.insert(0, k.source.to_string());
+                r
+            })
+            .collect();
+        page.table(&header, &rows);
+        let Some(search) = &c.search else { continue };
+        page.heading(3, &format!("{}: 4-parameter search", c.name()));
+        let conv = c.search_dir.join("convergence.svg");
+        if conv.exists() {
+            page.svg(&conv)?;
+        }
+        page.paragraph(&format!(
+            "The surrogate's winner was {} (smoothed rate {}). Each step's rate is the lowest over the trays.",
+            search.surrogate_winner,
+            pct(search.surrogate_success_rate)
+        ));
+        let rows: Vec<Vec<String>> = search
+            .history
+            .iter()
+            .enumerate()
+            .map(|(i, e)| {
+                let mut r = summary_cells(&e.placement, &e.summary);
+                r.insert(0, (i + 1).to_string());
+                r
+            })
+            .collect();
+        let mut header = vec!["step"];
+        header.extend(SUMMARY_HEADER);
+        page.table(&header, &rows);
+    }
+    if req.paper {
+        findings(&mut page, out, combos, preset, seed)?;
+    }
+
+    page.heading(2, "Settings");
+    let all: Vec<&Summary> =
+        combos.iter().flat_map(|c| c.trays.iter().flat_map(|t| t.sweep.rows.iter().map(|r| &r.summary))).collect();
+    let median_ms = crate::study::median(&all.iter().map(|s| s.median_ms).collect::<Vec<_>>()).unwrap_or(0.0);
+    let search = if preset.budget > 0 {
+        format!(
+            "search over r, alpha, baseline, vergence with {} evaluations of {} scenes; top {} and the grid's best checked on {} fresh scenes",
+            preset.budget, preset.search_scenarios, preset.top, preset.recheck_scenarios
+        )
+    } else {
+        format!("no search; the grid's best checked on {} fresh scenes", preset.recheck_scenarios)
+    };
+    let trays = match req.paper {
+        true => "the paper's experiment: built-in trays tray-8 and tray-4, each on its own".to_string(),
+        false => format!(
+            "the cell's trays: {} (a placement's success is its lowest over them)",
+            base_cell.tray_cells().iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", ")
+        ),
+    };
+    page.list(&[
+        format!("preset {}: grid {} × {}, {} scenes per cell; {search}", preset.name, describe(&grid.x), describe(&grid.y), preset.sweep_scenarios),
+        trays,
+        format!("methods: {}", req.methods.iter().map(|m| m.to_string()).collect::<Vec<_>>().join(", ")),
+        format!("study seed {seed}; fresh scenes on seed {}", recheck_seed(seed)),
+        format!("median estimator time per scene over the sweeps: {median_ms:.0} ms; this run of camplace study: {:.0} s with {} threads (finished scenes from an earlier run are reused)", started.elapsed().as_secs_f64(), rayon::current_num_threads()),
+        format!("success: position error below {} mm and rotation error below {} deg", base_cell.metrics.success_position, base_cell.metrics.success_rotation),
+    ]);
+    page.pre(&base_cell.to_toml_string());
+    let path = out.join("report.html");
+    page.write(&path).map_err(|e| Error::Other(format!("{}: {e}", path.display())))?;
+    Ok(path)
+}
+
+/// The recommended placement: its values, its success with the interval, each tray's,
+/// where the rig's parts are in the world, a sketch and a rendered scene; and
+/// `recommended.json` with the same numbers.
+fn answer(page: &mut HtmlPage, out: &Path, r: &Recommendation, seed: u64, preset: &Preset) -> Result<()> {
+    let p = r.placement;
+    let cell = &r.cells[0].1;
+    let s = &r.summary;
+    let rig = rig_for(&p, &cell.sensor);
+    let centre = |c: &Camera| c.t_world_camera.translation.vector;
+    let axis = |c: &Camera| c.t_world_camera.rotation * nalgebra::Vector3::z();
+    let tilt = |c: &Camera| (-axis(c).z).clamp(-1.0, 1.0).acos().to_degrees();
+    let heading = |c: &Camera| {
+        let a = axis(c);
+        a.y.atan2(a.x).to_degrees()
+    };
+    let xyz = |v: nalgebra::Vector3<f64>| format!("({:.1}, {:.1}, {:.1})", v.x, v.y, v.z);
+    let vergence = p.vergence.degrees(p.r, p.baseline);
+    let interval = format!("{:.1}–{:.1} %", 100.0 * s.success_interval[0], 100.0 * s.success_interval[1]);
+    let mut rows: Vec<(String, String, String)> = vec![
+        ("method".into(), "method".into(), r.method.to_string()),
+        ("r".into(), "r (distance of the rig from the table centre)".into(), format!("{:.1} mm", p.r)),
+        ("alpha".into(), "alpha (polar angle from vertical)".into(), format!("{:.2} deg", p.alpha)),
+        ("baseline".into(), "baseline".into(), format!("{:.1} mm", p.baseline)),
+        ("vergence".into(), "vergence (toe-in of each camera)".into(), format!("{vergence:.2} deg")),
+        ("azimuth".into(), "azimuth (about the table's z axis)".into(), format!("{:.1} deg", p.azimuth)),
+        (
+            "success_rate".into(),
+            format!("success on {} fresh scenes", s.scored),
+            format!("{} ({} of {})", pct(s.success_rate), s.successes, s.scored),
+        ),
+        ("success_interval".into(), "95 % interval (Wilson)".into(), interval),
+    ];
+    if r.per_tray.len() > 1 {
+        for (name, t) in &r.per_tray {
+            rows.push((format!("tray:{name}"), format!("success with {name}"), format!("{} ({} of {})", pct(t.success_rate), t.successes, t.scored)));
+        }
+    }
+    let mut world: Vec<(String, String, String)> = vec![
+        ("left_camera".into(), "left camera centre".into(), xyz(centre(&rig.left))),
+        ("right_camera".into(), "right camera centre".into(), xyz(centre(&rig.right))),
+    ];
+    if let Some(pr) = &rig.projector {
+        world.push(("projector".into(), "projector centre".into(), xyz(centre(pr))));
+    }
+    world.push(("look_at".into(), "point the rig looks at".into(), "(0.0, 0.0, 0.0)".into()));
+    world.push(("left_tilt".into(), "left camera tilt from vertical, towards heading".into(), format!("{:.2} deg towards {:.1} deg", tilt(&rig.left), heading(&rig.left))));
+    world.push(("right_tilt".into(), "right camera tilt from vertical, towards heading".into(), format!("{:.2} deg towards {:.1} deg", tilt(&rig.right), heading(&rig.right))));
+    if let Some(pr) = &rig.projector {
+        world.push(("projector_tilt".into(), "projector tilt from vertical, towards heading".into(), format!("{:.2} deg towards {:.1} deg", tilt(pr), heading(pr))));
+    }
+    page.raw("<div class=\"answer\"><div>\n");
+    page.keyed_table("placement", &rows);
+    page.raw("</div><div>\n");
+    page.keyed_table("world", &world);
+    page.raw("</div></div>\n");
+    let tie = if r.tied_candidates > 1 {
+        format!(
+            " {} checked placements reached {}; among them the one with the most correct feature matches per scene \
+             (mean {:.1} on its lowest tray) is recommended, as more correct matches leave RANSAC more margin.",
+            r.tied_candidates,
+            pct(s.success_rate),
+            s.mean_correct_matches.unwrap_or(0.0)
+        )
+    } else {
+        String::new()
+    };
+    page.paragraph(&format!(
+        "World frame: origin at the table's centre on its surface, z up, mm; headings are measured from the world x \
+         axis towards y. Chosen from the {} on {} fresh scenes (seed {}) that no placement was picked on; the rate \
+         is the lowest over the cell's trays.{tie}",
+        if preset.budget > 0 { "search's best candidates and the grid's best cell" } else { "grid's best cell" },
+        s.scored,
+        recheck_seed(seed)
+    ));
+    let (lo, hi) = TrayModel::from_cell(cell)?.solid.bounds();
+    let sketch = RigSketch {
+        title: format!("rig at {p}"),
+        placement: p,
+        rig: rig.clone(),
+        table: cell.table.size,
+        tray: [hi.x - lo.x, hi.y - lo.y],
+    };
+    if let Some(saved) = save_plot(&sketch, out, "best_rig")? {
+        page.svg(&saved.svg)?;
+    }
+    let preview = out.join("best_preview.png");
+    let mut sim = Simulator::new(cell, &p, seed)?;
+    let mut frame = Frame::default();
+    let scenario = draw_scenario(cell, seed, 0);
+    sim.render(&scenario.scene(), r.method, noise_key(seed, 0, false), &mut frame);
+    write_preview(&preview, &frame.left[0], &frame.depth_left)?;
+    page.png(&preview, "scenario 0 at the recommended placement: left camera image and its true depth")?;
+
+    let v = |c: &Camera| [centre(c).x, centre(c).y, centre(c).z];
+    let json = serde_json::json!({
+        "preset": preset.name,
+        "method": r.method.to_string(),
+        "placement": p.to_string(),
+        "r": p.r, "alpha": p.alpha, "baseline": p.baseline, "vergence_deg": vergence, "azimuth": p.azimuth,
+        "chosen_from": r.source,
+        "seed": recheck_seed(seed),
+        "scenes": s.scored,
+        "successes": s.successes,
+        "success_rate": s.success_rate,
+        "success_interval": s.success_interval,
+        "secondary_measure": "mean correct feature matches per scene",
+        "mean_correct_matches": s.mean_correct_matches,
+        "tied_candidates": r.tied_candidates,
+        "trays": r.per_tray.iter().map(|(n, t)| serde_json::json!({
+            "name": n, "scenes": t.scored, "successes": t.successes,
+            "success_rate": t.success_rate, "success_interval": t.success_interval,
+        })).collect::<Vec<_>>(),
+        "world_mm": {
+            "left_camera": v(&rig.left),
+            "right_camera": v(&rig.right),
+            "projector": rig.projector.as_ref().map(v),
+            "look_at": [0.0, 0.0, 0.0],
+        },
+        "tilt_deg": {
+            "left_camera": tilt(&rig.left), "right_camera": tilt(&rig.right),
+            "projector": rig.projector.as_ref().map(tilt),
+        },
+    });
+    let text = serde_json::to_string_pretty(&json).expect("plain data");
+    write_atomic(&out.join("recommended.json"), text.as_bytes())?;
+    Ok(())
+}
+
+/// The findings against the paper's three claims (`--paper`).
+fn findings(page: &mut HtmlPage, out: &Path, combos: &[Combination], preset: &Preset, seed: u64) -> Result<()> {
     page.heading(2, "Findings against the paper");
     page.paragraph(
         "Each rate is shown with its Wilson 95 % interval; a difference is called shown only when its 95 % interval \
@@ -66,7 +334,7 @@ pub fn write_report(
                 rate(w.1),
             );
             let verdict = if v == Verdict::AHigher { "placement matters (shown)" } else { "not shown at this scale" };
-            dependence.push(format!("{}: {verdict}. {text}", name(c)));
+            dependence.push(format!("{}: {verdict}. {text}", c.name()));
         }
     }
     page.heading(3, "1. Success depends strongly on placement (paper: yes)");
@@ -75,15 +343,14 @@ pub fn write_report(
 
     let mut search_vs_grid = Vec::new();
     for c in combos {
-        let Some(g) = &c.sweep_best_recheck else { continue };
-        let o = &c.search.best().summary;
+        let (Some(g), Some(o)) = (c.sweep_best_recheck(), c.search_best()) else { continue };
         let (v, text) = compare("4-parameter search best", rate(o), "2-parameter grid best", rate(g));
         let verdict = match v {
             Verdict::AHigher => "the search beats the grid (shown)",
             Verdict::BHigher => "the grid beats the search (shown)",
             Verdict::NotShown => "no difference shown",
         };
-        search_vs_grid.push(format!("{}: {verdict}. {text}", name(c)));
+        search_vs_grid.push(format!("{}: {verdict}. {text}", c.name()));
     }
     page.heading(3, "2. Optimizing 4 parameters beats the 2-parameter grid (paper: 96 % against 88 %)");
     page.paragraph(&format!(
@@ -94,8 +361,12 @@ pub fn write_report(
     page.list(&search_vs_grid);
 
     let mut methods = Vec::new();
-    for tray in ["tray-8", "tray-4"] {
-        let pick = |m: Method| combos.iter().find(|c| c.tray == tray && c.method == m);
+    let labels: Vec<&str> = combos.iter().map(|c| c.trays_label.as_str()).collect();
+    for (i, tray) in labels.iter().enumerate() {
+        if labels[..i].contains(tray) {
+            continue;
+        }
+        let pick = |m: Method| combos.iter().find(|c| c.trays_label == *tray && c.method == m);
         let (Some(one), Some(twelve)) = (pick(Method::OneShot), pick(Method::Phase12)) else { continue };
         let pooled = |c: &Combination| {
             let (k, n) = c.sweep.rows.iter().fold((0, 0), |(k, n), r| (k + r.summary.successes, n + r.summary.scored));
@@ -109,13 +380,10 @@ pub fn write_report(
             Verdict::NotShown => "no difference shown",
         };
         methods.push(format!("{tray}: {verdict}. {text}"));
-        let (_, text) = compare(
-            "one shot, search best",
-            rate(&one.search.best().summary),
-            "12 shot, search best",
-            rate(&twelve.search.best().summary),
-        );
-        methods.push(format!("{tray}, best placements on fresh scenes: {text}"));
+        if let (Some(a), Some(b)) = (one.candidates.first(), twelve.candidates.first()) {
+            let (_, text) = compare("one shot, best", rate(&a.summary), "12 shot, best", rate(&b.summary));
+            methods.push(format!("{tray}, best placements on fresh scenes: {text}"));
+        }
     }
     page.heading(3, "3. Which method is more robust (paper: one shot)");
     page.paragraph(
@@ -124,112 +392,25 @@ pub fn write_report(
     page.list(&methods);
 
     // Figure 7 analogue: all searches in one plot.
-    page.heading(2, "Search convergence (the paper's Figure 7)");
     let curves: Vec<Curve> = combos
         .iter()
-        .map(|c| Curve {
-            label: name(c),
-            rates: c.search.history.iter().map(|e| e.summary.success_rate).collect(),
-            sweep_best: c.sweep.best.map(|b| c.sweep.rows[b].summary.success_rate),
+        .filter_map(|c| {
+            let s = c.search.as_ref()?;
+            Some(Curve {
+                label: c.name(),
+                rates: s.history.iter().map(|e| e.summary.success_rate).collect(),
+                sweep_best: c.sweep.best.map(|b| c.sweep.rows[b].summary.success_rate),
+            })
         })
         .collect();
-    let conv = Convergence { title: "best success rate so far (dashed: the grid's best)".into(), curves };
-    if let Some(saved) = save_plot(&conv, out, "convergence")? {
-        page.svg(&saved.svg)?;
-    }
-
-    // The best placement overall, with a rendered scene and a sketch of the rig.
-    if let Some(best) = combos
-        .iter()
-        .max_by(|a, b| a.search.best().summary.success_rate.total_cmp(&b.search.best().summary.success_rate))
-    {
-        let p = best.cell.placement.with_overrides(&best.search.best().placement)?;
-        page.heading(2, "Best placement");
-        page.paragraph(&format!(
-            "{} with {} ({}): {} on fresh scenes.",
-            p,
-            best.tray,
-            best.method,
-            best.search.best().summary.line()
-        ));
-        let preview = out.join("best_preview.png");
-        let mut sim = Simulator::new(&best.cell, &p, seed)?;
-        let mut frame = Frame::default();
-        let scenario = draw_scenario(&best.cell, seed, 0);
-        sim.render(&scenario.scene(), best.method, noise_key(seed, 0, false), &mut frame);
-        write_preview(&preview, &frame.left[0], &frame.depth_left)?;
-        page.png(&preview, "scenario 0 at the best placement: left camera image and its true depth")?;
-        let (lo, hi) = TrayModel::from_cell(&best.cell)?.solid.bounds();
-        let sketch = RigSketch {
-            title: format!("rig at {p}"),
-            placement: p,
-            rig: rig_for(&p, &best.cell.sensor),
-            table: best.cell.table.size,
-            tray: [hi.x - lo.x, hi.y - lo.y],
-        };
-        if let Some(saved) = save_plot(&sketch, out, "best_rig")? {
+    if !curves.is_empty() {
+        page.heading(3, "Search convergence (the paper's Figure 7)");
+        let conv = Convergence { title: "best success rate so far (dashed: the grid's best)".into(), curves };
+        if let Some(saved) = save_plot(&conv, out, "convergence")? {
             page.svg(&saved.svg)?;
         }
     }
-
-    for c in combos {
-        let dir = out.join(c.tray).join(c.method.to_string());
-        page.heading(2, &format!("{}: 2-parameter sweep (the paper's Figures 5 and 6)", name(c)));
-        for panel in ["success_rate", "correct_matches", "position_error", "rotation_error"] {
-            let svg = dir.join(format!("{panel}.svg"));
-            if svg.exists() {
-                page.svg(&svg)?;
-            }
-        }
-        let rows: Vec<Vec<String>> = c.sweep.rows.iter().map(|r| summary_cells(&r.placement, &r.summary)).collect();
-        page.table(&SUMMARY_HEADER, &rows);
-        page.heading(3, &format!("{}: 4-parameter search", name(c)));
-        let conv = dir.join("convergence.svg");
-        if conv.exists() {
-            page.svg(&conv)?;
-        }
-        let mut rows: Vec<Vec<String>> =
-            c.search.rechecks.iter().map(|e| summary_cells(&e.placement, &e.summary)).collect();
-        if let (Some(b), Some(g)) = (c.sweep.best, &c.sweep_best_recheck) {
-            rows.push(summary_cells(&format!("{} (grid best)", c.sweep.rows[b].placement), g));
-        }
-        page.paragraph(&format!(
-            "Candidates on {} fresh scenarios (seed {}); the surrogate's winner was {} (smoothed rate {}).",
-            c.search.rechecks.first().map_or(0, |e| e.summary.scored),
-            recheck_seed(seed),
-            c.search.surrogate_winner,
-            pct(c.search.surrogate_success_rate)
-        ));
-        page.table(&SUMMARY_HEADER, &rows);
-        let rows: Vec<Vec<String>> = c
-            .search
-            .history
-            .iter()
-            .enumerate()
-            .map(|(i, e)| {
-                let mut r = summary_cells(&e.placement, &e.summary);
-                r.insert(0, (i + 1).to_string());
-                r
-            })
-            .collect();
-        let mut header = vec!["step"];
-        header.extend(SUMMARY_HEADER);
-        page.table(&header, &rows);
-    }
-
-    page.heading(2, "Settings");
-    let all: Vec<&Summary> = combos.iter().flat_map(|c| c.sweep.rows.iter().map(|r| &r.summary)).collect();
-    let median_ms = crate::study::median(&all.iter().map(|s| s.median_ms).collect::<Vec<_>>()).unwrap_or(0.0);
-    page.list(&[
-        format!("preset {}: grid {} × {}, {} scenes per cell; search over r, alpha, baseline, vergence with {} evaluations of {} scenes; top {} re-checked on {} fresh scenes", preset.name, describe(&grid.x), describe(&grid.y), preset.sweep_scenarios, preset.budget, preset.search_scenarios, preset.top, preset.recheck_scenarios),
-        format!("study seed {seed}; re-checks on seed {}", recheck_seed(seed)),
-        format!("median estimator time per scene over the sweeps: {median_ms:.0} ms; this run of camplace study: {:.0} s with {} threads (finished scenes from an earlier run are reused)", started.elapsed().as_secs_f64(), rayon::current_num_threads()),
-        format!("success: position error below {} mm and rotation error below {} deg", base_cell.metrics.success_position, base_cell.metrics.success_rotation),
-    ]);
-    page.pre(&base_cell.to_toml_string());
-    let path = out.join("report.html");
-    page.write(&path).map_err(|e| Error::Other(format!("{}: {e}", path.display())))?;
-    Ok(path)
+    Ok(())
 }
 
 fn describe(a: &Axis) -> String {

@@ -24,6 +24,7 @@ pub mod shard;
 mod summary;
 pub mod sweep;
 pub mod tolerance;
+pub mod tray_set;
 
 pub use evaluate::Evaluator;
 pub use record::{score, FrameRecord, Score};

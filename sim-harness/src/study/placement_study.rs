@@ -1,25 +1,34 @@
-//! The placement study: the paper's experiment on the cell — both built-in trays × both
-//! methods, each a 2-parameter sweep then a 4-parameter search — into one folder, ending
-//! with a self-contained `report.html` that states what was measured against the paper's
-//! findings. The folder is `TRAY/METHOD/` per combination; re-running resumes.
+//! The placement study: for each method, a 2-parameter sweep then a 4-parameter search over
+//! the trays studied, the best placements checked on fresh scenes, the recommended
+//! placement's mounting tolerances, and a self-contained `report.html` that opens with the
+//! answer. Two kinds of study:
+//! - the cell's own trays (the default): one placement must serve every tray the cell
+//!   lists, so a placement's success is its lowest over the trays;
+//! - the paper's experiment (`--paper`): both built-in trays, each studied on its own, and
+//!   the findings stated against the paper's.
+//!
+//! Each tray's scenes live in `TRAY/METHOD/` (a search over several trays writes its own
+//! outputs to `all-trays/METHOD/`); re-running resumes.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use camplace_config::{Cell, TrayKind};
+use camplace_config::{Cell, Placement, TrayKind};
 
-use super::folder::open_folder;
 use super::grid::{Axis, Grid};
-use super::jobs::{JobEvaluator, PlacementJob};
 use super::optimize::{recheck_seed, SearchOutcome, SearchParameter, SearchPlan};
-use super::placement_search::optimize;
+use super::placement_search::optimize_set;
 use super::shard::Shard;
 use super::summary::Summary;
 use super::sweep::sweep;
+use super::tolerance::{measure_tolerance, ToleranceReport, ToleranceRequest, TOLERANCE_STEPS};
+use super::tray_set::{lowest, margin_order, TraySet};
 use crate::render::Method;
 use crate::report::study_report::{pct, write_report};
 use crate::report::sweep_panels::SweepResult;
-use crate::Result;
+use crate::report::table::{write_summary_csv, SummaryRow};
+use crate::report::tolerance_plot::write_tolerance_plots;
+use crate::{Error, Result};
 
 /// The scale of a study.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -32,7 +41,7 @@ pub struct Preset {
     pub y: Axis,
     /// Scenes per sweep cell.
     pub sweep_scenarios: u64,
-    /// Evaluations the search may spend.
+    /// Evaluations the search may spend (0: no search; the grid's best is recommended).
     pub budget: usize,
     /// Scenes per search evaluation.
     pub search_scenarios: u64,
@@ -40,11 +49,18 @@ pub struct Preset {
     pub top: usize,
     /// Fresh scenes of a re-check.
     pub recheck_scenarios: u64,
+    /// Scenes per placement of the mounting tolerances (0: not measured).
+    pub tolerance_scenarios: u64,
+    /// Steps walked out at most in each direction for the tolerances.
+    pub tolerance_steps: u32,
+    /// Largest drop of success still within tolerance.
+    pub tolerance_margin: f64,
 }
 
 impl Preset {
     /// The default: the paper's 5 × 5 grid and 4-parameter search, scaled to finish on a
-    /// 2-core machine in hours rather than days (the paper used 250 scenes and 100 steps).
+    /// 2-core machine in minutes rather than days (the paper used 250 scenes and 100
+    /// steps), then the mounting tolerances of the recommended placement.
     pub fn full() -> Preset {
         Preset {
             name: "full",
@@ -55,111 +71,319 @@ impl Preset {
             search_scenarios: 50,
             top: 3,
             recheck_scenarios: 100,
+            tolerance_scenarios: 20,
+            tolerance_steps: 3,
+            tolerance_margin: 0.02,
         }
     }
 
-    /// A small preset for a first look (3 × 3 grid, few scenes, short search).
+    /// A coarse preview in about two minutes: a 3 × 3 grid of few scenes, no search, no
+    /// tolerances; the grid's best cell checked on fresh scenes.
     pub fn quick() -> Preset {
         Preset {
             name: "quick",
             x: "r=450:850:3".parse().expect("valid"),
             y: "alpha=10:50:3".parse().expect("valid"),
-            sweep_scenarios: 6,
-            budget: 12,
-            search_scenarios: 6,
+            sweep_scenarios: 4,
+            budget: 0,
+            search_scenarios: 4,
             top: 1,
-            recheck_scenarios: 12,
+            recheck_scenarios: 8,
+            tolerance_scenarios: 0,
+            tolerance_steps: 0,
+            tolerance_margin: 0.02,
         }
+    }
+
+    /// Whether this is a coarse preview.
+    pub fn is_preview(&self) -> bool {
+        self.name == "quick"
     }
 }
 
-/// What one (tray, method) combination measured.
-pub struct Combination {
-    /// The tray's name.
-    pub tray: &'static str,
-    /// The method.
-    pub method: Method,
-    /// The cell with this tray.
-    pub cell: Cell,
-    /// The 2-parameter sweep.
-    pub sweep: SweepResult,
-    /// The 4-parameter search.
-    pub search: SearchOutcome,
-    /// The sweep's best cell on the fresh scenarios the search's candidates were rechecked on.
-    pub sweep_best_recheck: Option<Summary>,
+/// What to study.
+pub struct StudyRequest<'a> {
+    /// The study folder.
+    pub out: &'a Path,
+    /// The cell: its trays (or, with `paper`, everything but its trays).
+    pub cell: &'a Cell,
+    /// Study seed.
+    pub seed: u64,
+    /// The scale.
+    pub preset: &'a Preset,
+    /// Both built-in trays, each on its own, with the findings against the paper.
+    pub paper: bool,
+    /// The methods studied.
+    pub methods: Vec<Method>,
+    /// The part of the sweeps to run.
+    pub shard: Shard,
 }
 
-/// Runs the study into `out`: every (tray, method) combination's sweep (only shard
-/// `shard`'s part of each when it is not the whole), then its search and re-checks, and
-/// `report.html`. `say` is handed one line per finished combination; returns the report's
+/// One tray's sweep within a combination.
+pub struct TraySweep {
+    /// The tray's name.
+    pub name: String,
+    /// The cell with this tray.
+    pub cell: Cell,
+    /// Its folder.
+    pub dir: PathBuf,
+    /// Its 2-parameter sweep.
+    pub sweep: SweepResult,
+}
+
+/// A placement checked on fresh scenes.
+#[derive(Debug, Clone)]
+pub struct Candidate {
+    /// The placement.
+    pub placement: Placement,
+    /// Where it came from: "search" or "grid".
+    pub source: &'static str,
+    /// Its lowest tray's summary on the fresh scenes.
+    pub summary: Summary,
+    /// Each tray's summary on the fresh scenes, in the trays' order.
+    pub per_tray: Vec<Summary>,
+}
+
+/// The placement the study recommends mounting.
+#[derive(Debug, Clone)]
+pub struct Recommendation {
+    /// The method.
+    pub method: Method,
+    /// The placement.
+    pub placement: Placement,
+    /// Where it came from: "search" or "grid".
+    pub source: &'static str,
+    /// Its lowest tray's summary on fresh scenes.
+    pub summary: Summary,
+    /// Each tray's name and summary on the fresh scenes.
+    pub per_tray: Vec<(String, Summary)>,
+    /// Each tray's name, cell and folder.
+    pub cells: Vec<(String, Cell, PathBuf)>,
+    /// How many checked candidates (over every method) reached the same success rate.
+    pub tied_candidates: usize,
+}
+
+/// What one method measured over one group of trays.
+pub struct Combination {
+    /// The trays' names joined by " + ".
+    pub trays_label: String,
+    /// The method.
+    pub method: Method,
+    /// Each tray's sweep.
+    pub trays: Vec<TraySweep>,
+    /// The sweep judged over the trays: each cell's lowest tray.
+    pub sweep: SweepResult,
+    /// The 4-parameter search, if the preset runs one.
+    pub search: Option<SearchOutcome>,
+    /// The folder of the search's outputs.
+    pub search_dir: PathBuf,
+    /// The search's re-checked candidates and the grid's best, on the same fresh scenes,
+    /// best first (by success, then by the secondary measure).
+    pub candidates: Vec<Candidate>,
+}
+
+impl Combination {
+    /// "TRAYS METHOD".
+    pub fn name(&self) -> String {
+        format!("{} {}", self.trays_label, self.method)
+    }
+
+    /// The grid's best cell on the fresh scenes, if there is one.
+    pub fn sweep_best_recheck(&self) -> Option<&Summary> {
+        self.candidates.iter().find(|c| c.source == "grid").map(|c| &c.summary)
+    }
+
+    /// The search's best on the fresh scenes, if a search ran.
+    pub fn search_best(&self) -> Option<&Summary> {
+        self.search.as_ref().map(|s| &s.best().summary)
+    }
+}
+
+/// Runs the study: every combination's sweep (only shard `shard`'s part of each when it is
+/// not the whole), then its search and re-checks, the recommendation and its tolerances,
+/// and `report.html`. `say` is handed one line per finished step; returns the report's
 /// path, or `None` when only a shard of the sweeps was run.
-pub fn run_study(
-    out: &Path,
-    base_cell: &Cell,
-    seed: u64,
-    preset: &Preset,
-    shard: Shard,
-    started: Instant,
-    mut say: impl FnMut(&str),
-) -> Result<Option<PathBuf>> {
+pub fn run_study(req: &StudyRequest, started: Instant, mut say: impl FnMut(&str)) -> Result<Option<PathBuf>> {
+    let (out, preset, seed, shard) = (req.out, req.preset, req.seed, req.shard);
     let grid = Grid { x: preset.x.clone(), y: preset.y.clone() };
-    // report.html is written here; each combination's folder is cleaned as it is opened.
+    // report.html is written here; each tray's folder is cleaned as it is opened.
     camplace_config::remove_stale_temp_files(out)?;
+    let groups: Vec<Vec<(String, Cell)>> = if req.paper {
+        [("tray-8", TrayKind::Tray8), ("tray-4", TrayKind::Tray4)]
+            .into_iter()
+            .map(|(name, kind)| {
+                let mut cell = req.cell.clone();
+                cell.trays.clear();
+                cell.tray = Cell::default().tray;
+                cell.tray.kind = kind;
+                vec![(name.to_string(), cell)]
+            })
+            .collect()
+    } else {
+        vec![req.cell.tray_cells()]
+    };
     let mut combos = Vec::new();
-    for (tray, kind) in [("tray-8", TrayKind::Tray8), ("tray-4", TrayKind::Tray4)] {
-        for method in [Method::OneShot, Method::Phase12] {
-            let mut cell = base_cell.clone();
-            cell.tray.kind = kind;
-            let dir = out.join(tray).join(method.to_string());
-            let base = cell.placement;
-            let label = format!("{tray} {method} sweep");
-            let sweep = sweep(&dir, &cell, &base, method, seed, &grid, preset.sweep_scenarios, shard, &label)?;
-            if !shard.is_whole() {
-                continue;
-            }
-            let plan = SearchPlan {
-                parameters: ["r", "alpha", "baseline", "vergence"]
-                    .iter()
-                    .map(|n| SearchParameter::default_for(n).expect("known"))
-                    .collect(),
-                budget: preset.budget,
-                scenarios: preset.search_scenarios,
-                optimizer_seed: seed,
-                top: preset.top,
-                recheck_scenarios: preset.recheck_scenarios,
-            };
-            let search = optimize(&dir, &cell, &base, method, seed, &plan, &format!("{tray} {method} search"))?;
-            let sweep_best_recheck = match sweep.best {
-                Some(b) => {
-                    Some(recheck(&dir, &cell, method, seed, &sweep.rows[b].placement, preset.recheck_scenarios)?)
-                }
-                None => None,
-            };
-            say(&format!(
-                "{tray} {method}: sweep best {}; search best {}",
-                sweep.best.map_or("n/a".into(), |b| format!(
-                    "{} at {}",
-                    pct(sweep.rows[b].summary.success_rate),
-                    sweep.rows[b].placement
-                )),
-                format_args!("{} at {}", pct(search.best().summary.success_rate), search.best().placement)
-            ));
-            combos.push(Combination { tray, method, cell, sweep, search, sweep_best_recheck });
+    for group in &groups {
+        for &method in &req.methods {
+            let Some(c) = run_combination(out, group, method, seed, preset, &grid, shard, &mut say)? else { continue };
+            combos.push(c);
         }
     }
     if !shard.is_whole() {
         return Ok(None);
     }
-    let report = write_report(out, preset, seed, base_cell, &grid, &combos, started)?;
+    let recommendation = recommend(&combos);
+    let tolerance = match &recommendation {
+        Some(r) if preset.tolerance_scenarios > 0 => {
+            let t = tolerance(out, r, seed, preset)?;
+            say(&format!("tolerances around {}:\n{}", r.placement, t.table()));
+            Some(t)
+        }
+        _ => None,
+    };
+    let report =
+        write_report(out, req, &grid, &combos, recommendation.as_ref(), tolerance.as_ref(), started)?;
     Ok(Some(report))
 }
 
-/// Evaluates `placement` on the fresh scenarios of the search's re-check.
-fn recheck(dir: &Path, cell: &Cell, method: Method, seed: u64, placement: &str, n: u64) -> Result<Summary> {
-    let p = cell.placement.with_overrides(placement)?;
-    let store = open_folder(dir, cell, method, seed)?;
-    let s = recheck_seed(seed);
-    JobEvaluator::new(cell, method, &store)
-        .evaluate(&[PlacementJob { placement: p, seed: s, scenarios: (0..n).collect() }], "re-check")?;
-    Ok(Summary::from_records(&store.records(&p, method, s, n)))
+/// One method over one group of trays: sweeps, search, fresh-scene checks.
+#[allow(clippy::too_many_arguments)]
+fn run_combination(
+    out: &Path,
+    group: &[(String, Cell)],
+    method: Method,
+    seed: u64,
+    preset: &Preset,
+    grid: &Grid,
+    shard: Shard,
+    say: &mut impl FnMut(&str),
+) -> Result<Option<Combination>> {
+    let trays_label = group.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(" + ");
+    let base = group[0].1.placement;
+    let mut trays = Vec::new();
+    for (name, cell) in group {
+        let dir = out.join(name).join(method.to_string());
+        let label = format!("{name} {method} sweep");
+        let s = sweep(&dir, cell, &base, method, seed, grid, preset.sweep_scenarios, shard, &label)?;
+        trays.push(TraySweep { name: name.clone(), cell: cell.clone(), dir, sweep: s });
+    }
+    if !shard.is_whole() {
+        return Ok(None);
+    }
+    let set = TraySet::open(trays.iter().map(|t| (t.name.clone(), t.cell.clone(), t.dir.clone())).collect(), method, seed)?;
+    let sweep = joint_sweep(&trays);
+    let search_dir = if trays.len() == 1 { trays[0].dir.clone() } else { out.join("all-trays").join(method.to_string()) };
+    if trays.len() > 1 {
+        std::fs::create_dir_all(&search_dir)
+            .map_err(|e| Error::Other(format!("{}: cannot create the folder: {e}", search_dir.display())))?;
+        write_summary_csv(&search_dir.join("summary.csv"), &sweep.rows)?;
+    }
+    let search = if preset.budget > 0 {
+        let plan = SearchPlan {
+            parameters: ["r", "alpha", "baseline", "vergence"]
+                .iter()
+                .map(|n| SearchParameter::default_for(n).expect("known"))
+                .collect(),
+            budget: preset.budget,
+            scenarios: preset.search_scenarios,
+            optimizer_seed: seed,
+            top: preset.top,
+            recheck_scenarios: preset.recheck_scenarios,
+        };
+        Some(optimize_set(&search_dir, &set, &base, seed, &plan, &format!("{trays_label} {method} search"))?)
+    } else {
+        None
+    };
+    let fresh = recheck_seed(seed);
+    let mut candidates = Vec::new();
+    let mut check = |p: Placement, source: &'static str| -> Result<()> {
+        let per_tray = set.evaluate(&p, fresh, preset.recheck_scenarios, &format!("{trays_label} {method} re-check"))?;
+        candidates.push(Candidate { placement: p, source, summary: lowest(&per_tray), per_tray });
+        Ok(())
+    };
+    if let Some(s) = &search {
+        for e in &s.rechecks {
+            check(base.with_overrides(&e.placement)?, "search")?;
+        }
+    }
+    if let Some(b) = sweep.best {
+        check(base.with_overrides(&sweep.rows[b].placement)?, "grid")?;
+    }
+    // Stable: of two equal candidates the search's (checked first) stays first.
+    candidates.sort_by(|a, b| margin_order(&b.summary, &a.summary));
+    say(&format!(
+        "{trays_label} {method}: sweep best {}; {}",
+        sweep.best.map_or("n/a".into(), |b| format!("{} at {}", pct(sweep.rows[b].summary.success_rate), sweep.rows[b].placement)),
+        candidates
+            .first()
+            .map_or("no placement checked".into(), |c| format!("best on fresh scenes {} at {}", pct(c.summary.success_rate), c.placement))
+    ));
+    Ok(Some(Combination { trays_label, method, trays, sweep, search, search_dir, candidates }))
+}
+
+/// The sweep over several trays: each cell's lowest tray (one tray's sweep as it is).
+fn joint_sweep(trays: &[TraySweep]) -> SweepResult {
+    if trays.len() == 1 {
+        return trays[0].sweep.clone();
+    }
+    let first = &trays[0].sweep;
+    let rows: Vec<SummaryRow> = (0..first.rows.len())
+        .map(|i| {
+            let summaries: Vec<Summary> = trays.iter().map(|t| t.sweep.rows[i].summary.clone()).collect();
+            SummaryRow { summary: lowest(&summaries), ..first.rows[i].clone() }
+        })
+        .collect();
+    let best = rows
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.summary.scored > 0)
+        .max_by(|a, b| a.1.summary.success_rate.total_cmp(&b.1.summary.success_rate).then(b.0.cmp(&a.0)))
+        .map(|(i, _)| i);
+    SweepResult { rows, complete: trays.iter().all(|t| t.sweep.complete), best }
+}
+
+/// The placement to mount: the best candidate on fresh scenes over every combination, by
+/// success and then by the secondary measure; the first method studied wins a full tie.
+fn recommend(combos: &[Combination]) -> Option<Recommendation> {
+    let mut best: Option<(&Combination, &Candidate)> = None;
+    for c in combos {
+        let Some(top) = c.candidates.first() else { continue };
+        if best.is_none_or(|(_, b)| margin_order(&top.summary, &b.summary).is_gt()) {
+            best = Some((c, top));
+        }
+    }
+    let (combo, top) = best?;
+    let all: Vec<&Candidate> = combos.iter().flat_map(|c| c.candidates.iter()).collect();
+    let tied = all.iter().filter(|c| c.summary.success_rate == top.summary.success_rate).count();
+    Some(Recommendation {
+        method: combo.method,
+        placement: top.placement,
+        source: top.source,
+        summary: top.summary.clone(),
+        per_tray: combo.trays.iter().map(|t| t.name.clone()).zip(top.per_tray.iter().cloned()).collect(),
+        cells: combo.trays.iter().map(|t| (t.name.clone(), t.cell.clone(), t.dir.clone())).collect(),
+        tied_candidates: tied,
+    })
+}
+
+/// The recommended placement's mounting tolerances, into `out/tolerance/`.
+fn tolerance(out: &Path, r: &Recommendation, seed: u64, preset: &Preset) -> Result<ToleranceReport> {
+    let dir = out.join("tolerance");
+    let trays: Vec<(String, Cell, PathBuf)> = if r.cells.len() == 1 {
+        vec![(r.cells[0].0.clone(), r.cells[0].1.clone(), dir.clone())]
+    } else {
+        r.cells.iter().map(|(n, c, _)| (n.clone(), c.clone(), dir.join(n))).collect()
+    };
+    let request = ToleranceRequest {
+        placement: r.placement,
+        method: r.method,
+        seed,
+        scenarios: preset.tolerance_scenarios,
+        margin: preset.tolerance_margin,
+        max_steps: preset.tolerance_steps,
+        parameters: (0..TOLERANCE_STEPS.len()).collect(),
+    };
+    let report = measure_tolerance(&dir, trays, &request)?;
+    write_tolerance_plots(&dir, &report)?;
+    Ok(report)
 }

@@ -14,14 +14,13 @@
 
 use std::path::Path;
 
+use std::path::PathBuf;
+
 use camplace_config::{write_atomic, Cell, Placement};
 use serde::{Deserialize, Serialize};
 
-use super::folder::open_folder;
-use super::jobs::{shard_jobs, JobEvaluator};
-use super::results::ResultsStore;
-use super::shard::Shard;
 use super::summary::Summary;
+use super::tray_set::{lowest, TraySet};
 use crate::render::Method;
 use crate::{Error, Result};
 
@@ -253,9 +252,15 @@ fn point(offset: f64, s: &Summary) -> TolerancePoint {
     TolerancePoint { offset, success_rate: s.success_rate, success_interval: s.success_interval }
 }
 
-/// Measures the tolerances of `request` into the study folder `dir` (results appended as
-/// scenes finish, so a stopped run resumes), writes `tolerance.json` there and returns it.
-pub fn measure_tolerance(dir: &Path, cell: &Cell, request: &ToleranceRequest) -> Result<ToleranceReport> {
+/// Measures the tolerances of `request` for one placement serving every tray of `trays`
+/// (`(name, cell, folder)`; a placement's success is its lowest over the trays; results
+/// appended to each tray's folder as scenes finish, so a stopped run resumes), writes `tolerance.json` into `dir`
+/// and returns it.
+pub fn measure_tolerance(
+    dir: &Path,
+    trays: Vec<(String, Cell, PathBuf)>,
+    request: &ToleranceRequest,
+) -> Result<ToleranceReport> {
     let r = request;
     if !(r.margin.is_finite() && r.margin > 0.0 && r.margin < 1.0) {
         return Err(Error::Other(format!(
@@ -270,13 +275,8 @@ pub fn measure_tolerance(dir: &Path, cell: &Cell, request: &ToleranceRequest) ->
         .set("vergence", verged)
         .filter(|p| p.validate("").is_ok())
         .ok_or_else(|| Error::Other(format!("--placement: {} is not a valid placement", r.placement)))?;
-    let store = open_folder(dir, cell, r.method, r.seed)?;
-    let runner = JobEvaluator::new(cell, r.method, &store);
-    let evaluate = |p: &Placement| -> Result<Summary> {
-        let jobs = shard_jobs(&[*p], r.seed, r.scenarios, Shard::WHOLE);
-        runner.evaluate(&jobs, "tolerance")?;
-        Ok(summary_of(&store, p, r))
-    };
+    let set = TraySet::open(trays, r.method, r.seed)?;
+    let evaluate = |p: &Placement| -> Result<Summary> { Ok(lowest(&set.evaluate(p, r.seed, r.scenarios, "tolerance")?)) };
 
     let base = evaluate(&nominal)?;
     let mut axes = Vec::new();
@@ -341,10 +341,6 @@ pub fn measure_tolerance(dir: &Path, cell: &Cell, request: &ToleranceRequest) ->
     let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Other(format!("tolerance.json: {e}")))?;
     write_atomic(&dir.join("tolerance.json"), json.as_bytes())?;
     Ok(report)
-}
-
-fn summary_of(store: &ResultsStore, p: &Placement, r: &ToleranceRequest) -> Summary {
-    Summary::from_records(&store.records(p, r.method, r.seed, r.scenarios))
 }
 
 #[cfg(test)]
