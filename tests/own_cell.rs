@@ -142,7 +142,12 @@ fn a_command_of_one_tray_asks_which_of_a_listed_cell() {
         assert!(o.status.success(), "{}", stderr(&o));
     }
     let filled = |tray: &str| -> Vec<u64> {
-        json(&d.join(tray).join("truth.json"))["filled"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap()).collect()
+        json(&d.join(tray).join("truth.json"))["filled"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap())
+            .collect()
     };
     assert!(filled("four-slot").iter().all(|&i| i < 4), "{:?}", filled("four-slot"));
     let image = |tray: &str| std::fs::read(d.join(tray).join("left.png")).unwrap();
@@ -178,7 +183,8 @@ fn the_report_opens_in_a_browser_with_every_image_and_the_summary_numbers() {
     std::fs::write(&page, html.replace("</body>", &format!("{probe}</body>"))).unwrap();
     let url = format!("file://{}", page.display());
     let run = |extra: &[&str]| {
-        let mut args = vec!["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", "--window-size=1280,800"];
+        let mut args =
+            vec!["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", "--window-size=1280,800"];
         args.extend(extra);
         args.push(&url);
         Command::new(browser).args(&args).current_dir(dir.path()).output().expect("chromium runs")
@@ -207,7 +213,9 @@ fn the_report_opens_in_a_browser_with_every_image_and_the_summary_numbers() {
     assert_eq!(keyed(&dom, "r"), format!("{:.1} mm", rec["r"].as_f64().unwrap()));
     assert_eq!(keyed(&dom, "method"), rec["method"].as_str().unwrap());
     let left = &rec["world_mm"]["left_camera"];
-    let xyz = |v: &Value| format!("({:.1}, {:.1}, {:.1})", v[0].as_f64().unwrap(), v[1].as_f64().unwrap(), v[2].as_f64().unwrap());
+    let xyz = |v: &Value| {
+        format!("({:.1}, {:.1}, {:.1})", v[0].as_f64().unwrap(), v[1].as_f64().unwrap(), v[2].as_f64().unwrap())
+    };
     assert_eq!(keyed(&dom, "left_camera"), xyz(left));
     for t in rec["trays"].as_array().unwrap() {
         let row = keyed(&dom, &format!("tray:{}", t["name"].as_str().unwrap()));

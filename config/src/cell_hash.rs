@@ -118,7 +118,7 @@ impl Cell {
             let listed = |key: &'static str, kind_is_mesh: bool, path: &Path| -> Result<Value, Error> {
                 Ok(mesh_value(if kind_is_mesh { Some(mesh_hash(key, path)?.hash) } else { None }))
             };
-            cell["trays"][i]["tray"]["mesh"] = listed("trays.mesh", e.tray.kind == TrayKind::Mesh, &e.tray.mesh)?;
+            cell["trays"][i]["mesh"] = listed("trays.mesh", e.tray.kind == TrayKind::Mesh, &e.tray.mesh)?;
             cell["trays"][i]["items"]["mesh"] =
                 listed("trays.items.mesh", e.items.kind == ItemsKind::Mesh, &e.items.mesh)?;
         }
@@ -165,7 +165,7 @@ impl Cell {
             v["items"]["mesh"] = Value::Null;
             if let Some(Value::Array(list)) = v.get_mut("trays") {
                 for e in list {
-                    e["tray"]["mesh"] = Value::Null;
+                    e["mesh"] = Value::Null;
                     e["items"]["mesh"] = Value::Null;
                 }
             }

@@ -13,9 +13,10 @@ use crate::{Cell, Error, Items, Tray, TrayKind};
 /// The most trays a cell may list.
 pub const MAX_TRAYS: usize = 16;
 
-/// One tray of a cell's list, with the items its slots hold.
+/// One tray of a cell's list, with the items its slots hold. Written as in the cell file:
+/// the name and the tray's keys side by side, the items as a table.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(from = "Flat", into = "Flat")]
 pub struct TrayEntry {
     /// The tray's name in folders and reports: letters, digits, `-`, `_` and `.`.
     pub name: String,
@@ -23,7 +24,42 @@ pub struct TrayEntry {
     pub items: Items,
 }
 
-/// How an entry is written in the cell file: the tray's keys, `name` and an `items` table.
+/// A [`TrayEntry`] as written.
+#[derive(Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Flat {
+    name: String,
+    kind: TrayKind,
+    mesh: std::path::PathBuf,
+    slots: Vec<[f64; 4]>,
+    symmetries: Vec<f64>,
+    albedo: f64,
+    items: Items,
+}
+
+impl From<Flat> for TrayEntry {
+    fn from(f: Flat) -> Self {
+        let tray = Tray { kind: f.kind, mesh: f.mesh, slots: f.slots, symmetries: f.symmetries, albedo: f.albedo };
+        TrayEntry { name: f.name, tray, items: f.items }
+    }
+}
+
+impl From<TrayEntry> for Flat {
+    fn from(e: TrayEntry) -> Self {
+        let t = e.tray;
+        Flat {
+            name: e.name,
+            kind: t.kind,
+            mesh: t.mesh,
+            slots: t.slots,
+            symmetries: t.symmetries,
+            albedo: t.albedo,
+            items: e.items,
+        }
+    }
+}
+
+/// How an entry is read from the cell file: the tray's keys, `name` and an `items` table.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Written {
@@ -49,13 +85,16 @@ impl Cell {
         let names = || self.trays.iter().map(|e| e.name.as_str()).collect::<Vec<_>>().join(", ");
         match (choice, self.trays.is_empty()) {
             (None, true) => Ok(self.clone()),
-            (Some(name), true) => Err(Error::value(
-                "trays",
-                format!("--tray {name}: the cell lists no trays (its one tray is [tray])"),
-            )),
+            (Some(name), true) => {
+                Err(Error::value("trays", format!("--tray {name}: the cell lists no trays (its one tray is [tray])")))
+            }
             (None, false) => Err(Error::value(
                 "trays",
-                format!("the cell lists {} trays ({}); this command works on one: give --tray NAME", self.trays.len(), names()),
+                format!(
+                    "the cell lists {} trays ({}); this command works on one: give --tray NAME",
+                    self.trays.len(),
+                    names()
+                ),
             )),
             (Some(name), false) => match self.trays.iter().find(|e| e.name == name) {
                 Some(e) => Ok(self.with_entry(e)),
@@ -186,5 +225,91 @@ fn entry_key(entry: &str, key: &str) -> String {
     match key.strip_prefix("tray") {
         Some(rest) if rest.is_empty() || rest.starts_with('.') || rest.starts_with('[') => format!("{entry}{rest}"),
         _ => format!("{entry}.{key}"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A one-triangle binary STL: enough for a mesh key to load.
+    fn triangle_stl(size: f32) -> Vec<u8> {
+        let mut b = vec![0u8; 80];
+        b.extend(1u32.to_le_bytes());
+        b.extend([0u8; 12]);
+        for v in [0.0, 0.0, 0.0, size, 0.0, 0.0, 0.0, size, 0.0] {
+            b.extend(v.to_le_bytes());
+        }
+        b.extend([0u8; 2]);
+        b
+    }
+
+    #[test]
+    fn each_listed_tray_is_a_cell_of_its_own_with_defaults_from_tray_and_items() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("hex.stl"), triangle_stl(10.0)).unwrap();
+        let text = "[tray]\nalbedo = 0.7\n[items]\nalbedo = 0.2\n\
+            [[trays]]\nkind = \"tray-4\"\n\
+            [[trays]]\nname = \"hex\"\nkind = \"mesh\"\nmesh = \"hex.stl\"\nslots = [[0.0, 0.0, 5.0, 0.0]]\n\
+            [trays.items]\nsize = [20.0, 20.0, 10.0]\n";
+        let cell = Cell::from_toml_str(text, dir.path()).unwrap();
+        let cells = cell.tray_cells();
+        let names: Vec<&str> = cells.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(names, ["tray-4", "hex"]);
+        let (four, hex) = (&cells[0].1, &cells[1].1);
+        assert_eq!(four.tray.kind, TrayKind::Tray4);
+        assert_eq!((four.tray.albedo, four.items.albedo), (0.7, 0.2), "[tray] and [items] lend defaults");
+        assert_eq!(hex.tray.mesh, dir.path().join("hex.stl"), "relative to the cell file");
+        assert_eq!(hex.items.size, [20.0, 20.0, 10.0]);
+        assert!(four.trays.is_empty() && hex.trays.is_empty());
+        assert_eq!(cell.one_tray(Some("hex")).unwrap(), *hex);
+        // Written out and read back, the list is the same.
+        let again = Cell::from_toml_str(&cell.to_toml_string(), dir.path()).unwrap();
+        assert_eq!(again.trays, cell.trays);
+        // The hash covers each listed mesh's bytes.
+        let before = cell.hashes().unwrap().cell;
+        std::fs::write(dir.path().join("hex.stl"), triangle_stl(12.0)).unwrap();
+        assert_ne!(cell.hashes().unwrap().cell, before);
+        // Where the meshes lie is no difference: the same cell in another folder hashes the same.
+        let moved = tempfile::tempdir().unwrap();
+        std::fs::copy(dir.path().join("hex.stl"), moved.path().join("hex.stl")).unwrap();
+        let there = Cell::from_toml_str(text, moved.path()).unwrap();
+        assert_eq!(there.hashes().unwrap().cell, cell.hashes().unwrap().cell);
+        assert_eq!(there.first_difference(&cell), None);
+    }
+
+    #[test]
+    fn a_bad_list_names_the_entry_and_the_key() {
+        let cases = [
+            ("trays = 3\n", "trays"),
+            ("trays = []\n", "trays"),
+            ("trays = [1]\n", "trays[0]"),
+            ("[[trays]]\nname = \"a\"\n[[trays]]\nname = \"a\"\n", "trays[1].name"),
+            ("[[trays]]\n[[trays]]\n", "trays[1].name"),
+            ("[[trays]]\nname = \"../up\"\n", "trays[0].name"),
+            ("[[trays]]\nname = 4\n", "trays[0].name"),
+            ("[[trays]]\ncolour = 3\n", "trays[0].colour"),
+            ("[[trays]]\nitems = 3\n", "trays[0].items"),
+            ("[[trays]]\n[trays.items]\nalbedo = 2.0\n", "trays[0].items.albedo"),
+            ("[[trays]]\nkind = \"mesh\"\n", "trays[0].mesh"),
+            ("[[trays]]\nname = \"b\"\n[[trays]]\nsymmetries = [7.7]\n", "trays[1].symmetries[0]"),
+            ("[[trays]]\nkind = \"tray-4\"\nslots = [[0.0, 0.0, 0.0, 0.0]]\n", "trays[0].slots"),
+        ];
+        for (text, key) in cases {
+            let e = Cell::from_toml_str(text, Path::new(".")).unwrap_err();
+            assert_eq!(e.key(), key, "{text}: {e}");
+        }
+        let too_many = "[[trays]]\n".repeat(MAX_TRAYS + 1);
+        assert_eq!(Cell::from_toml_str(&too_many, Path::new(".")).unwrap_err().key(), "trays");
+    }
+
+    #[test]
+    fn a_command_of_one_tray_is_told_which() {
+        let cell = Cell::from_toml_str("[[trays]]\nname = \"a\"\n[[trays]]\nname = \"b\"\n", Path::new(".")).unwrap();
+        let e = cell.one_tray(None).unwrap_err();
+        assert!(e.message().contains("--tray") && e.message().contains("a, b"), "{e}");
+        assert!(cell.one_tray(Some("c")).unwrap_err().message().contains("a, b"));
+        assert_eq!(Cell::default().one_tray(None).unwrap(), Cell::default());
+        assert!(Cell::default().one_tray(Some("a")).is_err());
     }
 }

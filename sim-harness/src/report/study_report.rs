@@ -21,11 +21,11 @@ use crate::seeds::noise_key;
 use crate::study::findings::{compare, Rate, Verdict};
 use crate::study::grid::{Axis, Grid};
 use crate::study::optimize::recheck_seed;
-use camplace_estimator::Camera;
 use crate::study::placement_study::{Combination, Preset, Recommendation, StudyRequest};
 use crate::study::tolerance::ToleranceReport;
 use crate::study::Summary;
 use crate::{Error, Result};
+use camplace_estimator::Camera;
 
 /// A rate as a percentage with one decimal.
 pub fn pct(r: f64) -> String {
@@ -47,7 +47,8 @@ pub fn write_report(
     started: Instant,
 ) -> Result<PathBuf> {
     let (preset, seed, base_cell) = (req.preset, req.seed, req.cell);
-    let title = if preset.is_preview() { "camplace placement study (quick preview)" } else { "camplace placement study" };
+    let title =
+        if preset.is_preview() { "camplace placement study (quick preview)" } else { "camplace placement study" };
     let mut page = HtmlPage::new(title);
     if preset.is_preview() {
         page.paragraph(&format!(
@@ -92,7 +93,10 @@ pub fn write_report(
     // The maps and the search.
     for c in combos {
         for t in &c.trays {
-            page.heading(2, &format!("{} {}: success over r and alpha (the paper's Figures 5 and 6)", t.name, c.method));
+            page.heading(
+                2,
+                &format!("{} {}: success over r and alpha (the paper's Figures 5 and 6)", t.name, c.method),
+            );
             for panel in ["success_rate", "correct_matches", "position_error", "rotation_error"] {
                 let svg = t.dir.join(format!("{panel}.svg"));
                 if svg.exists() {
@@ -219,7 +223,11 @@ fn answer(page: &mut HtmlPage, out: &Path, r: &Recommendation, seed: u64, preset
     ];
     if r.per_tray.len() > 1 {
         for (name, t) in &r.per_tray {
-            rows.push((format!("tray:{name}"), format!("success with {name}"), format!("{} ({} of {})", pct(t.success_rate), t.successes, t.scored)));
+            rows.push((
+                format!("tray:{name}"),
+                format!("success with {name}"),
+                format!("{} ({} of {})", pct(t.success_rate), t.successes, t.scored),
+            ));
         }
     }
     let mut world: Vec<(String, String, String)> = vec![
@@ -230,10 +238,22 @@ fn answer(page: &mut HtmlPage, out: &Path, r: &Recommendation, seed: u64, preset
         world.push(("projector".into(), "projector centre".into(), xyz(centre(pr))));
     }
     world.push(("look_at".into(), "point the rig looks at".into(), "(0.0, 0.0, 0.0)".into()));
-    world.push(("left_tilt".into(), "left camera tilt from vertical, towards heading".into(), format!("{:.2} deg towards {:.1} deg", tilt(&rig.left), heading(&rig.left))));
-    world.push(("right_tilt".into(), "right camera tilt from vertical, towards heading".into(), format!("{:.2} deg towards {:.1} deg", tilt(&rig.right), heading(&rig.right))));
+    world.push((
+        "left_tilt".into(),
+        "left camera tilt from vertical, towards heading".into(),
+        format!("{:.2} deg towards {:.1} deg", tilt(&rig.left), heading(&rig.left)),
+    ));
+    world.push((
+        "right_tilt".into(),
+        "right camera tilt from vertical, towards heading".into(),
+        format!("{:.2} deg towards {:.1} deg", tilt(&rig.right), heading(&rig.right)),
+    ));
     if let Some(pr) = &rig.projector {
-        world.push(("projector_tilt".into(), "projector tilt from vertical, towards heading".into(), format!("{:.2} deg towards {:.1} deg", tilt(pr), heading(pr))));
+        world.push((
+            "projector_tilt".into(),
+            "projector tilt from vertical, towards heading".into(),
+            format!("{:.2} deg towards {:.1} deg", tilt(pr), heading(pr)),
+        ));
     }
     page.raw("<div class=\"answer\"><div>\n");
     page.keyed_table("placement", &rows);

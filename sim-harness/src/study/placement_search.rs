@@ -46,7 +46,8 @@ pub fn optimize_set(
         step += 1;
         Ok(lowest(&set.evaluate(p, s, n, &format!("{label} {step}/{}", plan.budget))?))
     })?;
-    std::fs::create_dir_all(dir).map_err(|e| Error::Other(format!("{}: cannot create the folder: {e}", dir.display())))?;
+    std::fs::create_dir_all(dir)
+        .map_err(|e| Error::Other(format!("{}: cannot create the folder: {e}", dir.display())))?;
     let text = serde_json::to_string_pretty(&(plan, &outcome)).expect("plain data");
     write_atomic(&dir.join("optimize.json"), text.as_bytes())?;
     let rows: Vec<SummaryRow> = outcome

@@ -241,8 +241,7 @@ pub fn run_study(req: &StudyRequest, started: Instant, mut say: impl FnMut(&str)
         }
         _ => None,
     };
-    let report =
-        write_report(out, req, &grid, &combos, recommendation.as_ref(), tolerance.as_ref(), started)?;
+    let report = write_report(out, req, &grid, &combos, recommendation.as_ref(), tolerance.as_ref(), started)?;
     Ok(Some(report))
 }
 
@@ -270,9 +269,11 @@ fn run_combination(
     if !shard.is_whole() {
         return Ok(None);
     }
-    let set = TraySet::open(trays.iter().map(|t| (t.name.clone(), t.cell.clone(), t.dir.clone())).collect(), method, seed)?;
+    let set =
+        TraySet::open(trays.iter().map(|t| (t.name.clone(), t.cell.clone(), t.dir.clone())).collect(), method, seed)?;
     let sweep = joint_sweep(&trays);
-    let search_dir = if trays.len() == 1 { trays[0].dir.clone() } else { out.join("all-trays").join(method.to_string()) };
+    let search_dir =
+        if trays.len() == 1 { trays[0].dir.clone() } else { out.join("all-trays").join(method.to_string()) };
     if trays.len() > 1 {
         std::fs::create_dir_all(&search_dir)
             .map_err(|e| Error::Other(format!("{}: cannot create the folder: {e}", search_dir.display())))?;
@@ -297,7 +298,8 @@ fn run_combination(
     let fresh = recheck_seed(seed);
     let mut candidates = Vec::new();
     let mut check = |p: Placement, source: &'static str| -> Result<()> {
-        let per_tray = set.evaluate(&p, fresh, preset.recheck_scenarios, &format!("{trays_label} {method} re-check"))?;
+        let per_tray =
+            set.evaluate(&p, fresh, preset.recheck_scenarios, &format!("{trays_label} {method} re-check"))?;
         candidates.push(Candidate { placement: p, source, summary: lowest(&per_tray), per_tray });
         Ok(())
     };
@@ -313,10 +315,16 @@ fn run_combination(
     candidates.sort_by(|a, b| margin_order(&b.summary, &a.summary));
     say(&format!(
         "{trays_label} {method}: sweep best {}; {}",
-        sweep.best.map_or("n/a".into(), |b| format!("{} at {}", pct(sweep.rows[b].summary.success_rate), sweep.rows[b].placement)),
-        candidates
-            .first()
-            .map_or("no placement checked".into(), |c| format!("best on fresh scenes {} at {}", pct(c.summary.success_rate), c.placement))
+        sweep.best.map_or("n/a".into(), |b| format!(
+            "{} at {}",
+            pct(sweep.rows[b].summary.success_rate),
+            sweep.rows[b].placement
+        )),
+        candidates.first().map_or("no placement checked".into(), |c| format!(
+            "best on fresh scenes {} at {}",
+            pct(c.summary.success_rate),
+            c.placement
+        ))
     ));
     Ok(Some(Combination { trays_label, method, trays, sweep, search, search_dir, candidates }))
 }

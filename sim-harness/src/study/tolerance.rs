@@ -276,7 +276,8 @@ pub fn measure_tolerance(
         .filter(|p| p.validate("").is_ok())
         .ok_or_else(|| Error::Other(format!("--placement: {} is not a valid placement", r.placement)))?;
     let set = TraySet::open(trays, r.method, r.seed)?;
-    let evaluate = |p: &Placement| -> Result<Summary> { Ok(lowest(&set.evaluate(p, r.seed, r.scenarios, "tolerance")?)) };
+    let evaluate =
+        |p: &Placement| -> Result<Summary> { Ok(lowest(&set.evaluate(p, r.seed, r.scenarios, "tolerance")?)) };
 
     let base = evaluate(&nominal)?;
     let mut axes = Vec::new();
