@@ -8,6 +8,7 @@ mod estimate;
 mod integrity;
 mod meshes;
 mod own_cell;
+mod placement;
 mod reconstruct;
 mod reconstruct_errors;
 mod study;

@@ -30,6 +30,7 @@ pub use report::latency::write_latency_plot;
 pub use report::plot::SavedPlot;
 pub use report::sweep_panels::SweepResult;
 pub use report::tolerance_plot::write_tolerance_plots;
+pub use scene::as_built::{as_built, azimuth_difference, AsBuilt};
 pub use scene::placement_rig::rig_for;
 pub use scene::scenario::{background_scene, draw_scenario, Scenario};
 pub use scene::SceneSpec;

@@ -9,6 +9,7 @@ mod init;
 mod merge;
 mod model;
 mod optimize;
+mod placement;
 mod project;
 mod reconstruct;
 mod render;
@@ -53,6 +54,8 @@ enum Command {
     Optimize(optimize::Args),
     /// How far each placement parameter may be off before success drops by a margin.
     Tolerance(tolerance::Args),
+    /// The placement a rig is really mounted at (from rig.json), against the plan and its tolerances.
+    Placement(placement::Args),
     /// Acceptance test of a placement: exit 0 when the success rate's lower bound reaches the minimum, else 1.
     Accept(accept::Args),
     /// Join the folders of shards into one and compute the summaries again.
@@ -87,6 +90,7 @@ pub fn dispatch() -> anyhow::Result<ExitCode> {
         Command::Sweep(a) => sweep::run(a),
         Command::Optimize(a) => optimize::run(a),
         Command::Tolerance(a) => tolerance::run(a),
+        Command::Placement(a) => placement::run(a),
         Command::Accept(a) => accept::run(a),
         Command::Merge(a) => merge::run(a),
         Command::Replay(a) => replay::run(a),

@@ -22,7 +22,7 @@ use crate::study::findings::{compare, Rate, Verdict};
 use crate::study::grid::{Axis, Grid};
 use crate::study::optimize::recheck_seed;
 use crate::study::placement_study::{Combination, Preset, Recommendation, StudyRequest};
-use crate::study::tolerance::ToleranceReport;
+use crate::study::tolerance::{end_text, ToleranceReport};
 use crate::study::Summary;
 use crate::{Error, Result};
 use camplace_estimator::Camera;
@@ -75,7 +75,29 @@ pub fn write_report(
             t.scenarios,
             t.seed
         ));
-        page.pre(&t.table());
+        let rows: Vec<Vec<String>> = t
+            .axes
+            .iter()
+            .map(|a| {
+                vec![
+                    a.parameter.clone(),
+                    format!("−{} {}", a.minus, a.unit),
+                    format!("+{} {}", a.plus, a.unit),
+                    format!("{} / {}", end_text(a.minus_end), end_text(a.plus_end)),
+                ]
+            })
+            .collect();
+        page.table(&["parameter", "may be lower by", "may be higher by", "walk ended by (lower / higher)"], &rows);
+        if let Some(w) = t.worst_corner() {
+            page.paragraph(&format!(
+                "Worst of the {} corners of this box: {} (95 % interval {}–{}) at {}.",
+                t.corners.len(),
+                pct(w.success_rate),
+                pct(w.success_interval[0]),
+                pct(w.success_interval[1]),
+                w.placement
+            ));
+        }
         for axis in &t.axes {
             let svg = out.join("tolerance").join(format!("tolerance_{}.svg", axis.parameter));
             if svg.exists() {

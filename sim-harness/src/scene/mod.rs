@@ -1,6 +1,7 @@
 //! The scene stage: what stands in front of the sensor (the scene and its triangles), the
 //! trays and items, the scenarios a study draws, and where a placement puts the rig.
 
+pub mod as_built;
 pub mod placement_rig;
 pub mod scenario;
 mod spec;

@@ -185,7 +185,8 @@ fn pct(r: f64) -> String {
     format!("{:.1} %", 100.0 * r)
 }
 
-fn end_text(end: WalkEnd) -> &'static str {
+/// How a walk ended, in words.
+pub fn end_text(end: WalkEnd) -> &'static str {
     match end {
         WalkEnd::Drop => "drop",
         WalkEnd::RangeEnd => "range end",

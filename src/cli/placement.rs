@@ -1,0 +1,138 @@
+//! `camplace placement`: the placement a rig is really mounted at, from its `rig.json`
+//! (a calibration, or a rendered rig), against the planned placement, and with a study's
+//! or a tolerance run's tolerances whether each parameter is within them (exit 1 when
+//! one is not).
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{bail, Context};
+use camplace_config::{Placement, RigFile};
+use camplace_estimator::Rig;
+use camplace_sim::{as_built, azimuth_difference, ToleranceReport};
+
+use super::cell_args::CellArgs;
+
+/// Flags of `camplace placement`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The rig as installed: `rig.json` (from calibration, or written by render).
+    #[arg(long, value_name = "FILE")]
+    rig: PathBuf,
+    /// The plan: the cell's placement, with --placement overrides (unless --study or
+    /// --tolerance give it).
+    #[command(flatten)]
+    cell: CellArgs,
+    /// A study folder: its recommended placement is the plan, its tolerances the limits.
+    #[arg(long, value_name = "DIR", conflicts_with = "tolerance")]
+    study: Option<PathBuf>,
+    /// A `tolerance.json` (camplace tolerance): its placement is the plan, its tolerances the limits.
+    #[arg(long, value_name = "FILE")]
+    tolerance: Option<PathBuf>,
+}
+
+/// Runs `camplace placement`.
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let file = RigFile::load(&a.rig)?;
+    let built = as_built(&Rig::from_file(&file)).map_err(|e| anyhow::anyhow!("{}: {e}", a.rig.display()))?;
+    let (_, cell_plan) = a.cell.load()?;
+    let limits = match (&a.study, &a.tolerance) {
+        (Some(dir), _) => Some(read_tolerance(&dir.join("tolerance").join("tolerance.json"))?),
+        (None, Some(f)) => Some(read_tolerance(f)?),
+        (None, None) => None,
+    };
+    let plan = match (&a.study, &limits) {
+        (Some(dir), _) => recommended(dir)?,
+        (None, Some(t)) => cell_plan.with_overrides(&t.placement).context("tolerance.json: placement")?,
+        (None, None) => cell_plan,
+    };
+    if a.cell.placement.is_some() && limits.is_some() && plan != cell_plan {
+        bail!("--placement: the plan comes from the study or tolerance.json ({plan}); leave --placement out");
+    }
+    let p = built.placement;
+    println!("as built ({}): {}", a.rig.display(), short(&p));
+    println!("planned: {}", short(&plan));
+    println!("{:<10} {:>12} {:>12} {:>12} {:>16}", "parameter", "as built", "planned", "difference", "tolerance");
+    let mut outside = Vec::new();
+    for (name, unit, got, want) in [
+        ("r", "mm", p.r, plan.r),
+        ("alpha", "deg", p.alpha, plan.alpha),
+        ("baseline", "mm", p.baseline, plan.baseline),
+        ("vergence", "deg", p.vergence.degrees(p.r, p.baseline), plan.vergence.degrees(plan.r, plan.baseline)),
+        ("azimuth", "deg", p.azimuth, plan.azimuth),
+    ] {
+        let diff = if name == "azimuth" { azimuth_difference(got, want) } else { got - want };
+        let limit = limits.as_ref().and_then(|t| t.axes.iter().find(|x| x.parameter == name));
+        let verdict = match limit {
+            Some(l) if diff < -l.minus - 1e-9 || diff > l.plus + 1e-9 => {
+                outside.push(name);
+                format!("-{}/+{} OUTSIDE", l.minus, l.plus)
+            }
+            Some(l) => format!("-{}/+{} within", l.minus, l.plus),
+            None => "not measured".to_string(),
+        };
+        let digits = if unit == "mm" { 1 } else { 2 };
+        println!(
+            "{name:<10} {:>8.digits$} {unit:<3} {:>8.digits$} {unit:<3} {:>+8.digits$} {unit:<3} {verdict:>16}",
+            got, want, diff
+        );
+    }
+    println!("toe-in: left {:.2} deg, right {:.2} deg", built.toe_in[0], built.toe_in[1]);
+    match built.aim_point {
+        Some([x, y]) => println!(
+            "aim: {:.2} deg off the table centre; the rig looks at ({x:.1}, {y:.1}) mm on the table",
+            built.aim_error
+        ),
+        None => {
+            println!("aim: {:.2} deg off the table centre; the rig does not look down at the table", built.aim_error)
+        }
+    }
+    println!("baseline slope: {:.2} deg from level", built.baseline_tilt);
+    if let Some(t) = &limits {
+        println!(
+            "tolerances: success within {:.0} points of {:.1} % at the plan ({} scenes, {} method)",
+            100.0 * t.margin,
+            100.0 * t.nominal.success_rate,
+            t.scenarios,
+            t.method
+        );
+    }
+    if outside.is_empty() {
+        Ok(ExitCode::SUCCESS)
+    } else {
+        println!("outside its tolerance: {}", outside.join(", "));
+        Ok(ExitCode::from(1))
+    }
+}
+
+/// A placement with the vergence in degrees, rounded as a drawing would give it.
+fn short(p: &Placement) -> String {
+    format!(
+        "r={:.1},alpha={:.2},baseline={:.1},vergence={:.2},azimuth={:.2}",
+        p.r,
+        p.alpha,
+        p.baseline,
+        p.vergence.degrees(p.r, p.baseline),
+        p.azimuth
+    )
+}
+
+fn read_tolerance(path: &Path) -> anyhow::Result<ToleranceReport> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    serde_json::from_str(&text)
+        .with_context(|| format!("{}: expected the tolerance.json camplace tolerance or study writes", path.display()))
+}
+
+fn recommended(dir: &Path) -> anyhow::Result<Placement> {
+    let path = dir.join("recommended.json");
+    let text = std::fs::read_to_string(&path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
+    let Some(p) = v["placement"].as_str() else {
+        bail!(
+            "{}: placement: expected a placement such as \"r=605,alpha=32,baseline=81,vergence=3.5\"",
+            path.display()
+        );
+    };
+    let base = Placement { r: 0.0, alpha: 0.0, baseline: 0.0, vergence: camplace_config::Vergence::Auto, azimuth: 0.0 };
+    base.with_overrides(p).with_context(|| format!("{}: placement", path.display()))
+}
