@@ -18,7 +18,8 @@ use crate::scene::placement_rig::rig_for;
 use crate::scene::scenario::draw_scenario;
 use crate::scene::tray::TrayModel;
 use crate::seeds::noise_key;
-use crate::study::findings::{compare, Rate, Verdict};
+use crate::study::findings::{compare_paired, Paired, Verdict};
+use crate::study::folder::open_folder;
 use crate::study::grid::{Axis, Grid};
 use crate::study::optimize::recheck_seed;
 use crate::study::placement_study::{Combination, Preset, Recommendation, StudyRequest};
@@ -30,10 +31,6 @@ use camplace_estimator::Camera;
 /// A rate as a percentage with one decimal.
 pub fn pct(r: f64) -> String {
     format!("{:.1} %", 100.0 * r)
-}
-
-fn rate(s: &Summary) -> Rate {
-    Rate { successes: s.successes, scenes: s.scored }
 }
 
 /// Writes `report.html` (and its plots, and `recommended.json`) into the study folder.
@@ -355,26 +352,37 @@ fn answer(page: &mut HtmlPage, out: &Path, r: &Recommendation, seed: u64, preset
     Ok(())
 }
 
-/// The findings against the paper's three claims (`--paper`).
+/// The findings against the paper's three claims (`--paper`), each comparison paired by
+/// scene: both sides ran the same scenarios.
 fn findings(page: &mut HtmlPage, out: &Path, combos: &[Combination], preset: &Preset, seed: u64) -> Result<()> {
     page.heading(2, "Findings against the paper");
     page.paragraph(
-        "Each rate is shown with its Wilson 95 % interval; a difference is called shown only when its 95 % interval \
-         (Newcombe's hybrid score method, conservative here because both sides share scenes) excludes zero.",
+        "Each rate is shown with its Wilson 95 % interval. Both sides of every comparison ran the same scenarios \
+         (common random numbers), so the comparisons are paired by scene: a difference is called shown only when \
+         its paired 95 % interval (Newcombe 1998, method 10) excludes zero, and the exact McNemar test on the scenes \
+         only one side succeeded on is given beside it.",
     );
-    let mut dependence = Vec::new();
+    // Each combination's first tray's results (the paper's experiment has one tray each).
+    let mut stores = Vec::new();
     for c in combos {
+        let t = &c.trays[0];
+        stores.push((open_folder(&t.dir, &t.cell, c.method, seed)?, t.cell.placement));
+    }
+    let outcomes = |i: usize, placement: &str, s: u64, n: u64| -> Result<Vec<Option<bool>>> {
+        let (store, base) = &stores[i];
+        Ok(store.outcomes(&base.with_overrides(placement)?, combos[i].method, s, n))
+    };
+    let mut dependence = Vec::new();
+    for (i, c) in combos.iter().enumerate() {
         let scored: Vec<(usize, &Summary)> =
             c.sweep.rows.iter().map(|r| &r.summary).enumerate().filter(|(_, s)| s.scored > 0).collect();
         let best = scored.iter().max_by(|a, b| a.1.success_rate.total_cmp(&b.1.success_rate).then(b.0.cmp(&a.0)));
         let worst = scored.iter().min_by(|a, b| a.1.success_rate.total_cmp(&b.1.success_rate).then(a.0.cmp(&b.0)));
         if let (Some(b), Some(w)) = (best, worst) {
-            let (v, text) = compare(
-                &format!("best cell {}", c.sweep.rows[b.0].placement),
-                rate(b.1),
-                &format!("worst cell {}", c.sweep.rows[w.0].placement),
-                rate(w.1),
-            );
+            let (pb, pw) = (&c.sweep.rows[b.0].placement, &c.sweep.rows[w.0].placement);
+            let n = preset.sweep_scenarios;
+            let pair = Paired::from_outcomes(&outcomes(i, pb, seed, n)?, &outcomes(i, pw, seed, n)?);
+            let (v, text) = compare_paired(&format!("best cell {pb}"), &format!("worst cell {pw}"), pair);
             let verdict = if v == Verdict::AHigher { "placement matters (shown)" } else { "not shown at this scale" };
             dependence.push(format!("{}: {verdict}. {text}", c.name()));
         }
@@ -383,10 +391,18 @@ fn findings(page: &mut HtmlPage, out: &Path, combos: &[Combination], preset: &Pr
     page.paragraph("The best and the worst cell of each 2-parameter sweep (the best is picked from the same scenes, so it is optimistic).");
     page.list(&dependence);
 
+    let fresh = recheck_seed(seed);
     let mut search_vs_grid = Vec::new();
-    for c in combos {
-        let (Some(g), Some(o)) = (c.sweep_best_recheck(), c.search_best()) else { continue };
-        let (v, text) = compare("4-parameter search best", rate(o), "2-parameter grid best", rate(g));
+    for (i, c) in combos.iter().enumerate() {
+        let (Some(search), Some(grid)) = (&c.search, c.candidates.iter().find(|k| k.source == "grid")) else {
+            continue;
+        };
+        let n = preset.recheck_scenarios;
+        let pair = Paired::from_outcomes(
+            &outcomes(i, &search.best().placement, fresh, n)?,
+            &outcomes(i, &grid.placement.to_string(), fresh, n)?,
+        );
+        let (v, text) = compare_paired("4-parameter search best", "2-parameter grid best", pair);
         let verdict = match v {
             Verdict::AHigher => "the search beats the grid (shown)",
             Verdict::BHigher => "the grid beats the search (shown)",
@@ -396,9 +412,8 @@ fn findings(page: &mut HtmlPage, out: &Path, combos: &[Combination], preset: &Pr
     }
     page.heading(3, "2. Optimizing 4 parameters beats the 2-parameter grid (paper: 96 % against 88 %)");
     page.paragraph(&format!(
-        "Both winners evaluated again on {} fresh scenarios (seed {}), which neither was chosen on.",
-        preset.recheck_scenarios,
-        recheck_seed(seed)
+        "Both winners evaluated again on the same {} fresh scenarios (seed {}), which neither was chosen on.",
+        preset.recheck_scenarios, fresh
     ));
     page.list(&search_vs_grid);
 
@@ -408,22 +423,32 @@ fn findings(page: &mut HtmlPage, out: &Path, combos: &[Combination], preset: &Pr
         if labels[..i].contains(tray) {
             continue;
         }
-        let pick = |m: Method| combos.iter().find(|c| c.trays_label == *tray && c.method == m);
+        let pick = |m: Method| combos.iter().position(|c| c.trays_label == *tray && c.method == m);
         let (Some(one), Some(twelve)) = (pick(Method::OneShot), pick(Method::Phase12)) else { continue };
-        let pooled = |c: &Combination| {
-            let (k, n) = c.sweep.rows.iter().fold((0, 0), |(k, n), r| (k + r.summary.successes, n + r.summary.scored));
-            Rate { successes: k, scenes: n }
-        };
-        let (v, text) =
-            compare("one shot over the whole grid", pooled(one), "12 shot over the whole grid", pooled(twelve));
+        // Every grid cell's scenes, cell by cell: the same (placement, scenario) on both sides.
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        for row in &combos[one].sweep.rows {
+            a.extend(outcomes(one, &row.placement, seed, preset.sweep_scenarios)?);
+            b.extend(outcomes(twelve, &row.placement, seed, preset.sweep_scenarios)?);
+        }
+        let (v, text) = compare_paired(
+            "one shot over the whole grid",
+            "12 shot over the whole grid",
+            Paired::from_outcomes(&a, &b),
+        );
         let verdict = match v {
             Verdict::AHigher => "one shot is more robust (shown)",
             Verdict::BHigher => "12 shot is more robust (shown)",
             Verdict::NotShown => "no difference shown",
         };
         methods.push(format!("{tray}: {verdict}. {text}"));
-        if let (Some(a), Some(b)) = (one.candidates.first(), twelve.candidates.first()) {
-            let (_, text) = compare("one shot, best", rate(&a.summary), "12 shot, best", rate(&b.summary));
+        if let (Some(x), Some(y)) = (combos[one].candidates.first(), combos[twelve].candidates.first()) {
+            let n = preset.recheck_scenarios;
+            let pair = Paired::from_outcomes(
+                &outcomes(one, &x.placement.to_string(), fresh, n)?,
+                &outcomes(twelve, &y.placement.to_string(), fresh, n)?,
+            );
+            let (_, text) = compare_paired("one shot, best", "12 shot, best", pair);
             methods.push(format!("{tray}, best placements on fresh scenes: {text}"));
         }
     }

@@ -187,16 +187,6 @@ impl Combination {
     pub fn name(&self) -> String {
         format!("{} {}", self.trays_label, self.method)
     }
-
-    /// The grid's best cell on the fresh scenes, if there is one.
-    pub fn sweep_best_recheck(&self) -> Option<&Summary> {
-        self.candidates.iter().find(|c| c.source == "grid").map(|c| &c.summary)
-    }
-
-    /// The search's best on the fresh scenes, if a search ran.
-    pub fn search_best(&self) -> Option<&Summary> {
-        self.search.as_ref().map(|s| &s.best().summary)
-    }
 }
 
 /// Runs the study: every combination's sweep (only shard `shard`'s part of each when it is

@@ -131,6 +131,17 @@ impl ResultsStore {
     }
 
     /// The records of scenarios `0..count` of `seed` at `placement` with `method` that are done.
+    /// Whether scenario 0..count succeeded, by scenario index (`None` where the scene is
+    /// not in the folder or has no truth to score against): for comparisons paired by scene.
+    pub fn outcomes(&self, placement: &Placement, method: Method, seed: u64, count: u64) -> Vec<Option<bool>> {
+        let lines = self.lines.lock().expect("results lock");
+        (0..count)
+            .map(|i| {
+                lines.get(&SceneKey::new(placement, method, seed, i)).and_then(|l| l.record.score.map(|s| s.success))
+            })
+            .collect()
+    }
+
     pub fn records(&self, placement: &Placement, method: Method, seed: u64, count: u64) -> Vec<FrameRecord> {
         let lines = self.lines.lock().expect("results lock");
         (0..count)
