@@ -1,6 +1,7 @@
 //! camplace's end-to-end tests: the CLI and the crates together, in one test binary.
 
 mod camplace_cmd;
+mod capture;
 mod cli_errors;
 mod cluster;
 mod deploy;

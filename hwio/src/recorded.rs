@@ -189,7 +189,27 @@ pub fn append_frame(root: &Path, frames: &Frames, rig: Option<&Path>) -> Result<
         Err(_) => 0,
     };
     let dir = all.join(camplace_config::frame_name(next));
-    std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, &e))?;
+    write_shots(&dir, frames)?;
+    copy_rig(root, rig)?;
+    Ok(dir)
+}
+
+/// Writes `frames` as the dataset `root`'s `background/` (the empty cell, which `run` and
+/// `replay` remove from every frame) and returns its folder; refuses to replace one that is
+/// there. With `rig`, copies that calibration to the dataset's `rig.json` when it has none.
+pub fn write_background(root: &Path, frames: &Frames, rig: Option<&Path>) -> Result<PathBuf> {
+    let dir = root.join("background");
+    if dir.exists() {
+        return Err(Error::format(&dir, "already holds a background; remove the folder first to capture a new one"));
+    }
+    write_shots(&dir, frames)?;
+    copy_rig(root, rig)?;
+    Ok(dir)
+}
+
+/// `left.png` + `right.png` (or `left_NN.png` ... for several shots) into `dir`.
+fn write_shots(dir: &Path, frames: &Frames) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, &e))?;
     for (side, images) in [("left", &frames.left), ("right", &frames.right)] {
         for (i, img) in images.iter().enumerate() {
             camplace_config::write_gray(
@@ -200,13 +220,17 @@ pub fn append_frame(root: &Path, frames: &Frames, rig: Option<&Path>) -> Result<
             )?;
         }
     }
+    Ok(())
+}
+
+fn copy_rig(root: &Path, rig: Option<&Path>) -> Result<()> {
     if let Some(rig) = rig {
         let to = root.join("rig.json");
         if !to.exists() {
             std::fs::copy(rig, &to).map_err(|e| Error::io(rig, &e))?;
         }
     }
-    Ok(dir)
+    Ok(())
 }
 
 /// One shot when `left.png` is there, else as many as consecutive `left_NN.png` from 00.

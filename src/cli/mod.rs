@@ -1,6 +1,7 @@
 //! The subcommands and their flags; one module per subcommand.
 
 mod accept;
+mod capture;
 mod cell_args;
 mod devices;
 mod estimate;
@@ -64,6 +65,8 @@ enum Command {
     Replay(replay::Args),
     /// The deployed loop: frames from cameras or a recording, one pose per frame, latency.
     Run(run::Args),
+    /// Save frames from a source as a recorded dataset (calibration images, the background, frames to replay).
+    Capture(capture::Args),
     /// List the cameras of this machine.
     Devices(devices::Args),
     /// Show the projector's pattern full screen (and capture each one in step).
@@ -95,6 +98,7 @@ pub fn dispatch() -> anyhow::Result<ExitCode> {
         Command::Merge(a) => merge::run(a),
         Command::Replay(a) => replay::run(a),
         Command::Run(a) => run::run(a),
+        Command::Capture(a) => capture::run(a),
         Command::Devices(a) => devices::run(a),
         Command::Project(a) => project::run(a),
     }
