@@ -227,6 +227,7 @@ fn answer(page: &mut HtmlPage, out: &Path, r: &Recommendation, seed: u64, preset
     let vergence = p.vergence.degrees(p.r, p.baseline);
     let interval = format!("{:.1}–{:.1} %", 100.0 * s.success_interval[0], 100.0 * s.success_interval[1]);
     let mut rows: Vec<(String, String, String)> = vec![
+        ("trays".into(), "for".into(), r.per_tray.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(" + ")),
         ("method".into(), "method".into(), r.method.to_string()),
         ("r".into(), "r (distance of the rig from the table centre)".into(), format!("{:.1} mm", p.r)),
         ("alpha".into(), "alpha (polar angle from vertical)".into(), format!("{:.2} deg", p.alpha)),
@@ -415,6 +416,9 @@ fn findings(page: &mut HtmlPage, out: &Path, combos: &[Combination], preset: &Pr
         "Both winners evaluated again on the same {} fresh scenarios (seed {}), which neither was chosen on.",
         preset.recheck_scenarios, fresh
     ));
+    if search_vs_grid.is_empty() {
+        search_vs_grid.push("Not measured: this preset runs no 4-parameter search.".to_string());
+    }
     page.list(&search_vs_grid);
 
     let mut methods = Vec::new();

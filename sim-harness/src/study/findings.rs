@@ -157,18 +157,27 @@ pub fn compare_paired(a_name: &str, b_name: &str, p: Paired) -> (Verdict, String
     let (a, b) = (p.a(), p.b());
     let text = format!(
         "{a_name}: {}; {b_name}: {}; on the same {} scenes, difference {:+.1} points (paired 95 % interval {:+.1} to {:+.1}); \
-         {} scenes only the first succeeded on, {} only the second (exact McNemar p = {:.3})",
+         {} only the first succeeded on, {} only the second (exact McNemar p = {:.3})",
         a.text(),
         b.text(),
         p.scenes(),
         100.0 * (a.value() - b.value()),
         100.0 * lo,
         100.0 * hi,
-        p.only_a,
+        count_scenes(p.only_a),
         p.only_b,
         p.mcnemar_p()
     );
     (verdict, text)
+}
+
+/// "1 scene", "3 scenes".
+fn count_scenes(n: usize) -> String {
+    if n == 1 {
+        "1 scene".to_string()
+    } else {
+        format!("{n} scenes")
+    }
 }
 
 #[cfg(test)]

@@ -340,11 +340,15 @@ fn joint_sweep(trays: &[TraySweep]) -> SweepResult {
     SweepResult { rows, complete: trays.iter().all(|t| t.sweep.complete), best }
 }
 
-/// The placement to mount: the best candidate on fresh scenes over every combination, by
+/// The placement to mount: the best candidate on fresh scenes over every method, by
 /// success and then by the secondary measure; the first method studied wins a full tie.
+/// Only the first group of trays counts (the paper's experiment studies two trays each on
+/// its own, and a placement found for one says nothing of the other).
 fn recommend(combos: &[Combination]) -> Option<Recommendation> {
+    let group = &combos.first()?.trays_label;
+    let combos: Vec<&Combination> = combos.iter().filter(|c| &c.trays_label == group).collect();
     let mut best: Option<(&Combination, &Candidate)> = None;
-    for c in combos {
+    for &c in &combos {
         let Some(top) = c.candidates.first() else { continue };
         if best.is_none_or(|(_, b)| margin_order(&top.summary, &b.summary).is_gt()) {
             best = Some((c, top));
