@@ -275,6 +275,14 @@ fn answer(page: &mut HtmlPage, out: &Path, r: &Recommendation, seed: u64, preset
             format!("{:.2} deg towards {:.1} deg", tilt(pr), heading(pr)),
         ));
     }
+    if s.success_rate < 0.8 {
+        page.paragraph(&format!(
+            "Caution: even the best placement found succeeds on only {} of fresh scenes. Check that the trays and \
+             items are described as they are (mesh units mm, origin at the bottom face's centre, the slots), that \
+             the work volume holds the tray, and whether another method or a wider search range serves better.",
+            pct(s.success_rate)
+        ));
+    }
     page.raw("<div class=\"answer\"><div>\n");
     page.keyed_table("placement", &rows);
     page.raw("</div><div>\n");
