@@ -26,10 +26,17 @@ impl HtmlPage {
         HtmlPage { title: title.to_string(), body: String::new() }
     }
 
-    /// A heading of level 1–3.
+    /// A heading of level 1–3, with an id made of its words (so `report.html#mounting-tolerances`
+    /// opens there).
     pub fn heading(&mut self, level: u8, text: &str) {
         let l = level.clamp(1, 3);
-        self.body.push_str(&format!("<h{l}>{}</h{l}>\n", escape(text)));
+        let id: String = text
+            .to_lowercase()
+            .split(|c: char| !c.is_ascii_alphanumeric())
+            .filter(|w| !w.is_empty())
+            .collect::<Vec<_>>()
+            .join("-");
+        self.body.push_str(&format!("<h{l} id=\"{id}\">{}</h{l}>\n", escape(text)));
     }
 
     /// A paragraph of plain text.

@@ -23,7 +23,7 @@ use crate::study::folder::open_folder;
 use crate::study::grid::{Axis, Grid};
 use crate::study::optimize::recheck_seed;
 use crate::study::placement_study::{Combination, Preset, Recommendation, StudyRequest};
-use crate::study::tolerance::{end_text, ToleranceReport};
+use crate::study::tolerance::{end_text, ToleranceReport, WalkEnd};
 use crate::study::Summary;
 use crate::{Error, Result};
 use camplace_estimator::Camera;
@@ -76,10 +76,12 @@ pub fn write_report(
             .axes
             .iter()
             .map(|a| {
+                // A walk that took every step without a drop only shows a lower bound.
+                let bound = |end: WalkEnd| if end == WalkEnd::LastStep { "at least " } else { "" };
                 vec![
                     a.parameter.clone(),
-                    format!("−{} {}", a.minus, a.unit),
-                    format!("+{} {}", a.plus, a.unit),
+                    format!("{}−{} {}", bound(a.minus_end), a.minus, a.unit),
+                    format!("{}+{} {}", bound(a.plus_end), a.plus, a.unit),
                     format!("{} / {}", end_text(a.minus_end), end_text(a.plus_end)),
                 ]
             })
@@ -223,7 +225,16 @@ fn answer(page: &mut HtmlPage, out: &Path, r: &Recommendation, seed: u64, preset
         let a = axis(c);
         a.y.atan2(a.x).to_degrees()
     };
-    let xyz = |v: nalgebra::Vector3<f64>| format!("({:.1}, {:.1}, {:.1})", v.x, v.y, v.z);
+    // Rounded first, so that a coordinate a hair below zero does not print as "-0.0".
+    let tenth = |x: f64| {
+        let r = (x * 10.0).round() / 10.0;
+        if r == 0.0 {
+            0.0
+        } else {
+            r
+        }
+    };
+    let xyz = |v: nalgebra::Vector3<f64>| format!("({:.1}, {:.1}, {:.1})", tenth(v.x), tenth(v.y), tenth(v.z));
     let vergence = p.vergence.degrees(p.r, p.baseline);
     let interval = format!("{:.1}–{:.1} %", 100.0 * s.success_interval[0], 100.0 * s.success_interval[1]);
     let mut rows: Vec<(String, String, String)> = vec![
@@ -301,11 +312,11 @@ fn answer(page: &mut HtmlPage, out: &Path, r: &Recommendation, seed: u64, preset
     };
     page.paragraph(&format!(
         "World frame: origin at the table's centre on its surface, z up, mm; headings are measured from the world x \
-         axis towards y. Chosen from the {} on {} fresh scenes (seed {}) that no placement was picked on; the rate \
-         is the lowest over the cell's trays.{tie}",
+         axis towards y. Chosen from the {} on {} fresh scenes (seed {}) that no placement was picked on{}.{tie}",
         if preset.budget > 0 { "search's best candidates and the grid's best cell" } else { "grid's best cell" },
         s.scored,
-        recheck_seed(seed)
+        recheck_seed(seed),
+        if r.per_tray.len() > 1 { "; the rate is the lowest over the cell's trays" } else { "" }
     ));
     let (lo, hi) = TrayModel::from_cell(cell)?.solid.bounds();
     let sketch = RigSketch {
