@@ -126,6 +126,22 @@ fn a_study_of_two_mesh_trays_reports_both_and_judges_each_placement_by_the_lower
         assert!(html.contains(heading), "{heading} missing from the report");
     }
     assert!(!html.contains("Findings against the paper"), "the paper's findings come with --paper only");
+    // A rig mounted exactly at the recommendation reads back as it, against the study's plan.
+    let dir = tempfile::tempdir().unwrap();
+    write_cell(dir.path());
+    let o = camplace(
+        dir.path(),
+        &["render", "--cell", "cell.toml", "--tray", "six-slot", "--placement", placement, "--out", "r"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let study_dir = out.display().to_string();
+    let o = camplace(dir.path(), &["placement", "--rig", "r/rig.json", "--study", &study_dir]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let line =
+        |start: &str| text.lines().find(|l| l.starts_with(start)).unwrap().split_once(": ").unwrap().1.to_string();
+    assert_eq!(line("as built"), line("planned"), "{text}");
+    assert!(stderr(&o).contains("no tolerances"), "a quick study measures none: {}", stderr(&o));
 }
 
 #[test]
@@ -213,8 +229,18 @@ fn the_report_opens_in_a_browser_with_every_image_and_the_summary_numbers() {
     assert_eq!(keyed(&dom, "r"), format!("{:.1} mm", rec["r"].as_f64().unwrap()));
     assert_eq!(keyed(&dom, "method"), rec["method"].as_str().unwrap());
     let left = &rec["world_mm"]["left_camera"];
+    // To a tenth of a mm, a zero without its sign, as the page writes it.
+    let tenth = |x: f64| {
+        let r = (x * 10.0).round() / 10.0;
+        if r == 0.0 {
+            0.0
+        } else {
+            r
+        }
+    };
     let xyz = |v: &Value| {
-        format!("({:.1}, {:.1}, {:.1})", v[0].as_f64().unwrap(), v[1].as_f64().unwrap(), v[2].as_f64().unwrap())
+        let c = |i: usize| tenth(v[i].as_f64().unwrap());
+        format!("({:.1}, {:.1}, {:.1})", c(0), c(1), c(2))
     };
     assert_eq!(keyed(&dom, "left_camera"), xyz(left));
     for t in rec["trays"].as_array().unwrap() {

@@ -100,5 +100,5 @@ fn a_bad_rig_or_tolerance_file_is_a_one_line_error() {
     let o = camplace(d, &["placement", "--rig", "r/rig.json", "--tolerance", "tolerance.json"]);
     assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["tolerance.json", "expected"]);
     let o = camplace(d, &["placement", "--rig", "r/rig.json", "--study", "nowhere"]);
-    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["nowhere", "tolerance.json"]);
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["nowhere", "recommended.json"]);
 }

@@ -42,7 +42,7 @@ pub use study::merge::merge;
 pub use study::one_placement::{acceptance_summary, evaluate_placement};
 pub use study::optimize::{SearchParameter, SearchPlan};
 pub use study::placement_search::optimize;
-pub use study::placement_study::{run_study, Preset, StudyRequest};
+pub use study::placement_study::{run_study, tolerance_dir, Preset, StudyRequest};
 pub use study::recording::{
     estimate_dataset, estimator_for, load_model, load_model_for, method_for, record as frame_record, truth_path,
     DATASET_SUMMARY,

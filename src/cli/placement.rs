@@ -9,7 +9,7 @@ use std::process::ExitCode;
 use anyhow::{bail, Context};
 use camplace_config::{Placement, RigFile};
 use camplace_estimator::Rig;
-use camplace_sim::{as_built, azimuth_difference, ToleranceReport};
+use camplace_sim::{as_built, azimuth_difference, tolerance_dir, Method, ToleranceReport};
 
 use super::cell_args::CellArgs;
 
@@ -36,17 +36,25 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let file = RigFile::load(&a.rig)?;
     let built = as_built(&Rig::from_file(&file)).map_err(|e| anyhow::anyhow!("{}: {e}", a.rig.display()))?;
     let (_, cell_plan) = a.cell.load()?;
-    let limits = match (&a.study, &a.tolerance) {
-        (Some(dir), _) => Some(read_tolerance(&dir.join("tolerance").join("tolerance.json"))?),
-        (None, Some(f)) => Some(read_tolerance(f)?),
-        (None, None) => None,
+    let (plan, limits) = match (&a.study, &a.tolerance) {
+        (Some(dir), _) => {
+            let (plan, method) = recommended(dir)?;
+            let file = tolerance_dir(dir, method).join("tolerance.json");
+            let limits = if file.exists() {
+                Some(read_tolerance(&file)?)
+            } else {
+                eprintln!("note: {} has none: the study measured no tolerances (a --quick preview?)", file.display());
+                None
+            };
+            (plan, limits)
+        }
+        (None, Some(f)) => {
+            let t = read_tolerance(f)?;
+            (cell_plan.with_overrides(&t.placement).context("tolerance.json: placement")?, Some(t))
+        }
+        (None, None) => (cell_plan, None),
     };
-    let plan = match (&a.study, &limits) {
-        (Some(dir), _) => recommended(dir)?,
-        (None, Some(t)) => cell_plan.with_overrides(&t.placement).context("tolerance.json: placement")?,
-        (None, None) => cell_plan,
-    };
-    if a.cell.placement.is_some() && limits.is_some() && plan != cell_plan {
+    if a.cell.placement.is_some() && (a.study.is_some() || a.tolerance.is_some()) && plan != cell_plan {
         bail!("--placement: the plan comes from the study or tolerance.json ({plan}); leave --placement out");
     }
     let p = built.placement;
@@ -123,7 +131,8 @@ fn read_tolerance(path: &Path) -> anyhow::Result<ToleranceReport> {
         .with_context(|| format!("{}: expected the tolerance.json camplace tolerance or study writes", path.display()))
 }
 
-fn recommended(dir: &Path) -> anyhow::Result<Placement> {
+/// The recommended placement and its method from a study folder's `recommended.json`.
+fn recommended(dir: &Path) -> anyhow::Result<(Placement, Method)> {
     let path = dir.join("recommended.json");
     let text = std::fs::read_to_string(&path).with_context(|| format!("{}: cannot read", path.display()))?;
     let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
@@ -133,6 +142,10 @@ fn recommended(dir: &Path) -> anyhow::Result<Placement> {
             path.display()
         );
     };
+    let method = v["method"]
+        .as_str()
+        .and_then(|m| m.parse::<Method>().ok())
+        .with_context(|| format!("{}: method: expected \"one-shot\" or \"phase-12\"", path.display()))?;
     let base = Placement { r: 0.0, alpha: 0.0, baseline: 0.0, vergence: camplace_config::Vergence::Auto, azimuth: 0.0 };
-    base.with_overrides(p).with_context(|| format!("{}: placement", path.display()))
+    Ok((base.with_overrides(p).with_context(|| format!("{}: placement", path.display()))?, method))
 }

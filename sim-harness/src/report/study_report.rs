@@ -22,7 +22,7 @@ use crate::study::findings::{compare_paired, Paired, Verdict};
 use crate::study::folder::open_folder;
 use crate::study::grid::{Axis, Grid};
 use crate::study::optimize::recheck_seed;
-use crate::study::placement_study::{Combination, Preset, Recommendation, StudyRequest};
+use crate::study::placement_study::{tolerance_dir, Combination, Preset, Recommendation, StudyRequest};
 use crate::study::tolerance::{end_text, ToleranceReport, WalkEnd};
 use crate::study::Summary;
 use crate::{Error, Result};
@@ -61,7 +61,7 @@ pub fn write_report(
         Some(r) => answer(&mut page, out, r, seed, preset)?,
         None => page.paragraph("No placement was checked on fresh scenes, so there is nothing to recommend."),
     }
-    if let Some(t) = tolerance {
+    if let (Some(t), Some(method)) = (tolerance, recommendation.map(|r| r.method)) {
         page.heading(2, "Mounting tolerances");
         page.paragraph(&format!(
             "How far each parameter may be off, alone, before success drops by more than {:.0} points from {} at the \
@@ -98,7 +98,7 @@ pub fn write_report(
             ));
         }
         for axis in &t.axes {
-            let svg = out.join("tolerance").join(format!("tolerance_{}.svg", axis.parameter));
+            let svg = tolerance_dir(out, method).join(format!("tolerance_{}.svg", axis.parameter));
             if svg.exists() {
                 page.svg(&svg)?;
             }

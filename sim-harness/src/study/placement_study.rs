@@ -235,6 +235,11 @@ pub fn run_study(req: &StudyRequest, started: Instant, mut say: impl FnMut(&str)
     Ok(Some(report))
 }
 
+/// Where a study's tolerances of a placement measured with `method` are.
+pub fn tolerance_dir(out: &Path, method: Method) -> PathBuf {
+    out.join("tolerance").join(method.to_string())
+}
+
 /// One method over one group of trays: sweeps, search, fresh-scene checks.
 #[allow(clippy::too_many_arguments)]
 fn run_combination(
@@ -368,9 +373,11 @@ fn recommend(combos: &[Combination]) -> Option<Recommendation> {
     })
 }
 
-/// The recommended placement's mounting tolerances, into `out/tolerance/`.
+/// The recommended placement's mounting tolerances, into `out/tolerance/METHOD/` (a study
+/// folder per method, so a later study that recommends the other method does not find a
+/// folder of the first).
 fn tolerance(out: &Path, r: &Recommendation, seed: u64, preset: &Preset) -> Result<ToleranceReport> {
-    let dir = out.join("tolerance");
+    let dir = tolerance_dir(out, r.method);
     let trays: Vec<(String, Cell, PathBuf)> = if r.cells.len() == 1 {
         vec![(r.cells[0].0.clone(), r.cells[0].1.clone(), dir.clone())]
     } else {
