@@ -157,7 +157,7 @@ pub fn compare_paired(a_name: &str, b_name: &str, p: Paired) -> (Verdict, String
     let (a, b) = (p.a(), p.b());
     let text = format!(
         "{a_name}: {}; {b_name}: {}; on the same {} scenes, difference {:+.1} points (paired 95 % interval {:+.1} to {:+.1}); \
-         {} only the first succeeded on, {} only the second (exact McNemar p = {:.3})",
+         {} only the first succeeded on, {} only the second (exact McNemar p {})",
         a.text(),
         b.text(),
         p.scenes(),
@@ -166,9 +166,18 @@ pub fn compare_paired(a_name: &str, b_name: &str, p: Paired) -> (Verdict, String
         100.0 * hi,
         count_scenes(p.only_a),
         p.only_b,
-        p.mcnemar_p()
+        p_value(p.mcnemar_p())
     );
     (verdict, text)
+}
+
+/// "= 0.037", or "< 0.001" for smaller.
+fn p_value(p: f64) -> String {
+    if p < 0.001 {
+        "< 0.001".to_string()
+    } else {
+        format!("= {p:.3}")
+    }
 }
 
 /// "1 scene", "3 scenes".
