@@ -120,6 +120,35 @@ fn replay_equals_the_evaluation_and_run_equals_replay() {
     }
 }
 
+#[test]
+fn run_gives_each_pose_in_the_robots_frame_when_the_cell_has_one() {
+    let f = fixture();
+    let t_robot_world = [[0.0, -1.0, 0.0, 450.0], [1.0, 0.0, 0.0, -120.0], [0.0, 0.0, 1.0, 35.0], [0.0, 0.0, 0.0, 1.0]];
+    let rows: Vec<String> = t_robot_world.iter().map(|r| format!("{r:?}")).collect();
+    std::fs::write(f.root.join("robot.toml"), format!("[robot]\nT_robot_world = [{}]\n", rows.join(", "))).unwrap();
+    let o = camplace(
+        &f.root,
+        &["run", "--source", "dir:data", "--model", "tray.model", "--cell", "robot.toml", "--out", "robot.jsonl"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = read(&f.root.join("robot.jsonl"));
+    let mut found = 0;
+    for line in text.lines() {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        if v["found"] != true {
+            assert!(v.get("T_robot_tray").is_none(), "no robot pose without a pose: {line}");
+            continue;
+        }
+        found += 1;
+        let m = |key: &str| -> nalgebra::Matrix4<f64> {
+            nalgebra::Matrix4::from_fn(|i, j| v[key][i][j].as_f64().unwrap_or_else(|| panic!("{key}: {line}")))
+        };
+        let want = nalgebra::Matrix4::from_fn(|i, j| t_robot_world[i][j]) * m("T_world_tray");
+        assert!((m("T_robot_tray") - want).abs().max() < 1e-9, "{line}");
+    }
+    assert!(found > 0, "the estimator found trays here");
+}
+
 /// The evaluator's records of the fixture's scenes.
 fn evaluated(f: &Fixture) -> Vec<FrameRecord> {
     let cell = Cell::default();

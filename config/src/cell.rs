@@ -30,9 +30,23 @@ pub struct Cell {
     pub reconstruction: ReconstructionParams,
     pub estimator: EstimatorParams,
     pub metrics: Metrics,
+    /// Where the world frame lies in the robot's base frame (`[robot]`, optional), so that
+    /// `run` can give each pose in the frame the robot moves in.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub robot: Option<Robot>,
     /// The trays of a cell that handles several products (empty: the one `tray`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub trays: Vec<TrayEntry>,
+}
+
+/// The robot the poses are for.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Robot {
+    /// World frame to robot base frame, row-major 4 × 4, mm (from a hand-eye calibration,
+    /// or by touching the table's centre and axes with the tool centre point).
+    #[serde(rename = "T_robot_world")]
+    pub t_robot_world: [[f64; 4]; 4],
 }
 
 /// The table top.
@@ -337,6 +351,16 @@ impl Cell {
 
     /// Checks everything but the table, the tray and the items.
     fn validate_rest(&self) -> Result<(), Error> {
+        if let Some(robot) = &self.robot {
+            let t = &robot.t_robot_world;
+            crate::check_rigid(t).map_err(|m| Error::value("robot.T_robot_world", m))?;
+            if (0..3).any(|i| t[i][3].abs() > MAX_DISTANCE_MM) {
+                return Err(Error::value(
+                    "robot.T_robot_world",
+                    format!("expected a translation within ±{MAX_DISTANCE_MM} mm"),
+                ));
+            }
+        }
         let s = &self.sensor;
         if s.camera_resolution.iter().any(|&v| !(16..=8192).contains(&v)) {
             return Err(Error::value(

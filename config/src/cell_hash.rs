@@ -173,9 +173,15 @@ impl Cell {
         first_difference(&a, &b, "")
     }
 
-    /// Every setting as a JSON value.
+    /// Every setting that shapes a simulated scene or an estimate, as a JSON value: all but
+    /// `[robot]`, which only re-expresses poses, so adding it to a cell keeps its study
+    /// folders and models.
     fn settings_value(&self) -> Value {
-        serde_json::to_value(self).expect("a cell always serialises")
+        let mut v = serde_json::to_value(self).expect("a cell always serialises");
+        if let Some(map) = v.as_object_mut() {
+            map.remove("robot");
+        }
+        v
     }
 }
 
@@ -276,6 +282,28 @@ mod tests {
         }
         stl.extend([0u8; 2]);
         stl
+    }
+
+    #[test]
+    fn the_robot_frame_is_checked_and_leaves_the_hash_alone() {
+        let text = "[robot]\nT_robot_world = [[0.0, -1.0, 0.0, 450.0], [1.0, 0.0, 0.0, -120.0], [0.0, 0.0, 1.0, 3.0], [0.0, 0.0, 0.0, 1.0]]\n";
+        let cell = Cell::from_toml_str(text, Path::new(".")).unwrap();
+        assert_eq!(cell.robot.as_ref().unwrap().t_robot_world[0][3], 450.0);
+        assert_eq!(cell.hashes().unwrap().cell, Cell::default().hashes().unwrap().cell);
+        assert_eq!(cell.first_difference(&Cell::default()), None);
+        let back = Cell::from_toml_str(&cell.to_toml_string(), Path::new(".")).unwrap();
+        assert_eq!(back.robot, cell.robot);
+        for bad in [
+            "[robot]\nT_robot_world = [[2.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]\n",
+            "[robot]\nT_robot_world = [[1.0, 0.0, 0.0, 1e9], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]\n",
+            "[robot]\nT_robot_world = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\n",
+            "[robot]\nT_robot_world = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 1.0, 1.0]]\n",
+        ] {
+            let e = Cell::from_toml_str(bad, Path::new(".")).unwrap_err();
+            assert!(e.key().starts_with("robot.T_robot_world"), "{bad}: {e}");
+        }
+        let e = Cell::from_toml_str("[robot]\nframe = 1\n", Path::new(".")).unwrap_err();
+        assert!(e.key().starts_with("robot"), "{e}");
     }
 
     #[test]

@@ -71,8 +71,23 @@ struct RunLine<'a> {
     latency_ms: f64,
     /// CPU time of the process while the frame was estimated (every thread), ms.
     cpu_ms: f64,
+    /// The tray's pose in the robot's base frame, when the cell has a `[robot]` and a pose
+    /// was found (row-major 4 × 4, mm).
+    #[serde(rename = "T_robot_tray", skip_serializing_if = "Option::is_none")]
+    t_robot_tray: Option<[[f64; 4]; 4]>,
     #[serde(flatten)]
     record: &'a FrameRecord,
+}
+
+/// `T_robot_world · T_world_tray`.
+fn in_robot_frame(t_robot_world: &[[f64; 4]; 4], t_world_tray: &[[f64; 4]; 4]) -> [[f64; 4]; 4] {
+    let mut out = [[0.0; 4]; 4];
+    for (i, row) in out.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = (0..4).map(|k| t_robot_world[i][k] * t_world_tray[k][j]).sum();
+        }
+    }
+    out
 }
 
 /// The folder and file name stem of `--latency-plot PATH`, checked before the run so a bad
@@ -126,6 +141,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         )),
         None => Box::new(std::io::stdout().lock()),
     };
+    let robot = cell.robot.as_ref().map(|r| r.t_robot_world);
     let dataset = opened.dataset;
     let mut records = Vec::new();
     let stats = deployment.run(
@@ -139,6 +155,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 timestamp_us: e.timestamp_us,
                 latency_ms: e.timing.latency_ms,
                 cpu_ms: e.timing.cpu_ms,
+                t_robot_tray: robot.filter(|_| e.record.found).map(|r| in_robot_frame(&r, &e.record.t_world_tray)),
                 record: &e.record,
             };
             let text = serde_json::to_string(&line).context("frame record")?;
