@@ -170,6 +170,51 @@ fn a_command_of_one_tray_asks_which_of_a_listed_cell() {
     assert_ne!(image("four-slot"), image("six-slot"), "each tray is its own scene");
 }
 
+#[test]
+fn tolerances_of_a_listed_cell_judge_each_offset_by_the_lower_tray() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_cell(d);
+    let o = camplace(
+        d,
+        &[
+            "tolerance",
+            "--cell",
+            "cell.toml",
+            "--placement",
+            "r=450,alpha=50",
+            "--scenarios",
+            "3",
+            "--steps",
+            "1",
+            "--parameters",
+            "r",
+            "--out",
+            "t",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = json(&d.join("t/tolerance.json"));
+    let results = |tray: &str| -> HashMap<String, u64> {
+        let mut ok = HashMap::new();
+        for line in std::fs::read_to_string(d.join("t").join(tray).join("results.jsonl")).unwrap().lines() {
+            let v: Value = serde_json::from_str(line).unwrap();
+            *ok.entry(v["placement"].as_str().unwrap().to_string()).or_insert(0) += u64::from(v["success"] == true);
+        }
+        ok
+    };
+    let (six, four) = (results("six-slot"), results("four-slot"));
+    // Every point of the walk is the lower tray's rate at that placement.
+    for corner in report["corners"].as_array().unwrap() {
+        let p = corner["placement"].as_str().unwrap();
+        let lower = six[p].min(four[p]) as f64 / 3.0;
+        assert!((corner["success_rate"].as_f64().unwrap() - lower).abs() < 1e-12, "{p}: {corner}");
+    }
+    let nominal = report["placement"].as_str().unwrap();
+    let lower = six[nominal].min(four[nominal]) as f64 / 3.0;
+    assert!((report["nominal"]["success_rate"].as_f64().unwrap() - lower).abs() < 1e-12, "{report}");
+}
+
 /// The page's value in the keyed row `key`.
 fn keyed(dom: &str, key: &str) -> String {
     let at = dom.find(&format!("data-key=\"{key}\"")).unwrap_or_else(|| panic!("no row {key}"));

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::bail;
+use camplace_config::Cell;
 use camplace_sim::{measure_tolerance, write_tolerance_plots, ToleranceRequest, TOLERANCE_STEPS};
 
 use super::cell_args::CellArgs;
@@ -42,7 +43,9 @@ pub struct Args {
 
 /// Runs `camplace tolerance`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    let (cell, placement) = a.cell.load()?;
+    // A cell that lists several trays: one placement for all of them, judged by the lowest.
+    let (trays, placement) = a.cell.load_trays()?;
+    let seed = a.scene.seed(&trays[0].1);
     if !(1..=MAX_STEPS).contains(&a.steps) {
         bail!("--steps: expected 1 to {MAX_STEPS} steps, got {}", a.steps);
     }
@@ -62,13 +65,18 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let request = ToleranceRequest {
         placement,
         method: a.scene.method,
-        seed: a.scene.seed(&cell),
+        seed,
         scenarios: check_scenarios(a.scenarios)?,
         margin: a.margin,
         max_steps: a.steps,
         parameters,
     };
-    let report = measure_tolerance(&a.out, vec![(cell.tray_folder_name(), cell, a.out.clone())], &request)?;
+    let folders: Vec<(String, Cell, PathBuf)> = if trays.len() == 1 {
+        trays.into_iter().map(|(name, cell)| (name, cell, a.out.clone())).collect()
+    } else {
+        trays.into_iter().map(|(name, cell)| (name.clone(), cell, a.out.join(name))).collect()
+    };
+    let report = measure_tolerance(&a.out, folders, &request)?;
     let plots = write_tolerance_plots(&a.out, &report)?;
     println!("{}", report.table());
     println!("wrote {} ({} plots)", a.out.join("tolerance.json").display(), plots.len());
