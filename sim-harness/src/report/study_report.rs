@@ -58,7 +58,27 @@ pub fn write_report(
     // The answer first: where to mount, how good that is, and how precisely.
     page.heading(2, "Recommended placement");
     match recommendation {
-        Some(r) => answer(&mut page, out, r, seed, preset)?,
+        Some(r) => {
+            // Each method's own best, for a cell whose sensor is already chosen.
+            let label = r.per_tray.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(" + ");
+            let others: Vec<String> = combos
+                .iter()
+                .filter(|c| c.trays_label == label && c.method != r.method)
+                .filter_map(|c| {
+                    let k = c.candidates.first()?;
+                    let [lo, hi] = k.summary.success_interval;
+                    Some(format!(
+                        "Best with {}: {} at {} (95 % interval {}–{}).",
+                        c.method,
+                        pct(k.summary.success_rate),
+                        k.placement,
+                        pct(lo),
+                        pct(hi)
+                    ))
+                })
+                .collect();
+            answer(&mut page, out, r, seed, preset, &others)?;
+        }
         None => page.paragraph("No placement was checked on fresh scenes, so there is nothing to recommend."),
     }
     if let (Some(t), Some(method)) = (tolerance, recommendation.map(|r| r.method)) {
@@ -211,9 +231,16 @@ pub fn write_report(
 }
 
 /// The recommended placement: its values, its success with the interval, each tray's,
-/// where the rig's parts are in the world, a sketch and a rendered scene; and
-/// `recommended.json` with the same numbers.
-fn answer(page: &mut HtmlPage, out: &Path, r: &Recommendation, seed: u64, preset: &Preset) -> Result<()> {
+/// where the rig's parts are in the world, the other methods' best (`other_methods`), a
+/// sketch and a rendered scene; and `recommended.json` with the same numbers.
+fn answer(
+    page: &mut HtmlPage,
+    out: &Path,
+    r: &Recommendation,
+    seed: u64,
+    preset: &Preset,
+    other_methods: &[String],
+) -> Result<()> {
     let p = r.placement;
     let cell = &r.cells[0].1;
     let s = &r.summary;
@@ -318,6 +345,9 @@ fn answer(page: &mut HtmlPage, out: &Path, r: &Recommendation, seed: u64, preset
         recheck_seed(seed),
         if r.per_tray.len() > 1 { "; the rate is the lowest over the cell's trays" } else { "" }
     ));
+    if !other_methods.is_empty() {
+        page.paragraph(&other_methods.join(" "));
+    }
     let (lo, hi) = TrayModel::from_cell(cell)?.solid.bounds();
     let sketch = RigSketch {
         title: format!("rig at {p}"),
