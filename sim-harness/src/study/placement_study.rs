@@ -360,8 +360,16 @@ fn recommend(combos: &[Combination]) -> Option<Recommendation> {
         }
     }
     let (combo, top) = best?;
-    let all: Vec<&Candidate> = combos.iter().flat_map(|c| c.candidates.iter()).collect();
-    let tied = all.iter().filter(|c| c.summary.success_rate == top.summary.success_rate).count();
+    // Distinct (method, placement) pairs: the grid's best may also be a search candidate.
+    let mut tied: Vec<(Method, Placement)> = Vec::new();
+    for c in &combos {
+        for k in c.candidates.iter().filter(|k| k.summary.success_rate == top.summary.success_rate) {
+            if !tied.contains(&(c.method, k.placement)) {
+                tied.push((c.method, k.placement));
+            }
+        }
+    }
+    let tied = tied.len();
     Some(Recommendation {
         method: combo.method,
         placement: top.placement,
