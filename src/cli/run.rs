@@ -7,7 +7,7 @@
 
 use anyhow::{bail, Context};
 use camplace_config::Cell;
-use camplace_estimator::Rig;
+use camplace_estimator::{isometry_from_rows, isometry_to_rows, Rig};
 use camplace_hwio::{parse_source, DeploySource, Deployment};
 use camplace_sim::{
     estimator_for, frame_record, load_model, load_model_for, method_for, truth_path, write_latency_plot, FrameRecord,
@@ -79,17 +79,6 @@ struct RunLine<'a> {
     record: &'a FrameRecord,
 }
 
-/// `T_robot_world · T_world_tray`.
-fn in_robot_frame(t_robot_world: &[[f64; 4]; 4], t_world_tray: &[[f64; 4]; 4]) -> [[f64; 4]; 4] {
-    let mut out = [[0.0; 4]; 4];
-    for (i, row) in out.iter_mut().enumerate() {
-        for (j, v) in row.iter_mut().enumerate() {
-            *v = (0..4).map(|k| t_robot_world[i][k] * t_world_tray[k][j]).sum();
-        }
-    }
-    out
-}
-
 /// The folder and file name stem of `--latency-plot PATH`, checked before the run so a bad
 /// path cannot end a run whose poses were written.
 fn plot_target(path: &Path) -> anyhow::Result<(PathBuf, String)> {
@@ -141,7 +130,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         )),
         None => Box::new(std::io::stdout().lock()),
     };
-    let robot = cell.robot.as_ref().map(|r| r.t_robot_world);
+    let robot = cell.robot.as_ref().map(|r| isometry_from_rows(&r.t_robot_world));
     let dataset = opened.dataset;
     let mut records = Vec::new();
     let stats = deployment.run(
@@ -155,7 +144,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 timestamp_us: e.timestamp_us,
                 latency_ms: e.timing.latency_ms,
                 cpu_ms: e.timing.cpu_ms,
-                t_robot_tray: robot.filter(|_| e.record.found).map(|r| in_robot_frame(&r, &e.record.t_world_tray)),
+                t_robot_tray: robot
+                    .filter(|_| e.record.found)
+                    .map(|r| isometry_to_rows(&(r * isometry_from_rows(&e.record.t_world_tray)))),
                 record: &e.record,
             };
             let text = serde_json::to_string(&line).context("frame record")?;

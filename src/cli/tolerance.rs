@@ -6,7 +6,6 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::bail;
-use camplace_config::Cell;
 use camplace_sim::{measure_tolerance, write_tolerance_plots, ToleranceRequest, TOLERANCE_STEPS};
 
 use super::cell_args::CellArgs;
@@ -71,12 +70,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         max_steps: a.steps,
         parameters,
     };
-    let folders: Vec<(String, Cell, PathBuf)> = if trays.len() == 1 {
-        trays.into_iter().map(|(name, cell)| (name, cell, a.out.clone())).collect()
-    } else {
-        trays.into_iter().map(|(name, cell)| (name.clone(), cell, a.out.join(name))).collect()
-    };
-    let report = measure_tolerance(&a.out, folders, &request)?;
+    let report = measure_tolerance(&a.out, trays, &request)?;
     let plots = write_tolerance_plots(&a.out, &report)?;
     println!("{}", report.table());
     println!("wrote {} ({} plots)", a.out.join("tolerance.json").display(), plots.len());

@@ -19,7 +19,6 @@ use crate::scene::scenario::draw_scenario;
 use crate::scene::tray::TrayModel;
 use crate::seeds::noise_key;
 use crate::study::findings::{compare_paired, Paired, Verdict};
-use crate::study::folder::open_folder;
 use crate::study::grid::{Axis, Grid};
 use crate::study::optimize::recheck_seed;
 use crate::study::placement_study::{tolerance_dir, Combination, Preset, Recommendation, StudyRequest};
@@ -60,7 +59,7 @@ pub fn write_report(
     match recommendation {
         Some(r) => {
             // Each method's own best, for a cell whose sensor is already chosen.
-            let label = r.per_tray.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(" + ");
+            let label = r.trays_label();
             let others: Vec<String> = combos
                 .iter()
                 .filter(|c| c.trays_label == label && c.method != r.method)
@@ -133,7 +132,7 @@ pub fn write_report(
 
     // The maps and the search.
     for c in combos {
-        for t in &c.trays {
+        for (t, sweep) in c.set.trays.iter().zip(&c.sweeps) {
             page.heading(
                 2,
                 &format!("{} {}: success over r and alpha (the paper's Figures 5 and 6)", t.name, c.method),
@@ -144,13 +143,13 @@ pub fn write_report(
                     page.svg(&svg)?;
                 }
             }
-            if c.trays.len() == 1 {
+            if c.sweeps.len() == 1 {
                 let rows: Vec<Vec<String>> =
-                    t.sweep.rows.iter().map(|r| summary_cells(&r.placement, &r.summary)).collect();
+                    sweep.rows.iter().map(|r| summary_cells(&r.placement, &r.summary)).collect();
                 page.table(&SUMMARY_HEADER, &rows);
             }
         }
-        if c.trays.len() > 1 {
+        if c.sweeps.len() > 1 {
             page.heading(3, &format!("{}: each grid cell's lowest tray (the placement's objective)", c.name()));
             let rows: Vec<Vec<String>> = c.sweep.rows.iter().map(|r| summary_cells(&r.placement, &r.summary)).collect();
             page.table(&SUMMARY_HEADER, &rows);
@@ -199,7 +198,7 @@ pub fn write_report(
 
     page.heading(2, "Settings");
     let all: Vec<&Summary> =
-        combos.iter().flat_map(|c| c.trays.iter().flat_map(|t| t.sweep.rows.iter().map(|r| &r.summary))).collect();
+        combos.iter().flat_map(|c| c.sweeps.iter().flat_map(|s| s.rows.iter().map(|r| &r.summary))).collect();
     let median_ms = crate::study::median(&all.iter().map(|s| s.median_ms).collect::<Vec<_>>()).unwrap_or(0.0);
     let search = if preset.budget > 0 {
         format!(
@@ -265,7 +264,7 @@ fn answer(
     let vergence = p.vergence.degrees(p.r, p.baseline);
     let interval = format!("{:.1}–{:.1} %", 100.0 * s.success_interval[0], 100.0 * s.success_interval[1]);
     let mut rows: Vec<(String, String, String)> = vec![
-        ("trays".into(), "for".into(), r.per_tray.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(" + ")),
+        ("trays".into(), "for".into(), r.trays_label()),
         ("method".into(), "method".into(), r.method.to_string()),
         ("r".into(), "r (distance of the rig from the table centre)".into(), format!("{:.1} mm", p.r)),
         ("alpha".into(), "alpha (polar angle from vertical)".into(), format!("{:.2} deg", p.alpha)),
@@ -280,7 +279,7 @@ fn answer(
         ("success_interval".into(), "95 % interval (Wilson)".into(), interval),
     ];
     if r.per_tray.len() > 1 {
-        for (name, t) in &r.per_tray {
+        for ((name, _), t) in r.cells.iter().zip(&r.per_tray) {
             rows.push((
                 format!("tray:{name}"),
                 format!("success with {name}"),
@@ -382,7 +381,7 @@ fn answer(
         "secondary_measure": "mean correct feature matches per scene",
         "mean_correct_matches": s.mean_correct_matches,
         "tied_candidates": r.tied_candidates,
-        "trays": r.per_tray.iter().map(|(n, t)| serde_json::json!({
+        "trays": r.cells.iter().zip(&r.per_tray).map(|((n, _), t)| serde_json::json!({
             "name": n, "scenes": t.scored, "successes": t.successes,
             "success_rate": t.success_rate, "success_interval": t.success_interval,
         })).collect::<Vec<_>>(),
@@ -413,14 +412,9 @@ fn findings(page: &mut HtmlPage, out: &Path, combos: &[Combination], preset: &Pr
          only one side succeeded on is given beside it.",
     );
     // Each combination's first tray's results (the paper's experiment has one tray each).
-    let mut stores = Vec::new();
-    for c in combos {
-        let t = &c.trays[0];
-        stores.push((open_folder(&t.dir, &t.cell, c.method, seed)?, t.cell.placement));
-    }
     let outcomes = |i: usize, placement: &str, s: u64, n: u64| -> Result<Vec<Option<bool>>> {
-        let (store, base) = &stores[i];
-        Ok(store.outcomes(&base.with_overrides(placement)?, combos[i].method, s, n))
+        let set = &combos[i].set;
+        Ok(set.outcomes(0, &set.trays[0].cell.placement.with_overrides(placement)?, s, n))
     };
     let mut dependence = Vec::new();
     for (i, c) in combos.iter().enumerate() {

@@ -119,18 +119,6 @@ pub struct StudyRequest<'a> {
     pub shard: Shard,
 }
 
-/// One tray's sweep within a combination.
-pub struct TraySweep {
-    /// The tray's name.
-    pub name: String,
-    /// The cell with this tray.
-    pub cell: Cell,
-    /// Its folder.
-    pub dir: PathBuf,
-    /// Its 2-parameter sweep.
-    pub sweep: SweepResult,
-}
-
 /// A placement checked on fresh scenes.
 #[derive(Debug, Clone)]
 pub struct Candidate {
@@ -155,12 +143,24 @@ pub struct Recommendation {
     pub source: &'static str,
     /// Its lowest tray's summary on fresh scenes.
     pub summary: Summary,
-    /// Each tray's name and summary on the fresh scenes.
-    pub per_tray: Vec<(String, Summary)>,
-    /// Each tray's name, cell and folder.
-    pub cells: Vec<(String, Cell, PathBuf)>,
+    /// The trays it serves, each with its name.
+    pub cells: Vec<(String, Cell)>,
+    /// Each tray's summary on the fresh scenes, in the order of `cells`.
+    pub per_tray: Vec<Summary>,
     /// How many checked candidates (over every method) reached the same success rate.
     pub tied_candidates: usize,
+}
+
+impl Recommendation {
+    /// The trays' names joined by " + ", as [`Combination::trays_label`].
+    pub fn trays_label(&self) -> String {
+        trays_label(self.cells.iter().map(|(n, _)| n.as_str()))
+    }
+}
+
+/// Names joined by " + ".
+fn trays_label<'a>(names: impl Iterator<Item = &'a str>) -> String {
+    names.collect::<Vec<_>>().join(" + ")
 }
 
 /// What one method measured over one group of trays.
@@ -169,8 +169,10 @@ pub struct Combination {
     pub trays_label: String,
     /// The method.
     pub method: Method,
-    /// Each tray's sweep.
-    pub trays: Vec<TraySweep>,
+    /// The trays' open study folders (names, cells, folders).
+    pub set: TraySet,
+    /// Each tray's 2-parameter sweep, in the order of `set`.
+    pub sweeps: Vec<SweepResult>,
     /// The sweep judged over the trays: each cell's lowest tray.
     pub sweep: SweepResult,
     /// The 4-parameter search, if the preset runs one.
@@ -252,24 +254,25 @@ fn run_combination(
     shard: Shard,
     say: &mut impl FnMut(&str),
 ) -> Result<Option<Combination>> {
-    let trays_label = group.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(" + ");
+    let trays_label = trays_label(group.iter().map(|(n, _)| n.as_str()));
     let base = group[0].1.placement;
-    let mut trays = Vec::new();
+    let mut folders = Vec::new();
+    let mut sweeps = Vec::new();
     for (name, cell) in group {
         let dir = out.join(name).join(method.to_string());
         let label = format!("{name} {method} sweep");
-        let s = sweep(&dir, cell, &base, method, seed, grid, preset.sweep_scenarios, shard, &label)?;
-        trays.push(TraySweep { name: name.clone(), cell: cell.clone(), dir, sweep: s });
+        sweeps.push(sweep(&dir, cell, &base, method, seed, grid, preset.sweep_scenarios, shard, &label)?);
+        folders.push((name.clone(), cell.clone(), dir));
     }
     if !shard.is_whole() {
         return Ok(None);
     }
-    let set =
-        TraySet::open(trays.iter().map(|t| (t.name.clone(), t.cell.clone(), t.dir.clone())).collect(), method, seed)?;
-    let sweep = joint_sweep(&trays);
+    // Opened after the sweeps, which keep their own handle on the same files.
+    let set = TraySet::open(folders, method, seed)?;
+    let sweep = joint_sweep(&sweeps);
     let search_dir =
-        if trays.len() == 1 { trays[0].dir.clone() } else { out.join("all-trays").join(method.to_string()) };
-    if trays.len() > 1 {
+        if sweeps.len() == 1 { set.trays[0].dir.clone() } else { out.join("all-trays").join(method.to_string()) };
+    if sweeps.len() > 1 {
         std::fs::create_dir_all(&search_dir)
             .map_err(|e| Error::Other(format!("{}: cannot create the folder: {e}", search_dir.display())))?;
         write_summary_csv(&search_dir.join("summary.csv"), &sweep.rows)?;
@@ -321,18 +324,18 @@ fn run_combination(
             c.placement
         ))
     ));
-    Ok(Some(Combination { trays_label, method, trays, sweep, search, search_dir, candidates }))
+    Ok(Some(Combination { trays_label, method, set, sweeps, sweep, search, search_dir, candidates }))
 }
 
 /// The sweep over several trays: each cell's lowest tray (one tray's sweep as it is).
-fn joint_sweep(trays: &[TraySweep]) -> SweepResult {
-    if trays.len() == 1 {
-        return trays[0].sweep.clone();
+fn joint_sweep(sweeps: &[SweepResult]) -> SweepResult {
+    if sweeps.len() == 1 {
+        return sweeps[0].clone();
     }
-    let first = &trays[0].sweep;
+    let first = &sweeps[0];
     let rows: Vec<SummaryRow> = (0..first.rows.len())
         .map(|i| {
-            let summaries: Vec<Summary> = trays.iter().map(|t| t.sweep.rows[i].summary.clone()).collect();
+            let summaries: Vec<Summary> = sweeps.iter().map(|s| s.rows[i].summary.clone()).collect();
             SummaryRow { summary: lowest(&summaries), ..first.rows[i].clone() }
         })
         .collect();
@@ -342,7 +345,7 @@ fn joint_sweep(trays: &[TraySweep]) -> SweepResult {
         .filter(|(_, r)| r.summary.scored > 0)
         .max_by(|a, b| a.1.summary.success_rate.total_cmp(&b.1.summary.success_rate).then(b.0.cmp(&a.0)))
         .map(|(i, _)| i);
-    SweepResult { rows, complete: trays.iter().all(|t| t.sweep.complete), best }
+    SweepResult { rows, complete: sweeps.iter().all(|s| s.complete), best }
 }
 
 /// The placement to mount: the best candidate on fresh scenes over every method, by
@@ -375,8 +378,8 @@ fn recommend(combos: &[Combination]) -> Option<Recommendation> {
         placement: top.placement,
         source: top.source,
         summary: top.summary.clone(),
-        per_tray: combo.trays.iter().map(|t| t.name.clone()).zip(top.per_tray.iter().cloned()).collect(),
-        cells: combo.trays.iter().map(|t| (t.name.clone(), t.cell.clone(), t.dir.clone())).collect(),
+        cells: combo.set.trays.iter().map(|t| (t.name.clone(), t.cell.clone())).collect(),
+        per_tray: top.per_tray.clone(),
         tied_candidates: tied,
     })
 }
@@ -386,11 +389,6 @@ fn recommend(combos: &[Combination]) -> Option<Recommendation> {
 /// folder of the first).
 fn tolerance(out: &Path, r: &Recommendation, seed: u64, preset: &Preset) -> Result<ToleranceReport> {
     let dir = tolerance_dir(out, r.method);
-    let trays: Vec<(String, Cell, PathBuf)> = if r.cells.len() == 1 {
-        vec![(r.cells[0].0.clone(), r.cells[0].1.clone(), dir.clone())]
-    } else {
-        r.cells.iter().map(|(n, c, _)| (n.clone(), c.clone(), dir.join(n))).collect()
-    };
     let request = ToleranceRequest {
         placement: r.placement,
         method: r.method,
@@ -400,7 +398,7 @@ fn tolerance(out: &Path, r: &Recommendation, seed: u64, preset: &Preset) -> Resu
         max_steps: preset.tolerance_steps,
         parameters: (0..TOLERANCE_STEPS.len()).collect(),
     };
-    let report = measure_tolerance(&dir, trays, &request)?;
+    let report = measure_tolerance(&dir, r.cells.clone(), &request)?;
     write_tolerance_plots(&dir, &report)?;
     Ok(report)
 }

@@ -14,8 +14,6 @@
 
 use std::path::Path;
 
-use std::path::PathBuf;
-
 use camplace_config::{write_atomic, Cell, Placement};
 use serde::{Deserialize, Serialize};
 
@@ -254,12 +252,12 @@ fn point(offset: f64, s: &Summary) -> TolerancePoint {
 }
 
 /// Measures the tolerances of `request` for one placement serving every tray of `trays`
-/// (`(name, cell, folder)`; a placement's success is its lowest over the trays; results
-/// appended to each tray's folder as scenes finish, so a stopped run resumes), writes `tolerance.json` into `dir`
+/// (`(name, cell)`; a placement's success is its lowest over the trays; results appended
+/// as scenes finish to the study folder `dir`, or with several trays to `dir/NAME`, so a stopped run resumes), writes `tolerance.json` into `dir`
 /// and returns it.
 pub fn measure_tolerance(
     dir: &Path,
-    trays: Vec<(String, Cell, PathBuf)>,
+    trays: Vec<(String, Cell)>,
     request: &ToleranceRequest,
 ) -> Result<ToleranceReport> {
     let r = request;
@@ -276,7 +274,16 @@ pub fn measure_tolerance(
         .set("vergence", verged)
         .filter(|p| p.validate("").is_ok())
         .ok_or_else(|| Error::Other(format!("--placement: {} is not a valid placement", r.placement)))?;
-    let set = TraySet::open(trays, r.method, r.seed)?;
+    // One tray's scenes in `dir` itself; several trays' each in `dir/NAME`.
+    let one = trays.len() == 1;
+    let folders = trays
+        .into_iter()
+        .map(|(name, cell)| {
+            let folder = if one { dir.to_path_buf() } else { dir.join(&name) };
+            (name, cell, folder)
+        })
+        .collect();
+    let set = TraySet::open(folders, r.method, r.seed)?;
     let evaluate =
         |p: &Placement| -> Result<Summary> { Ok(lowest(&set.evaluate(p, r.seed, r.scenarios, "tolerance")?)) };
 

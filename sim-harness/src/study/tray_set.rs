@@ -60,6 +60,12 @@ impl TraySet {
         Ok(out)
     }
 
+    /// Whether each of scenarios `0..n` of `seed` succeeded at `placement` for tray `tray`,
+    /// by scenario (`None`: not in the folder or not scored), for comparisons paired by scene.
+    pub fn outcomes(&self, tray: usize, placement: &Placement, seed: u64, n: u64) -> Vec<Option<bool>> {
+        self.trays[tray].store.outcomes(placement, self.method, seed, n)
+    }
+
     /// The summaries of `placement` already in the folders, without running anything.
     pub fn stored(&self, placement: &Placement, seed: u64, n: u64) -> Vec<Summary> {
         self.trays.iter().map(|t| Summary::from_records(&t.store.records(placement, self.method, seed, n))).collect()
