@@ -1,11 +1,14 @@
 //! camplace's end-to-end tests: the CLI and the crates together, in one test binary.
 
+mod calibrate;
 mod camplace_cmd;
 mod capture;
 mod cli_errors;
 mod cluster;
+mod commissioning;
 mod deploy;
 mod estimate;
+mod installed_rig;
 mod integrity;
 mod meshes;
 mod own_cell;

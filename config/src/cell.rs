@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use crate::formats::mesh;
 use crate::trays::{parse_trays, validate_trays, TrayEntry};
-use crate::{Error, ErrorKind, Placement, MAX_DISTANCE_MM};
+use crate::{Error, ErrorKind, Placement, RigFile, MAX_DISTANCE_MM};
 
 /// The commented default cell file, as `camplace init` writes it.
 pub const DEFAULT_CELL_TOML: &str = include_str!("default_cell.toml");
@@ -37,6 +37,11 @@ pub struct Cell {
     /// The trays of a cell that handles several products (empty: the one `tray`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub trays: Vec<TrayEntry>,
+    /// The rig as installed (`[rig]`, a calibrated `rig.json`, usually given with `--rig`):
+    /// when set, scenes are rendered by these cameras, with the projector where the
+    /// placement puts it relative to the left camera, instead of by the placement's rig.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rig: Option<RigFile>,
 }
 
 /// The robot the poses are for.
@@ -110,6 +115,10 @@ pub struct Sensor {
     pub camera_hfov: f64,
     /// Full camera matrix, empty for one made from `camera_hfov`.
     pub camera_k: Vec<[f64; 3]>,
+    /// Lens distortion of both cameras, k1 k2 p1 p2 k3 (OpenCV order); all zero (the
+    /// default, left out of the cell's canonical text) renders distortion-free images.
+    #[serde(default, skip_serializing_if = "is_distortion_free")]
+    pub camera_dist: [f64; 5],
     pub projector_resolution: [u32; 2],
     pub projector_hfov: f64,
     pub projector_offset: [f64; 3],
@@ -294,6 +303,9 @@ impl Cell {
             // The listed trays replace [tray] and [items], which only lend them defaults.
             validate_trays(self)?;
         }
+        if let Some(rig) = &self.rig {
+            rig.check().map_err(|e| e.under_key("rig"))?;
+        }
         self.validate_rest()
     }
 
@@ -384,6 +396,7 @@ impl Cell {
                 ));
             }
         }
+        check_camera_dist(s)?;
         if s.projector_resolution.iter().any(|&v| !(16..=8192).contains(&v)) {
             return Err(Error::value(
                 "sensor.projector_resolution",
@@ -700,6 +713,55 @@ fn positive(key: &str, v: &[f64]) -> Result<(), Error> {
 /// The smallest size of a table or an item, mm: a tenth of a millimetre is below anything
 /// the sensor resolves.
 const MIN_SIZE_MM: f64 = 0.1;
+
+/// Whether a distortion is all zero (serde's skip test for `camera_dist`).
+fn is_distortion_free(dist: &[f64; 5]) -> bool {
+    dist.iter().all(|&d| d == 0.0)
+}
+
+/// The largest size of a distortion coefficient: real lenses stay well below it.
+const MAX_DISTORTION_COEFFICIENT: f64 = 10.0;
+
+/// `camera_dist` must be finite, and the distortion one-to-one over the image: along every
+/// ray out to the image's corners the distorted radius keeps growing, or the renderer could
+/// not map pixels back to rays.
+fn check_camera_dist(s: &Sensor) -> Result<(), Error> {
+    let d = s.camera_dist;
+    if !d.iter().all(|v| v.is_finite() && v.abs() <= MAX_DISTORTION_COEFFICIENT) {
+        return Err(Error::value(
+            "sensor.camera_dist",
+            format!("expected [k1, k2, p1, p2, k3], finite numbers within ±{MAX_DISTORTION_COEFFICIENT}, got {d:?}"),
+        ));
+    }
+    if is_distortion_free(&d) {
+        return Ok(());
+    }
+    // The half diagonal of the image in normalised coordinates, with a margin for the
+    // principal point and the tangential terms.
+    let [w, h] = s.camera_resolution.map(f64::from);
+    let fx =
+        if s.camera_k.len() == 3 { s.camera_k[0][0] } else { (w / 2.0) / (s.camera_hfov.to_radians() / 2.0).tan() };
+    let fy = if s.camera_k.len() == 3 { s.camera_k[1][1] } else { fx };
+    let r_max = 1.5 * ((w / fx).powi(2) + (h / fy).powi(2)).sqrt() / 2.0;
+    let [k1, k2, _, _, k3] = d;
+    let steps = 200;
+    for i in 0..=steps {
+        let r = r_max * i as f64 / steps as f64;
+        let r2 = r * r;
+        // d/dr of r (1 + k1 r^2 + k2 r^4 + k3 r^6).
+        let slope = 1.0 + 3.0 * k1 * r2 + 5.0 * k2 * r2 * r2 + 7.0 * k3 * r2 * r2 * r2;
+        if slope <= 0.05 {
+            return Err(Error::value(
+                "sensor.camera_dist",
+                format!(
+                    "expected a distortion that is one-to-one over the image, but its radial part folds back at {:.0} % of the image's half diagonal",
+                    100.0 * r / (r_max / 1.5)
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
 
 fn angle_open(key: &str, v: f64, lo: f64, hi: f64) -> Result<(), Error> {
     if v.is_finite() && v > lo && v < hi {

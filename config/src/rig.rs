@@ -56,10 +56,16 @@ impl RigFile {
     /// Parses and checks rig JSON text.
     pub fn from_json(text: &str) -> Result<RigFile, Error> {
         let rig: RigFile = crate::formats::json::decode(text)?;
-        rig.left.check("left")?;
-        rig.right.check("right")?;
+        rig.check()?;
+        Ok(rig)
+    }
+
+    /// Checks every camera (size, K, distortion, pose) and the baseline.
+    pub fn check(&self) -> Result<(), Error> {
+        self.left.check("left")?;
+        self.right.check("right")?;
         let baseline = (0..3)
-            .map(|r| rig.right.t_world_camera[r][3] - rig.left.t_world_camera[r][3])
+            .map(|r| self.right.t_world_camera[r][3] - self.left.t_world_camera[r][3])
             .map(|d| d * d)
             .sum::<f64>()
             .sqrt();
@@ -71,13 +77,13 @@ impl RigFile {
                 ),
             ));
         }
-        if let Some(p) = &rig.projector {
+        if let Some(p) = &self.projector {
             p.check("projector")?;
         }
-        if let Some(r) = &rig.rectified {
+        if let Some(r) = &self.rectified {
             r.check()?;
         }
-        Ok(rig)
+        Ok(())
     }
 
     /// The rig as pretty JSON.

@@ -1,5 +1,6 @@
 //! The estimator's error type: data-dependent failures (a rig that cannot be rectified,
-//! buffers of the wrong size, a model file that does not decode).
+//! buffers of the wrong size, a model file that does not decode, calibration views that do
+//! not determine the cameras).
 
 use std::fmt;
 use std::sync::Arc;
@@ -14,6 +15,9 @@ pub enum ErrorKind {
     Input,
     /// A model that does not decode or is of another format version.
     Model,
+    /// Calibration views that do not determine the cameras (degenerate board poses) or a
+    /// refinement that diverged.
+    Calibration,
 }
 
 /// An estimator error with a one-line message naming the field and what was expected, and

@@ -5,11 +5,14 @@
 //! The stages live in folders by pipeline step: `depth` (rectification, stereo or phase
 //! decoding, background, world cloud), `features` (down-sampling, normals, key points,
 //! descriptors, matching), `pose` (model, RANSAC, ICP, metrics) and `spatial` (the point
-//! indexes the stages share). Every public item is re-exported here, at one path.
+//! indexes the stages share). `calibration` runs before any of them, once per rig: it turns
+//! detected chessboard corners into the cameras. Every public item is re-exported here, at
+//! one path.
 
 #[macro_use]
 mod cpu;
 
+mod calibration;
 mod camera;
 mod depth;
 mod error;
@@ -20,6 +23,10 @@ mod pose;
 mod rig;
 mod spatial;
 
+pub use calibration::{
+    calibrate_stereo, find_board_corners, BoardView, CalibrationBoard, StereoCalibration, ViewResidual,
+    MIN_CALIBRATION_VIEWS,
+};
 pub use camera::{isometry_from_matrix, isometry_from_rows, isometry_to_rows, Camera};
 pub use depth::{
     Background, Cloud, CloudBuilder, DisparityMatcher, Elas, PhaseDecoder, ReconstructTimings, Reconstruction,

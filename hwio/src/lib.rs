@@ -29,5 +29,5 @@ pub use error::{Error, ErrorKind, Result};
 pub use frames::{FrameInfo, FrameSource, Frames};
 pub use paced::Paced;
 pub use pixels::{deinterleave16, luma601, split_side_by_side, to_gray, InterleavedOrder, PixelFormat};
-pub use recorded::{append_frame, read_background, write_background, RecordedSource};
+pub use recorded::{append_frame, read_background, write_background, write_table_view, RecordedSource};
 pub use spec::{open_source, parse_source, SourceSpec, SOURCE_FORMS};

@@ -198,9 +198,21 @@ pub fn append_frame(root: &Path, frames: &Frames, rig: Option<&Path>) -> Result<
 /// `replay` remove from every frame) and returns its folder; refuses to replace one that is
 /// there. With `rig`, copies that calibration to the dataset's `rig.json` when it has none.
 pub fn write_background(root: &Path, frames: &Frames, rig: Option<&Path>) -> Result<PathBuf> {
-    let dir = root.join("background");
+    write_once(root, "background", "a background", frames, rig)
+}
+
+/// Writes `frames` as the calibration images' `table/` (the board lying flat on the table,
+/// which ties the calibration to the world frame) and returns its folder; refuses to replace
+/// one that is there.
+pub fn write_table_view(root: &Path, frames: &Frames, rig: Option<&Path>) -> Result<PathBuf> {
+    write_once(root, "table", "a table view", frames, rig)
+}
+
+/// Writes `frames` into `root/name/` unless that folder exists.
+fn write_once(root: &Path, name: &str, what: &str, frames: &Frames, rig: Option<&Path>) -> Result<PathBuf> {
+    let dir = root.join(name);
     if dir.exists() {
-        return Err(Error::format(&dir, "already holds a background; remove the folder first to capture a new one"));
+        return Err(Error::format(&dir, format!("already holds {what}; remove the folder first to capture a new one")));
     }
     write_shots(&dir, frames)?;
     copy_rig(root, rig)?;

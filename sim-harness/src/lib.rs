@@ -25,13 +25,13 @@ pub use reconstruction::{
 };
 pub use render::pattern::{fringe_set, one_shot};
 pub use render::render_files::{clear_dataset, render_dataset, render_scene};
-pub use render::{Frame, Method, Simulator};
+pub use render::{render_board_views, table_board_pose, BoardTruth, Frame, Method, Simulator};
 pub use report::latency::write_latency_plot;
 pub use report::plot::SavedPlot;
 pub use report::sweep_panels::SweepResult;
 pub use report::tolerance_plot::write_tolerance_plots;
 pub use scene::as_built::{as_built, azimuth_difference, AsBuilt};
-pub use scene::placement_rig::rig_for;
+pub use scene::placement_rig::{rig_for, sensor_rig};
 pub use scene::scenario::{background_scene, draw_scenario, Scenario};
 pub use scene::SceneSpec;
 pub use search::test_functions::{run_test_function, test_function};

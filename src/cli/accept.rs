@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use anyhow::bail;
 use camplace_sim::acceptance_summary;
 
-use super::cell_args::CellArgs;
+use super::cell_args::{CellArgs, InstalledRigArg};
 use super::study_args::check_scenarios;
 use super::study_args::SceneArgs;
 
@@ -16,6 +16,8 @@ use super::study_args::SceneArgs;
 pub struct Args {
     #[command(flatten)]
     cell: CellArgs,
+    #[command(flatten)]
+    installed: InstalledRigArg,
     #[command(flatten)]
     scene: SceneArgs,
     /// Required success rate, 0..1: the lower end of the 95 % interval must reach it.
@@ -34,7 +36,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if !(0.0..=1.0).contains(&a.min_success) {
         bail!("--min-success: expected a rate between 0 and 1 (e.g. 0.95), got {}", a.min_success);
     }
-    let (cell, placement) = a.cell.load()?;
+    let (mut cell, mut placement) = a.cell.load()?;
+    a.installed.apply(&mut cell, &mut placement)?;
     let seed = a.scene.seed(&cell);
     let scenarios = check_scenarios(a.scenarios)?;
     let s = acceptance_summary(a.out.as_deref(), &cell, &placement, a.scene.method, seed, scenarios)?;

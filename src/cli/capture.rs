@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use anyhow::bail;
-use camplace_hwio::{append_frame, open_source, parse_source, write_background, Frames, SourceSpec};
+use camplace_hwio::{append_frame, open_source, parse_source, write_background, write_table_view, Frames, SourceSpec};
 
 /// The most frames one run may capture.
 const MAX_COUNT: u64 = 1_000_000;
@@ -38,8 +38,12 @@ pub struct Args {
     #[arg(long, value_name = "FILE")]
     rig: Option<PathBuf>,
     /// The frame is the empty cell: write it as the dataset's background/ (one frame).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "table")]
     background: bool,
+    /// The frame shows the calibration board lying flat on the table: write it as table/
+    /// (one frame), which `calibrate` takes the world frame from.
+    #[arg(long)]
+    table: bool,
 }
 
 /// Runs `camplace capture`.
@@ -52,6 +56,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     if a.background && a.count != 1 {
         bail!("--background: the background is one frame; leave out --count {}", a.count);
+    }
+    if a.table && a.count != 1 {
+        bail!("--table: the table view is one frame; leave out --count {}", a.count);
     }
     let spec = parse_source(&a.source)?;
     let rig = match (&a.rig, &spec) {
@@ -82,6 +89,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         let Some(info) = info else { break };
         let dir = if a.background {
             write_background(&a.out, &frames, rig.as_deref())?
+        } else if a.table {
+            write_table_view(&a.out, &frames, rig.as_deref())?
         } else {
             append_frame(&a.out, &frames, rig.as_deref())?
         };

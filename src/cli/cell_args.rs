@@ -1,7 +1,10 @@
-//! The flags every simulation command shares: the cell file and a placement override.
+//! The flags every simulation command shares: the cell file and a placement override, and
+//! for the commands that judge one sensor, the rig as installed.
 
 use anyhow::Context;
-use camplace_config::{Cell, Placement};
+use camplace_config::{Cell, Placement, RigFile, Vergence};
+use camplace_estimator::Rig;
+use camplace_sim::as_built;
 use std::path::PathBuf;
 
 /// `--cell FILE` and `--placement r=..,alpha=..,baseline=..,vergence=..`.
@@ -59,4 +62,47 @@ impl CellArgs {
             None => cell.placement,
         })
     }
+}
+
+/// `--rig FILE`, for the commands that judge one sensor: simulate the rig as installed.
+#[derive(clap::Args, Debug, Clone)]
+pub struct InstalledRigArg {
+    /// The rig as installed (a calibrated rig.json): scenes are rendered by its cameras, with
+    /// the cell's projector where the placement puts it relative to the left camera, instead
+    /// of by a planned placement's rig. The placement is then the rig's as built.
+    #[arg(long, value_name = "FILE", conflicts_with = "placement")]
+    pub rig: Option<PathBuf>,
+}
+
+impl InstalledRigArg {
+    /// Sets the cell's installed rig from `--rig` and the placement to where it is mounted.
+    pub fn apply(&self, cell: &mut Cell, placement: &mut Placement) -> anyhow::Result<()> {
+        let Some(path) = &self.rig else { return Ok(()) };
+        let file = RigFile::load(path)?;
+        let built = as_built(&Rig::from_file(&file)).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        cell.rig = Some(file);
+        // The placement labels results and places the projector: a micrometre and a
+        // micro-degree are far below what a calibration resolves, and keep labels short.
+        let round = |v: f64| (v * 1e6).round() / 1e6;
+        let p = built.placement;
+        *placement = Placement {
+            r: round(p.r),
+            alpha: round(p.alpha),
+            baseline: round(p.baseline),
+            vergence: Vergence::Degrees(round(p.vergence.degrees(p.r, p.baseline))),
+            azimuth: round(p.azimuth),
+        };
+        Ok(())
+    }
+}
+
+/// A cell with an installed rig (`[rig]`) fixes the cameras, so a command that varies the
+/// placement cannot use it.
+pub fn refuse_installed_rig(cell: &Cell, command: &str) -> anyhow::Result<()> {
+    if cell.rig.is_some() {
+        anyhow::bail!(
+            "--cell: its [rig] fixes the cameras where they are installed, but {command} varies the placement; remove [rig] (use it with evaluate, accept and model)"
+        );
+    }
+    Ok(())
 }

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 
 use camplace_sim::evaluate_placement;
 
-use super::cell_args::CellArgs;
+use super::cell_args::{CellArgs, InstalledRigArg};
 use super::study_args::{check_scenarios, StudyArgs};
 
 /// Flags of `camplace evaluate`.
@@ -14,6 +14,8 @@ use super::study_args::{check_scenarios, StudyArgs};
 pub struct Args {
     #[command(flatten)]
     cell: CellArgs,
+    #[command(flatten)]
+    installed: InstalledRigArg,
     #[command(flatten)]
     run: StudyArgs,
     /// Scenarios 0..N-1 of the seed.
@@ -26,7 +28,8 @@ pub struct Args {
 
 /// Runs `camplace evaluate`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    let (cell, placement) = a.cell.load()?;
+    let (mut cell, mut placement) = a.cell.load()?;
+    a.installed.apply(&mut cell, &mut placement)?;
     let seed = a.run.seed(&cell);
     let method = a.run.method();
     let scenarios = check_scenarios(a.scenarios)?;

@@ -1,6 +1,7 @@
 //! The subcommands and their flags; one module per subcommand.
 
 mod accept;
+mod calibrate;
 mod capture;
 mod cell_args;
 mod devices;
@@ -65,6 +66,8 @@ enum Command {
     Replay(replay::Args),
     /// The deployed loop: frames from cameras or a recording, one pose per frame, latency.
     Run(run::Args),
+    /// The installed rig's rig.json from stereo pairs of a chessboard (with one lying on the table).
+    Calibrate(calibrate::Args),
     /// Save frames from a source as a recorded dataset (calibration images, the background, frames to replay).
     Capture(capture::Args),
     /// List the cameras of this machine.
@@ -98,6 +101,7 @@ pub fn dispatch() -> anyhow::Result<ExitCode> {
         Command::Merge(a) => merge::run(a),
         Command::Replay(a) => replay::run(a),
         Command::Run(a) => run::run(a),
+        Command::Calibrate(a) => calibrate::run(a),
         Command::Capture(a) => capture::run(a),
         Command::Devices(a) => devices::run(a),
         Command::Project(a) => project::run(a),

@@ -7,7 +7,7 @@ use camplace_sim::{build_model, model_points};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use super::cell_args::CellArgs;
+use super::cell_args::{CellArgs, InstalledRigArg};
 use super::study_args::SceneArgs;
 
 /// Flags of `camplace model`.
@@ -15,6 +15,8 @@ use super::study_args::SceneArgs;
 pub struct Args {
     #[command(flatten)]
     cell: CellArgs,
+    #[command(flatten)]
+    installed: InstalledRigArg,
     #[command(flatten)]
     scene: SceneArgs,
     /// The model file to write.
@@ -27,7 +29,8 @@ pub struct Args {
 
 /// Runs `camplace model`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    let (cell, placement) = a.cell.load()?;
+    let (mut cell, mut placement) = a.cell.load()?;
+    a.installed.apply(&mut cell, &mut placement)?;
     let seed = a.scene.seed(&cell);
     let model = build_model(&cell, &placement, a.scene.method, seed)?;
     write_atomic(&a.out, &model.to_bytes())?;

@@ -12,7 +12,7 @@ use std::process::ExitCode;
 use anyhow::{bail, Context};
 use camplace_sim::{optimize, run_test_function, test_function, SearchParameter, SearchPlan};
 
-use super::cell_args::CellArgs;
+use super::cell_args::{refuse_installed_rig, CellArgs};
 use super::study_args::{check_scenarios, StudyArgs};
 
 /// Flags of `camplace optimize`.
@@ -69,6 +69,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     let out = a.out.as_ref().context("--out: expected a study folder")?;
     let (cell, base) = a.cell.load()?;
+    refuse_installed_rig(&cell, "optimize")?;
     let seed = a.run.seed(&cell);
     let mut names: Vec<&str> = a.params.iter().map(|p| p.name.as_str()).collect();
     names.sort_unstable();

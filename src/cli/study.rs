@@ -44,6 +44,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         Some(p) => Cell::load(p)?,
         None => Cell::default(),
     };
+    super::cell_args::refuse_installed_rig(&cell, "study")?;
     let seed = a.seed.unwrap_or(cell.scenarios.seed);
     let shard = match &a.shard {
         Some(t) => t.parse::<Shard>().map_err(|e| anyhow::anyhow!("--shard: {e}"))?,

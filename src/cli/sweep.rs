@@ -6,7 +6,7 @@ use std::process::ExitCode;
 
 use camplace_sim::{sweep, Axis, Grid, Shard, SweepResult};
 
-use super::cell_args::CellArgs;
+use super::cell_args::{refuse_installed_rig, CellArgs};
 use super::study_args::{check_scenarios, StudyArgs};
 
 /// Flags of `camplace sweep`.
@@ -37,6 +37,7 @@ fn parse_axis(s: &str) -> Result<Axis, String> {
 /// Runs `camplace sweep`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (cell, base) = a.cell.load()?;
+    refuse_installed_rig(&cell, "sweep")?;
     let seed = a.run.seed(&cell);
     let scenarios = check_scenarios(a.scenarios)?;
     let grid = Grid { x: a.x.clone(), y: a.y.clone() };

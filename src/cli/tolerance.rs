@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use anyhow::bail;
 use camplace_sim::{measure_tolerance, write_tolerance_plots, ToleranceRequest, TOLERANCE_STEPS};
 
-use super::cell_args::CellArgs;
+use super::cell_args::{refuse_installed_rig, CellArgs};
 use super::study_args::{check_scenarios, SceneArgs};
 
 /// The most steps a walk may take in one direction.
@@ -44,6 +44,7 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     // A cell that lists several trays: one placement for all of them, judged by the lowest.
     let (trays, placement) = a.cell.load_trays()?;
+    refuse_installed_rig(&trays[0].1, "tolerance")?;
     let seed = a.scene.seed(&trays[0].1);
     if !(1..=MAX_STEPS).contains(&a.steps) {
         bail!("--steps: expected 1 to {MAX_STEPS} steps, got {}", a.steps);

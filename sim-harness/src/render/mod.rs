@@ -2,7 +2,9 @@
 //! capture — rasterizing, shading, the projector's patterns and the camera noise — and the
 //! frame files written from them.
 
+mod board;
 pub mod frame_files;
+mod lens;
 pub mod noise;
 pub mod pattern;
 pub mod raster;
@@ -10,4 +12,5 @@ pub mod render_files;
 pub mod shade;
 mod simulator;
 
+pub use board::{render_board_views, table_board_pose, BoardTruth};
 pub use simulator::{Frame, Method, Simulator};

@@ -19,6 +19,21 @@ pub fn pixel_noise(key: u64, pixel: u64, amplitude: u32) -> i32 {
     (((h >> 32) * n) >> 32) as i32 - amplitude as i32
 }
 
+/// Adds the noise of image key `key` at `amplitude` to every pixel of `image` (pixel `i`
+/// gets the noise [`ShadingTerms::shade`](crate::render::shade::ShadingTerms::shade) gives it).
+pub fn add_noise(image: &mut [f32], key: u64, amplitude: u32) {
+    if amplitude == 0 {
+        return;
+    }
+    let band = 4096;
+    image.par_chunks_mut(band).enumerate().for_each(|(chunk, values)| {
+        let first = (chunk * band) as u64;
+        for (x, v) in values.iter_mut().enumerate() {
+            *v += pixel_noise(key, first + x as u64, amplitude) as f32;
+        }
+    });
+}
+
 /// `v.round().clamp(0.0, 255.0) as u8` (halves away from zero, NaN to 0) without the
 /// library call `round` becomes on x86-64 without SSE4.1.
 #[inline(always)]

@@ -13,11 +13,12 @@ pub use camplace_estimator::Method;
 use camplace_estimator::{Camera, Rig};
 use nalgebra::Point3;
 
-use crate::render::noise::mean_filter_to_u8;
+use crate::render::lens::LensWarp;
+use crate::render::noise::{add_noise, mean_filter_to_u8};
 use crate::render::pattern::{fringe_set, one_shot, ProjectorImage};
 use crate::render::raster::{View, ZBuffer};
 use crate::render::shade::{Lights, ShadingTerms};
-use crate::scene::placement_rig::{look_at, rig_for};
+use crate::scene::placement_rig::{look_at, sensor_rig};
 use crate::scene::{Objects, SceneSpec, SceneTriangle, ID_TABLE};
 use crate::seeds::image_key;
 use crate::{Error, Result};
@@ -48,7 +49,11 @@ pub struct Frame {
 pub struct Simulator {
     rig: Rig,
     objects: Objects,
+    /// What each camera's rasterizer draws: the camera itself, or for a camera with lens
+    /// distortion its distortion-free canvas.
     cameras: [View; 2],
+    /// Per camera with lens distortion, the warp from its canvas to its image.
+    lenses: [Option<LensWarp>; 2],
     projector: View,
     projector_gain: f64,
     noise_amplitude: u32,
@@ -64,10 +69,15 @@ pub struct Simulator {
     lamp_map: ZBuffer,
     clean: Vec<f32>,
     scratch: Vec<f32>,
+    /// A canvas's shaded grey levels, depth and ids before the lens warp (empty without one).
+    canvas_grey: Vec<f32>,
+    canvas_depth: FloatImage,
+    canvas_ids: GrayImage,
 }
 
 impl Simulator {
-    /// The sensor of `cell` at `placement`, its one-shot dots drawn from `pattern_seed`.
+    /// The sensor of `cell` at `placement` (or the cell's installed rig, which then fixes
+    /// the cameras), its one-shot dots drawn from `pattern_seed`.
     pub fn new(cell: &Cell, placement: &Placement, pattern_seed: u64) -> Result<Simulator> {
         let sensor = &cell.sensor;
         if sensor.blur.is_multiple_of(2) || sensor.blur > 15 {
@@ -76,14 +86,18 @@ impl Simulator {
                 sensor.blur
             )));
         }
-        let rig = rig_for(placement, sensor);
-        let cameras = [View::new(&rig.left)?, View::new(&rig.right)?];
+        let rig = sensor_rig(cell, placement);
+        let lenses = [LensWarp::new(&rig.left), LensWarp::new(&rig.right)];
+        let drawn =
+            |camera: &Camera, lens: &Option<(Camera, LensWarp)>| View::new(lens.as_ref().map_or(camera, |l| &l.0));
+        let cameras = [drawn(&rig.left, &lenses[0])?, drawn(&rig.right, &lenses[1])?];
+        let lenses = lenses.map(|l| l.map(|(_, warp)| warp));
         let projector_camera =
             rig.projector.as_ref().ok_or_else(|| Error::Other("the sensor has no projector".to_string()))?;
         let projector = View::new(projector_camera)?;
         let one_shot_images = vec![one_shot(sensor, pattern_seed)];
         let fringe_images = fringe_set(sensor);
-        let (w, h) = (cameras[0].width, cameras[0].height);
+        let (w, h) = (rig.left.width, rig.left.height);
         let footprint = footprint(&rig.left, projector_camera);
         Ok(Simulator {
             objects: Objects::from_cell(cell)?,
@@ -91,17 +105,21 @@ impl Simulator {
             fringes: fringe_images.iter().map(|i| ProjectorImage::new(i, footprint)).collect(),
             one_shot_images,
             fringe_images,
-            zbuffers: [ZBuffer::new(w, h), ZBuffer::new(w, h)],
-            terms: [ShadingTerms::new(w, h), ShadingTerms::new(w, h)],
+            zbuffers: [0, 1].map(|c| ZBuffer::new(cameras[c].width, cameras[c].height)),
+            terms: [0, 1].map(|c| ShadingTerms::new(cameras[c].width, cameras[c].height)),
             projector_map: ZBuffer::new(projector.width, projector.height),
             lamp_map: ZBuffer::new(LAMP_MAP_SIZE, LAMP_MAP_SIZE),
             clean: vec![0.0; w * h],
             scratch: vec![0.0; w * h],
+            canvas_grey: Vec::new(),
+            canvas_depth: FloatImage::default(),
+            canvas_ids: GrayImage::default(),
             triangles: Vec::new(),
             projector_gain: sensor.projector_gain,
             noise_amplitude: sensor.noise_amplitude,
             blur: sensor.blur as usize,
             cameras,
+            lenses,
             projector,
             rig,
         })
@@ -142,8 +160,13 @@ impl Simulator {
             Method::OneShot => &self.one_shot,
             Method::Phase12 => &self.fringes,
         };
-        let (w, h) = (self.cameras[0].width, self.cameras[0].height);
         for (cam, images) in [&mut frame.left, &mut frame.right].into_iter().enumerate() {
+            let (w, h) = if cam == 0 {
+                (self.rig.left.width, self.rig.left.height)
+            } else {
+                (self.rig.right.width, self.rig.right.height)
+            };
+            self.clean.resize(w * h, 0.0);
             images.truncate(patterns.len());
             images.resize_with(patterns.len(), GrayImage::default);
             for (shot, (pattern, image)) in patterns.iter().zip(images.iter_mut()).enumerate() {
@@ -151,7 +174,18 @@ impl Simulator {
                     image.reset(w, h, 0);
                 }
                 let noise = noise_key.map(|key| (image_key(key, cam as u64, shot as u64), self.noise_amplitude));
-                self.terms[cam].shade(pattern, noise, &mut self.clean);
+                match &self.lenses[cam] {
+                    None => self.terms[cam].shade(pattern, noise, &mut self.clean),
+                    Some(lens) => {
+                        // The noise is the sensor's, so it is added to the image, not the canvas.
+                        self.canvas_grey.resize(self.cameras[cam].width * self.cameras[cam].height, 0.0);
+                        self.terms[cam].shade(pattern, None, &mut self.canvas_grey);
+                        lens.warp_linear(&self.canvas_grey, &mut self.clean);
+                        if let Some((key, amplitude)) = noise {
+                            add_noise(&mut self.clean, key, amplitude);
+                        }
+                    }
+                }
                 let blur = if noise.is_some() { self.blur } else { 1 };
                 mean_filter_to_u8(&self.clean, w, blur, &mut self.scratch, &mut image.data);
             }
@@ -161,7 +195,20 @@ impl Simulator {
     /// Everything that depends only on the poses: triangles, shadow maps, G-buffers,
     /// shading terms, ground-truth depth and ids.
     fn geometry(&mut self, scene: &SceneSpec, frame: &mut Frame) {
-        let Simulator { objects, triangles, projector, projector_map, lamp_map, cameras, zbuffers, terms, .. } = self;
+        let Simulator {
+            objects,
+            triangles,
+            projector,
+            projector_map,
+            lamp_map,
+            cameras,
+            lenses,
+            zbuffers,
+            terms,
+            canvas_depth,
+            canvas_ids,
+            ..
+        } = self;
         objects.triangles(scene, triangles);
         projector_map.rasterize(projector, triangles, true);
         let lamp_view = lamp_view(scene, triangles);
@@ -180,7 +227,21 @@ impl Simulator {
         let outputs = [(&mut frame.depth_left, &mut frame.ids_left), (&mut frame.depth_right, &mut frame.ids_right)];
         for (c, (depth, ids)) in outputs.into_iter().enumerate() {
             zbuffers[c].rasterize(&cameras[c], triangles, false);
-            terms[c].compute(&cameras[c], &zbuffers[c], triangles, &lights, depth, ids);
+            match &lenses[c] {
+                None => terms[c].compute(&cameras[c], &zbuffers[c], triangles, &lights, depth, ids),
+                Some(lens) => {
+                    terms[c].compute(&cameras[c], &zbuffers[c], triangles, &lights, canvas_depth, canvas_ids);
+                    let (w, h) = lens.size();
+                    if !(depth.width == w && depth.height == h && depth.data.len() == w * h) {
+                        depth.reset(w, h, f32::INFINITY);
+                    }
+                    if !(ids.width == w && ids.height == h && ids.data.len() == w * h) {
+                        ids.reset(w, h, ID_TABLE);
+                    }
+                    lens.warp_nearest(&canvas_depth.data, &mut depth.data, f32::INFINITY);
+                    lens.warp_nearest(&canvas_ids.data, &mut ids.data, ID_TABLE);
+                }
+            }
         }
     }
 }
@@ -277,6 +338,47 @@ mod tests {
                 assert!(table > 100_000 && rim > 500, "{placement}: {table} table and {rim} rim pixels");
             }
         }
+    }
+
+    #[test]
+    fn a_distorted_camera_sees_the_table_where_its_rays_meet_it() {
+        let mut cell = Cell::default();
+        cell.sensor.camera_dist = [-0.2, 0.06, 0.001, -0.0008, 0.0];
+        let mut sim = Simulator::new(&cell, &cell.placement, 1).unwrap();
+        let plain = Simulator::new(&Cell::default(), &cell.placement, 1).unwrap();
+        let scenario = draw_scenario(&cell, 11, 2);
+        let (mut frame, mut undistorted) = (Frame::default(), Frame::default());
+        sim.render(&scenario.scene(), Method::OneShot, 5, &mut frame);
+        let mut plain = plain;
+        plain.render(&scenario.scene(), Method::OneShot, 5, &mut undistorted);
+        assert_eq!((frame.left[0].width, frame.left[0].height), (640, 480));
+        for (cam, depth, ids) in [
+            (&sim.rig().left, &frame.depth_left, &frame.ids_left),
+            (&sim.rig().right, &frame.depth_right, &frame.ids_right),
+        ] {
+            let mut table = 0;
+            for y in 0..depth.height {
+                for x in 0..depth.width {
+                    let d = depth.get(x, y) as f64;
+                    if d.is_finite() && ids.get(x, y) == ID_TABLE {
+                        // Depth and ids come from the nearest canvas pixel, up to half a
+                        // pixel away along the sloping table.
+                        let p = cam.back_project(x as f64, y as f64, d);
+                        assert!(p.z.abs() < 1.5, "table pixel ({x}, {y}) at z = {}", p.z);
+                        table += 1;
+                    }
+                }
+            }
+            assert!(table > 100_000, "{table} table pixels");
+        }
+        // Barrel distortion pulls the corners in: the image differs from the pinhole one.
+        let differ = frame.left[0].data.iter().zip(&undistorted.left[0].data).filter(|(a, b)| a != b).count();
+        assert!(differ > frame.left[0].data.len() / 2, "{differ} pixels differ");
+        // The noise is the sensor's: the same key gives the same images on any thread count.
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let mut again = Frame::default();
+        pool.install(|| sim.render(&scenario.scene(), Method::OneShot, 5, &mut again));
+        assert!(again == frame);
     }
 
     /// Convex hull of points, counter-clockwise in image coordinates' maths orientation.

@@ -1,7 +1,7 @@
 //! The geometry of a placement (docs/architecture.md §2): where the two cameras and the projector
 //! sit and look for given (r, alpha, baseline, vergence, azimuth), as a calibrated rig.
 
-use camplace_config::{Placement, Sensor};
+use camplace_config::{Cell, Placement, Sensor};
 use camplace_estimator::{Camera, Rig};
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
@@ -48,6 +48,22 @@ pub fn camera_k(sensor: &Sensor) -> Matrix3<f64> {
     Matrix3::new(f, 0.0, (w as f64 - 1.0) / 2.0, 0.0, f, (h as f64 - 1.0) / 2.0, 0.0, 0.0, 1.0)
 }
 
+/// The rig a simulation of `cell` at `placement` renders with: the cell's installed rig
+/// (`[rig]`, a calibration) when it has one — its projector, when the calibration has none,
+/// where `placement` puts it relative to the left camera — else the placement's own.
+pub fn sensor_rig(cell: &Cell, placement: &Placement) -> Rig {
+    let planned = rig_for(placement, &cell.sensor);
+    let Some(file) = &cell.rig else { return planned };
+    let mut rig = Rig::from_file(file);
+    if rig.projector.is_none() {
+        if let Some(projector) = planned.projector {
+            let t_left_projector = planned.left.t_world_camera.inverse() * projector.t_world_camera;
+            rig.projector = Some(Camera { t_world_camera: rig.left.t_world_camera * t_left_projector, ..projector });
+        }
+    }
+    rig
+}
+
 /// The calibrated rig (cameras and projector) of a placement.
 pub fn rig_for(p: &Placement, sensor: &Sensor) -> Rig {
     let t_world_rig = rig_pose(p);
@@ -61,7 +77,13 @@ pub fn rig_for(p: &Placement, sensor: &Sensor) -> Rig {
             Translation3::new(side * p.baseline / 2.0, 0.0, 0.0),
             UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -side * verg),
         );
-        Camera { width: w as usize, height: h as usize, k, dist: [0.0; 5], t_world_camera: t_world_rig * t_rig_cam }
+        Camera {
+            width: w as usize,
+            height: h as usize,
+            k,
+            dist: sensor.camera_dist,
+            t_world_camera: t_world_rig * t_rig_cam,
+        }
     };
     let off = Vector3::from(sensor.projector_offset);
     let proj_eye = t_world_rig.transform_point(&Point3::from(off));

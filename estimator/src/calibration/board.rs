@@ -1,0 +1,173 @@
+//! The calibration target and what was seen of it: the chessboard's corner layout, one
+//! view's detected corners in each camera that saw the board, and the checks that make them
+//! usable. Finding the corners in images is not done here.
+
+use nalgebra::{Point2, Point3};
+
+use crate::error::{Error, ErrorKind, Result};
+
+/// Fewest views of the whole board each camera must have: Zhang's closed form needs two tilted
+/// views with zero skew, and a third keeps one bad view from deciding the camera alone.
+pub const MIN_CALIBRATION_VIEWS: usize = 3;
+
+/// A chessboard calibration target, counted by its inner corners.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CalibrationBoard {
+    /// Inner corners along a row (the board's x axis).
+    pub cols: usize,
+    /// Inner corners along a column (the board's y axis).
+    pub rows: usize,
+    /// Side of one square, mm.
+    pub square_mm: f64,
+}
+
+impl CalibrationBoard {
+    /// Number of inner corners, `cols * rows`.
+    pub fn corner_count(&self) -> usize {
+        self.cols * self.rows
+    }
+
+    /// The inner corners in the board frame (mm, z = 0), corner `row * cols + col` at
+    /// (col * square, row * square, 0).
+    pub fn object_points(&self) -> Vec<Point3<f64>> {
+        (0..self.rows)
+            .flat_map(|row| {
+                (0..self.cols)
+                    .map(move |col| Point3::new(col as f64 * self.square_mm, row as f64 * self.square_mm, 0.0))
+            })
+            .collect()
+    }
+
+    fn check(&self) -> Result<()> {
+        if self.cols < 2 || self.rows < 2 {
+            return Err(Error::new(
+                ErrorKind::Input,
+                format!("calibration board: {}x{} inner corners, expected at least 2x2", self.cols, self.rows),
+            ));
+        }
+        if !(self.square_mm.is_finite() && self.square_mm > 0.0) {
+            return Err(Error::new(
+                ErrorKind::Input,
+                format!("calibration board: square_mm {}, expected a positive size", self.square_mm),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The detected corners of one view of the board, pixels, in the board's index order
+/// (`row * cols + col`), for each camera that saw the whole board; `None` for a camera that
+/// did not. The cameras of a stereo rig share only the middle of their fields of view, so a
+/// view seen by one camera alone is what reaches the outer strips and corners of its image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoardView {
+    /// Corners in the left image.
+    pub left: Option<Vec<Point2<f64>>>,
+    /// Corners in the right image.
+    pub right: Option<Vec<Point2<f64>>>,
+}
+
+/// One camera of the pair, for picking a view's corners and naming it in messages.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Side {
+    Left,
+    Right,
+}
+
+impl Side {
+    pub(super) fn name(self) -> &'static str {
+        match self {
+            Side::Left => "left",
+            Side::Right => "right",
+        }
+    }
+
+    /// The view's corners in this camera's image, if it saw the board.
+    pub(super) fn corners(self, view: &BoardView) -> Option<&[Point2<f64>]> {
+        match self {
+            Side::Left => view.left.as_deref(),
+            Side::Right => view.right.as_deref(),
+        }
+    }
+}
+
+/// Checks the board, the image size and every view: at least one camera saw it, and each
+/// side present has the count of corners the board has, finite and inside the image (pixel
+/// centres at integer coordinates). Then the counts the calibration needs: each camera saw
+/// the board in at least `MIN_CALIBRATION_VIEWS` views, and at least one view shows it to
+/// both, which is what ties the cameras' frames together.
+pub(super) fn check_inputs(board: &CalibrationBoard, views: &[BoardView], width: usize, height: usize) -> Result<()> {
+    if width == 0 || height == 0 {
+        return Err(Error::new(
+            ErrorKind::Input,
+            format!("calibration: image size {width}x{height}, expected a width and height of at least 1 pixel"),
+        ));
+    }
+    board.check()?;
+    let expected = board.corner_count();
+    let (max_x, max_y) = (width as f64 - 0.5, height as f64 - 0.5);
+    for (index, view) in views.iter().enumerate() {
+        if view.left.is_none() && view.right.is_none() {
+            return Err(Error::new(
+                ErrorKind::Input,
+                format!("calibration view {index}: no corners in either image; expected the board seen by at least one camera"),
+            ));
+        }
+        for side in [Side::Left, Side::Right] {
+            let Some(corners) = side.corners(view) else { continue };
+            let name = side.name();
+            if corners.len() != expected {
+                return Err(Error::new(
+                    ErrorKind::Input,
+                    format!(
+                        "calibration view {index} {name}: {} corners, expected {expected} ({}x{} board)",
+                        corners.len(),
+                        board.cols,
+                        board.rows
+                    ),
+                ));
+            }
+            for (corner, p) in corners.iter().enumerate() {
+                if !(p.x.is_finite() && p.y.is_finite()) {
+                    return Err(Error::new(
+                        ErrorKind::Input,
+                        format!(
+                            "calibration view {index} {name} corner {corner}: ({}, {}), expected finite pixel coordinates",
+                            p.x, p.y
+                        ),
+                    ));
+                }
+                if p.x < -0.5 || p.y < -0.5 || p.x > max_x || p.y > max_y {
+                    return Err(Error::new(
+                        ErrorKind::Input,
+                        format!(
+                            "calibration view {index} {name} corner {corner}: ({}, {}), expected a pixel inside the \
+                             {width}x{height} image",
+                            p.x, p.y
+                        ),
+                    ));
+                }
+            }
+        }
+    }
+    for side in [Side::Left, Side::Right] {
+        let seen = views.iter().filter(|v| side.corners(v).is_some()).count();
+        if seen < MIN_CALIBRATION_VIEWS {
+            return Err(Error::new(
+                ErrorKind::Input,
+                format!(
+                    "calibration: the {} camera saw the whole board in {seen} views, expected at least \
+                     {MIN_CALIBRATION_VIEWS}",
+                    side.name()
+                ),
+            ));
+        }
+    }
+    if !views.iter().any(|v| v.left.is_some() && v.right.is_some()) {
+        return Err(Error::new(
+            ErrorKind::Input,
+            "calibration: no view shows the board to both cameras; the pose between them needs one",
+        ));
+    }
+    Ok(())
+}

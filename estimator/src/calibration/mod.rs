@@ -1,0 +1,18 @@
+//! Stereo calibration from detected chessboard corners: the cameras' intrinsics and
+//! distortion, the pose between them and the board's pose in every view, each camera started
+//! by Zhang's closed form and everything refined jointly by Levenberg–Marquardt. Finding the
+//! corners in an image is `corners.rs`'s; the rest takes their pixels.
+
+mod board;
+mod corners;
+mod lm;
+mod refine;
+mod stereo;
+mod zhang;
+
+pub use board::{BoardView, CalibrationBoard, MIN_CALIBRATION_VIEWS};
+pub use corners::find_board_corners;
+pub use stereo::{calibrate_stereo, StereoCalibration, ViewResidual};
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,222 @@
+//! `camplace calibrate`: the installed rig's `rig.json` from stereo pairs of a chessboard —
+//! each camera's K and distortion and the pose between them from every view, the world frame
+//! from the view of the board lying flat on the table. Reads the folder `capture` writes
+//! (`frames/NNNN/left.png` + `right.png`, and `table/`); `render --board` writes the same.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{bail, Context};
+use camplace_config::GrayImage;
+use camplace_estimator::{
+    calibrate_stereo, find_board_corners, BoardView, CalibrationBoard, Rig, StereoCalibration, MIN_CALIBRATION_VIEWS,
+};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use rayon::prelude::*;
+
+/// Flags of `camplace calibrate`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Folder of board images: frames/NNNN/left.png + right.png, and table/ with the board
+    /// lying flat on the table (as `capture` and `capture --table` write them).
+    #[arg(long, value_name = "DIR")]
+    images: PathBuf,
+    /// The board: inner corners across x down, and the square side, as COLSxROWS@SQUARE_MM.
+    #[arg(long, value_name = "COLSxROWS@MM")]
+    board: String,
+    /// Where the table view's board lies in the world: its first corner's x, y, z (mm) and the
+    /// turn of its x axis from the world's x about z (deg). Default: the board centred on the
+    /// world origin with its axes along the world's.
+    #[arg(long, value_name = "X,Y,Z,YAW", allow_hyphen_values = true)]
+    board_in_world: Option<String>,
+    /// The rig.json to write.
+    #[arg(long, value_name = "FILE", default_value = "rig.json")]
+    out: PathBuf,
+}
+
+/// Parses `COLSxROWS@SQUARE_MM`, e.g. `9x6@25`.
+pub fn parse_board(text: &str) -> anyhow::Result<CalibrationBoard> {
+    let expected = "expected COLSxROWS@SQUARE_MM, e.g. 9x6@25 (inner corners, square side in mm)";
+    let (counts, square) = text.split_once('@').with_context(|| format!("--board {text:?}: {expected}"))?;
+    let (cols, rows) = counts.split_once(['x', 'X']).with_context(|| format!("--board {text:?}: {expected}"))?;
+    let count = |s: &str| s.trim().parse::<usize>().ok().filter(|n| (2..=100).contains(n));
+    let (Some(cols), Some(rows)) = (count(cols), count(rows)) else {
+        bail!("--board {text:?}: {expected}, with 2 to 100 corners a side");
+    };
+    let square_mm = square.trim().parse::<f64>().ok().filter(|v| v.is_finite() && *v > 0.0 && *v <= 1000.0);
+    let Some(square_mm) = square_mm else {
+        bail!("--board {text:?}: {expected}, with a square side above 0 and up to 1000 mm");
+    };
+    if (cols + rows).is_multiple_of(2) {
+        bail!(
+            "--board {text:?}: a {cols}x{rows} board looks the same turned half way round, so its corners cannot be told apart; use one with an odd and an even corner count, e.g. 9x6"
+        );
+    }
+    Ok(CalibrationBoard { cols, rows, square_mm })
+}
+
+/// The table board's pose in the world from `X,Y,Z,YAW`.
+fn parse_board_in_world(text: &str) -> anyhow::Result<Isometry3<f64>> {
+    let v: Vec<f64> = text.split(',').map(|s| s.trim().parse::<f64>()).collect::<Result<_, _>>().unwrap_or_default();
+    if v.len() != 4 || !v.iter().all(|x| x.is_finite()) {
+        bail!("--board-in-world {text:?}: expected X,Y,Z,YAW (mm, mm, mm, deg), four numbers");
+    }
+    Ok(Isometry3::from_parts(
+        Translation3::new(v[0], v[1], v[2]),
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), v[3].to_radians()),
+    ))
+}
+
+/// One stereo pair of the board: where it came from and its images.
+struct Pair {
+    name: String,
+    folder: PathBuf,
+    images: [GrayImage; 2],
+}
+
+/// Runs `camplace calibrate`.
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let board = parse_board(&a.board)?;
+    let t_world_table_board = match &a.board_in_world {
+        Some(text) => parse_board_in_world(text)?,
+        None => camplace_sim::table_board_pose(&board),
+    };
+    let frames = a.images.join("frames");
+    let mut folders: Vec<PathBuf> = std::fs::read_dir(&frames)
+        .with_context(|| format!("{}: cannot list the board views (frames/NNNN/)", frames.display()))?
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.is_dir())
+        .collect();
+    folders.sort();
+    let table = a.images.join("table");
+    if !table.is_dir() {
+        bail!(
+            "{}: missing: the world frame comes from one pair of the board lying flat on the table (camplace capture --table)",
+            table.display()
+        );
+    }
+    folders.push(table.clone());
+    let pairs: Vec<Pair> = folders.iter().map(|f| read_pair(&a.images, f)).collect::<anyhow::Result<_>>()?;
+    let (width, height) = (pairs[0].images[0].width, pairs[0].images[0].height);
+    for p in &pairs {
+        for (side, image) in ["left", "right"].iter().zip(&p.images) {
+            if (image.width, image.height) != (width, height) {
+                bail!(
+                    "{}: {}x{} pixels, expected {width}x{height} as {}",
+                    p.folder.join(format!("{side}.png")).display(),
+                    image.width,
+                    image.height,
+                    pairs[0].folder.join("left.png").display()
+                );
+            }
+        }
+    }
+    // Per pair and side, the corners, or why the whole board was not found there.
+    let found: Vec<[Result<Vec<nalgebra::Point2<f64>>, String>; 2]> = pairs
+        .par_iter()
+        .map(|p| {
+            [0, 1].map(|side| {
+                find_board_corners(&p.images[side], &board)
+                    .map_err(|e| format!("{}/{}.png: {e}", p.name, ["left", "right"][side]))
+            })
+        })
+        .collect();
+    let table_name = pairs.last().map(|p| p.name.clone()).unwrap_or_default();
+    let mut views = Vec::new();
+    let mut names = Vec::new();
+    for (p, [left, right]) in pairs.iter().zip(found) {
+        // A board wholly in one image only still calibrates that camera (the cameras share
+        // only the middle of their views, and the distortion is largest outside it).
+        for side in [&left, &right] {
+            if let Err(e) = side {
+                println!("not in view: {e}");
+            }
+        }
+        if left.is_err() && right.is_err() {
+            if p.name == table_name {
+                bail!("{}: the table view must show the whole board", p.name);
+            }
+            continue;
+        }
+        views.push(BoardView { left: left.ok(), right: right.ok() });
+        names.push(p.name.clone());
+    }
+    if views.len() < MIN_CALIBRATION_VIEWS {
+        bail!(
+            "{}: the whole board was found in {} pairs (with the table view), expected at least {MIN_CALIBRATION_VIEWS}",
+            a.images.display(),
+            views.len()
+        );
+    }
+    let started = std::time::Instant::now();
+    let cal = calibrate_stereo(&board, &views, width, height).with_context(|| a.images.display().to_string())?;
+    let seconds = started.elapsed().as_secs_f64();
+    print_views(&cal, &names);
+    let table_index = names.len() - 1;
+    if cal.views[table_index].dropped {
+        bail!("{table_name}: the table view's corners do not fit the calibration; capture it again");
+    }
+    // Kept views keep their order, so the table view, last of all, is the last pose.
+    let t_left_table_board = *cal.t_left_board.last().context("no board pose")?;
+    let t_world_left = t_world_table_board * t_left_table_board.inverse();
+    let rig = world_rig(&cal, &t_world_left);
+    let file = rig.to_file();
+    file.check().map_err(|e| anyhow::anyhow!("the calibrated rig: {e}"))?;
+    file.save(&a.out)?;
+    let b = rig.baseline();
+    println!(
+        "calibrated from {} views in {seconds:.2} s: reprojection RMS {:.3} px, baseline {b:.2} mm; wrote {}",
+        cal.views.iter().filter(|v| !v.dropped).count(),
+        cal.rms_px,
+        a.out.display()
+    );
+    for (side, c) in [("left", &rig.left), ("right", &rig.right)] {
+        let d = c.dist;
+        println!(
+            "{side:<5} fx {:.2} fy {:.2} cx {:.2} cy {:.2}  k1 {:.5} k2 {:.5} p1 {:.6} p2 {:.6} k3 {:.5}",
+            c.k[(0, 0)],
+            c.k[(1, 1)],
+            c.k[(0, 2)],
+            c.k[(1, 2)],
+            d[0],
+            d[1],
+            d[2],
+            d[3],
+            d[4]
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The pair in `folder` (`left.png` + `right.png`), named relative to `root`.
+fn read_pair(root: &Path, folder: &Path) -> anyhow::Result<Pair> {
+    let read = |side: &str| -> anyhow::Result<GrayImage> {
+        let g = camplace_config::read_gray(&folder.join(format!("{side}.png")))?;
+        let mut image = GrayImage::default();
+        image.reset(g.width, g.height, 0);
+        image.data = g.data;
+        Ok(image)
+    };
+    let name = folder.strip_prefix(root).unwrap_or(folder).display().to_string();
+    Ok(Pair { name, folder: folder.to_path_buf(), images: [read("left")?, read("right")?] })
+}
+
+/// Each view's reprojection error, the dropped ones marked.
+fn print_views(cal: &StereoCalibration, names: &[String]) {
+    println!("{:<14} {:>9} {:>9}", "view", "left px", "right px");
+    let px = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
+    for v in &cal.views {
+        let mark = if v.dropped { "  dropped: its error stands out" } else { "" };
+        println!("{:<14} {:>9} {:>9}{mark}", names[v.index], px(v.rms_left_px), px(v.rms_right_px));
+    }
+}
+
+/// The calibrated cameras placed in the world by the left camera's pose.
+fn world_rig(cal: &StereoCalibration, t_world_left: &Isometry3<f64>) -> Rig {
+    let mut left = cal.left.clone();
+    left.t_world_camera = *t_world_left;
+    let mut right = cal.right.clone();
+    right.t_world_camera = t_world_left * cal.right.t_world_camera;
+    Rig { left, right, projector: None }
+}
