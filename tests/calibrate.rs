@@ -77,6 +77,8 @@ fn rendered_boards_calibrate_to_the_true_rig() {
     for (case, (placement, dist, board)) in [
         ("r=605,alpha=32,baseline=120,vergence=auto", [-0.1, 0.05, 0.0005, -0.0003, 0.0], "9x6@25"),
         ("r=800,alpha=15,baseline=90,vergence=2,azimuth=40", [0.06, -0.12, -0.0007, 0.0004, 0.03], "11x8@25"),
+        // A lens whose k3 matters: the calibration must refine it.
+        ("r=700,alpha=25,baseline=100,vergence=auto,azimuth=-30", [-0.25, 0.1, 0.0003, 0.0002, 0.3], "9x6@25"),
     ]
     .into_iter()
     .enumerate()
@@ -107,6 +109,9 @@ fn rendered_boards_calibrate_to_the_true_rig() {
         let out = String::from_utf8_lossy(&o.stdout).into_owned();
         assert!(o.status.success(), "{}\n{out}", stderr(&o));
         let r = rms(&out);
+        if case == 2 {
+            assert!(out.contains("k3: refined"), "{out}");
+        }
         assert!(r <= 0.2, "{placement}: reprojection RMS {r} px\n{out}");
         let figures =
             check_against_truth(&rig(&d.join("boards/rig.json")), &rig(&d.join("calibrated.json")), placement);

@@ -166,10 +166,18 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     file.save(&a.out)?;
     let b = rig.baseline();
     println!(
-        "calibrated from {} views in {seconds:.2} s: reprojection RMS {:.3} px, baseline {b:.2} mm; wrote {}",
+        "calibrated from {} views in {seconds:.3} s: reprojection RMS {:.3} px, baseline {b:.2} mm; wrote {}",
         cal.views.iter().filter(|v| !v.dropped).count(),
         cal.rms_px,
         a.out.display()
+    );
+    println!(
+        "k3: {}",
+        if cal.k3_estimated {
+            "refined (freeing it lowered the error beyond what noise explains)"
+        } else {
+            "held at 0 (freeing it did not lower the error beyond what noise explains)"
+        }
     );
     for (side, c) in [("left", &rig.left), ("right", &rig.right)] {
         let d = c.dist;

@@ -20,13 +20,14 @@ fn intrinsics_params(camera: &Camera) -> [f64; INTRINSICS_LEN] {
     [k[(0, 0)], k[(1, 1)], k[(0, 2)], k[(1, 2)], d[0], d[1], d[2], d[3], d[4]]
 }
 
-/// The camera (at the identity pose) of intrinsic parameters `p`.
-fn camera_from_params(p: &[f64], width: usize, height: usize) -> Camera {
+/// The camera (at the identity pose) of intrinsic parameters `p`; k3 is held at zero unless
+/// `k3_free` (its parameter then has no effect, so the refinement leaves it where it is).
+fn camera_from_params(p: &[f64], width: usize, height: usize, k3_free: bool) -> Camera {
     Camera {
         width,
         height,
         k: Matrix3::new(p[0], 0.0, p[2], 0.0, p[1], p[3], 0.0, 0.0, 1.0),
-        dist: [p[4], p[5], p[6], p[7], p[8]],
+        dist: [p[4], p[5], p[6], p[7], if k3_free { p[8] } else { 0.0 }],
         t_world_camera: Isometry3::identity(),
     }
 }
@@ -102,6 +103,7 @@ struct CameraProblem<'a> {
     corners: &'a [&'a [Point2<f64>]],
     width: usize,
     height: usize,
+    k3_free: bool,
 }
 
 impl ViewProblem for CameraProblem<'_> {
@@ -122,7 +124,7 @@ impl ViewProblem for CameraProblem<'_> {
     }
 
     fn residuals(&self, shared: &[f64], own: &[f64], view: usize, out: &mut [f64]) {
-        let camera = camera_from_params(shared, self.width, self.height);
+        let camera = camera_from_params(shared, self.width, self.height, self.k3_free);
         reprojection_residuals(&camera, &pose_from_params(own), self.object, self.corners[view], out);
     }
 
@@ -143,8 +145,9 @@ impl ViewProblem for CameraProblem<'_> {
     }
 }
 
-/// Refines one camera's intrinsics and distortion with its board poses from `start`, by the
-/// reprojection error of `corners` (one slice per view); `what` names it in messages.
+/// Refines one camera's intrinsics and distortion (k3 held at zero) with its board poses from
+/// `start`, by the reprojection error of `corners` (one slice per view); `what` names it in
+/// messages.
 pub(super) fn refine_camera(
     object: &[Point3<f64>],
     corners: &[&[Point2<f64>]],
@@ -152,7 +155,7 @@ pub(super) fn refine_camera(
     what: &str,
 ) -> Result<CameraFit> {
     let (width, height) = (start.camera.width, start.camera.height);
-    let problem = CameraProblem { object, corners, width, height };
+    let problem = CameraProblem { object, corners, width, height, k3_free: false };
     let mut x = DVector::from_iterator(
         INTRINSICS_LEN + POSE_LEN * corners.len(),
         intrinsics_params(&start.camera).into_iter().chain(start.t_camera_board.iter().flat_map(pose_params)),
@@ -160,7 +163,7 @@ pub(super) fn refine_camera(
     lm::minimise(&problem, &mut x, what)?;
     let x = x.as_slice();
     Ok(CameraFit {
-        camera: camera_from_params(&x[..INTRINSICS_LEN], width, height),
+        camera: camera_from_params(&x[..INTRINSICS_LEN], width, height, false),
         t_camera_board: x[INTRINSICS_LEN..].chunks_exact(POSE_LEN).map(pose_from_params).collect(),
     })
 }
@@ -192,6 +195,8 @@ pub(super) struct StereoProblem<'a> {
     pub views: &'a [&'a BoardView],
     pub width: usize,
     pub height: usize,
+    /// Whether k3 is refined (else held at zero).
+    pub k3_free: bool,
 }
 
 /// Shared parameters of the stereo problem: left intrinsics, right intrinsics, T_right_left.
@@ -220,8 +225,8 @@ impl StereoProblem<'_> {
         let t_right_left = pose_from_params(&x[2 * INTRINSICS_LEN..STEREO_SHARED_LEN]);
         let t_left_right = t_right_left.inverse();
         StereoFit {
-            left: camera_from_params(&x[..INTRINSICS_LEN], self.width, self.height),
-            right: camera_from_params(&x[INTRINSICS_LEN..2 * INTRINSICS_LEN], self.width, self.height),
+            left: camera_from_params(&x[..INTRINSICS_LEN], self.width, self.height, self.k3_free),
+            right: camera_from_params(&x[INTRINSICS_LEN..2 * INTRINSICS_LEN], self.width, self.height, self.k3_free),
             t_right_left,
             t_left_board: self
                 .views
@@ -259,8 +264,9 @@ impl ViewProblem for StereoProblem<'_> {
     }
 
     fn residuals(&self, shared: &[f64], own: &[f64], view: usize, out: &mut [f64]) {
-        let left = camera_from_params(&shared[..INTRINSICS_LEN], self.width, self.height);
-        let right = camera_from_params(&shared[INTRINSICS_LEN..2 * INTRINSICS_LEN], self.width, self.height);
+        let left = camera_from_params(&shared[..INTRINSICS_LEN], self.width, self.height, self.k3_free);
+        let right =
+            camera_from_params(&shared[INTRINSICS_LEN..2 * INTRINSICS_LEN], self.width, self.height, self.k3_free);
         let view = self.views[view];
         let own_pose = pose_from_params(own);
         let (left_out, right_out) = out.split_at_mut(2 * self.object.len());
@@ -298,9 +304,19 @@ impl ViewProblem for StereoProblem<'_> {
 }
 
 /// Refines both cameras, the stereo pose and the board poses of `start` jointly by the
-/// reprojection error of every corner each camera saw.
-pub(super) fn refine_stereo(problem: &StereoProblem<'_>, start: &StereoFit) -> Result<StereoFit> {
+/// reprojection error of every corner each camera saw; returns the fit and its sum of
+/// squared residuals, px².
+pub(super) fn refine_stereo(problem: &StereoProblem<'_>, start: &StereoFit) -> Result<(StereoFit, f64)> {
     let mut x = problem.params(start);
     lm::minimise(problem, &mut x, "stereo pair")?;
-    Ok(problem.fit(&x))
+    let mut residuals = DVector::zeros(problem.residual_len() * problem.view_count());
+    let cost = lm::evaluate(problem, &x, &mut residuals);
+    Ok((problem.fit(&x), cost))
+}
+
+/// Residuals (two per corner and camera seen) and parameters of `problem`: what a test of
+/// one model against a richer one needs for its degrees of freedom.
+pub(super) fn degrees_of_freedom(problem: &StereoProblem<'_>) -> (usize, usize) {
+    let sides: usize = problem.views.iter().map(|v| v.left.is_some() as usize + v.right.is_some() as usize).sum();
+    (2 * problem.object.len() * sides, STEREO_SHARED_LEN + POSE_LEN * problem.views.len())
 }

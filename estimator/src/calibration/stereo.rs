@@ -8,7 +8,7 @@ use nalgebra::{DVector, Isometry3, Point2, Point3, Translation3, Vector3};
 
 use super::board::{check_inputs, BoardView, CalibrationBoard, Side, MIN_CALIBRATION_VIEWS};
 use super::lm;
-use super::refine::{refine_camera, refine_stereo, CameraFit, StereoFit, StereoProblem};
+use super::refine::{degrees_of_freedom, refine_camera, refine_stereo, CameraFit, StereoFit, StereoProblem};
 use super::zhang::zhang_start;
 use crate::camera::Camera;
 use crate::error::{Error, ErrorKind, Result};
@@ -22,6 +22,10 @@ const OUTLIER_MEDIAN_FACTOR: f64 = 3.0;
 /// (median 0.05 px) would otherwise drop views that are only a little blurrier than the rest
 /// yet far more accurate than any use of the rig needs, and lose the board poses they add.
 const OUTLIER_MIN_RMS_PX: f64 = 1.0;
+
+/// The χ² value with two degrees of freedom (both cameras' k3) that chance exceeds once in
+/// a thousand fits: a drop in the squared error beyond it, in units of the noise, is k3's.
+const K3_CHI2: f64 = 13.82;
 
 /// A calibrated stereo pair in the left camera's frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -37,6 +41,9 @@ pub struct StereoCalibration {
     pub views: Vec<ViewResidual>,
     /// RMS reprojection distance over every corner the cameras saw in the kept views, pixels.
     pub rms_px: f64,
+    /// Whether k3 was refined: only when freeing it lowers the error beyond what noise
+    /// explains (else it is held at zero).
+    pub k3_estimated: bool,
 }
 
 /// One view's reprojection error: the RMS distance between the detected corners and the
@@ -98,8 +105,8 @@ pub fn calibrate_stereo(
     let mut residuals: Vec<Option<ViewResidual>> = vec![None; views.len()];
     loop {
         let kept_views: Vec<&BoardView> = kept.iter().map(|&i| &views[i]).collect();
-        let problem = StereoProblem { object: &object, views: &kept_views, width, height };
-        fit = refine_stereo(&problem, &fit)?;
+        let problem = StereoProblem { object: &object, views: &kept_views, width, height, k3_free: false };
+        fit = refine_stereo(&problem, &fit)?.0;
         check_cameras(&fit)?;
         let view_rms = view_rms_px(&problem, &fit);
         for (&index, &(rms_left_px, rms_right_px)) in kept.iter().zip(&view_rms) {
@@ -123,6 +130,24 @@ pub fn calibrate_stereo(
         fit.t_left_board.remove(worst);
     }
 
+    // k3 only where the data call for it: it trades off against k2 and is pinned down only
+    // near the image's corners, so freeing it without need moves the distortion out there by
+    // tenths of a pixel. A likelihood-ratio test of the fit with both cameras' k3 free against
+    // the one without decides.
+    let kept_views: Vec<&BoardView> = kept.iter().map(|&i| &views[i]).collect();
+    let fixed = StereoProblem { object: &object, views: &kept_views, width, height, k3_free: false };
+    let free = StereoProblem { k3_free: true, ..fixed };
+    let (_, cost_fixed) = refine_stereo(&fixed, &fit)?;
+    let (fit_free, cost_free) = refine_stereo(&free, &fit)?;
+    let (residual_count, param_count) = degrees_of_freedom(&free);
+    let sigma2 = cost_free / residual_count.saturating_sub(param_count).max(1) as f64;
+    let k3_estimated = check_cameras(&fit_free).is_ok() && (cost_fixed - cost_free) / sigma2 > K3_CHI2;
+    if k3_estimated {
+        fit = fit_free;
+        for (&index, &(rms_left_px, rms_right_px)) in kept.iter().zip(&view_rms_px(&free, &fit)) {
+            residuals[index] = Some(ViewResidual { index, rms_left_px, rms_right_px, dropped: false });
+        }
+    }
     let views_out: Vec<ViewResidual> = residuals.into_iter().map(|r| r.expect("every view was refined once")).collect();
     // Every side holds the board's corner count, so the mean of the sides' squared RMS is
     // the mean over their corners.
@@ -133,7 +158,7 @@ pub fn calibrate_stereo(
     left.t_world_camera = Isometry3::identity();
     let mut right = fit.right;
     right.t_world_camera = fit.t_right_left.inverse();
-    Ok(StereoCalibration { left, right, t_left_board: fit.t_left_board, views: views_out, rms_px })
+    Ok(StereoCalibration { left, right, t_left_board: fit.t_left_board, views: views_out, rms_px, k3_estimated })
 }
 
 /// Whether the kept view at position `position` of `kept` can be left out: each camera keeps
