@@ -143,18 +143,16 @@ fn fits_camera(cam: &Camera, board: &CalibrationBoard, t_world_board: &Isometry3
     let (w, h) = board_extent(board);
     let m = OUTER_SQUARES_SEEN * board.square_mm;
     let corners = [(-m, -m), (w + m, -m), (-m, h + m), (w + m, h + m)];
-    {
-        // The sheet must face the camera (its +z side is the printed one).
-        let to_camera = cam.centre() - t_world_board.translation.vector;
-        let facing = (t_world_board.rotation * Vector3::z()).dot(&to_camera.coords) > 0.0;
-        facing
-            && corners.iter().all(|&(x, y)| {
-                let p = t_world_board * Point3::new(x, y, 0.0);
-                cam.project(&p).is_some_and(|q| {
-                    q.x >= 4.0 && q.y >= 4.0 && q.x <= cam.width as f64 - 5.0 && q.y <= cam.height as f64 - 5.0
-                })
+    // The sheet must face the camera (its +z side is the printed one).
+    let to_camera = cam.centre() - t_world_board.translation.vector;
+    let facing = (t_world_board.rotation * Vector3::z()).dot(&to_camera.coords) > 0.0;
+    facing
+        && corners.iter().all(|&(x, y)| {
+            let p = t_world_board * Point3::new(x, y, 0.0);
+            cam.project(&p).is_some_and(|q| {
+                q.x >= 4.0 && q.y >= 4.0 && q.x <= cam.width as f64 - 5.0 && q.y <= cam.height as f64 - 5.0
             })
-    }
+        })
 }
 
 /// Where in an image the views push the board, as fractions of its width and height: the
