@@ -1,5 +1,6 @@
 //! Benches of the simulated sensor: a one-shot stereo pair and a 12-shot set at 640x480 at
-//! the default placement, each a full frame (geometry, shading, noise), buffers reused.
+//! the default placement, each a full frame (geometry, shading, noise), buffers reused; and
+//! the one-shot pair through lens distortion (a wider canvas and the warp to the image).
 
 use camplace_config::Cell;
 use camplace_sim::{draw_scenario, Frame, Method, Simulator};
@@ -25,6 +26,16 @@ fn render(c: &mut Criterion) {
             i += 1;
             sim.render(&scenes[i % scenes.len()], Method::Phase12, i as u64, &mut frame);
             black_box(&frame.left[11].data[0]);
+        })
+    });
+    let mut distorted = cell.clone();
+    distorted.sensor.camera_dist = [-0.1, 0.05, 0.0005, -0.0003, 0.0];
+    let mut lens_sim = Simulator::new(&distorted, &cell.placement, 1).expect("the distorted cell renders");
+    group.bench_function("one_shot_pair_distorted", |b| {
+        b.iter(|| {
+            i += 1;
+            lens_sim.render(&scenes[i % scenes.len()], Method::OneShot, i as u64, &mut frame);
+            black_box(&frame.left[0].data[0]);
         })
     });
     group.finish();
