@@ -189,7 +189,15 @@ impl Estimator {
 
     /// Estimates the tray's pose from one stereo frame (one or twelve shots per side).
     /// A frame without a recognisable tray gives a pose with `found = false`, not an error.
+    ///
+    /// The frame runs on rayon's pool: entered once here, the stages' parallel loops (many a
+    /// frame: RANSAC's rounds among them) share work between the pool's threads directly,
+    /// where each loop started from another thread would wait for a worker to wake.
     pub fn process(&mut self, left: &[GrayImage], right: &[GrayImage]) -> Result<PoseEstimate> {
+        rayon::scope(|_| self.process_on_pool(left, right))
+    }
+
+    fn process_on_pool(&mut self, left: &[GrayImage], right: &[GrayImage]) -> Result<PoseEstimate> {
         let start = Instant::now();
         self.reconstructor.process(left, right, &mut self.reconstruction)?;
         let r = self.reconstruction.timings;
@@ -202,11 +210,14 @@ impl Estimator {
     }
 
     /// Estimates the tray's pose from a world cloud (mm) seen from the rig's sensor.
+    /// Like [`Estimator::process`], it runs on rayon's pool.
     pub fn process_cloud(&mut self, points: &[Point3<f32>]) -> Result<PoseEstimate> {
-        let start = Instant::now();
-        let mut out = self.stages.run(points)?;
-        out.timings.total_ms = ms(start);
-        Ok(out)
+        rayon::scope(|_| {
+            let start = Instant::now();
+            let mut out = self.stages.run(points)?;
+            out.timings.total_ms = ms(start);
+            Ok(out)
+        })
     }
 
     /// The model it matches against.

@@ -29,6 +29,7 @@ use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3
 use rand::seq::SliceRandom;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 
 use super::kabsch::RigidFit;
 use crate::error::{Error, ErrorKind, Result};
@@ -465,7 +466,11 @@ impl Ransac {
     fn count(&self, pose: &Isometry3<f64>, view: usize) -> u32 {
         let (r, t) = split(pose);
         let r2 = self.inlier_distance * self.inlier_distance;
-        self.views[view].iter().filter(|p| self.grid.any_within(&(r * *p + t), r2)).count() as u32
+        // In fixed chunks, so the count is the same whatever the number of threads.
+        self.views[view]
+            .par_chunks(4096)
+            .map(|chunk| chunk.iter().filter(|p| self.grid.any_within(&(r * *p + t), r2)).count() as u32)
+            .sum()
     }
 
     /// The pose fitted to the inliers of `pose`, each paired with its nearest scene point.
