@@ -2,11 +2,11 @@
 //! matching) on a synthetic tray cloud as the sensor sees it from about 600 mm.
 
 use std::hint::black_box;
-
 use std::num::NonZero;
 
 use camplace_estimator::{
-    Descriptor, Downsampler, Ecsad, FeatureMatcher, KeypointSelector, Neighbours, NormalEstimator, ECSAD_DIM,
+    quantise, Descriptor, Downsampler, Ecsad, FeatureMatcher, KeypointSelector, Neighbours, NormalEstimator, ECSAD_DIM,
+    QUANTISATION_STEPS,
 };
 use criterion::Criterion;
 use kiddo::immutable::float::kdtree::ImmutableKdTree;
@@ -166,15 +166,9 @@ pub fn benches(c: &mut Criterion) {
     // The same exact search with kiddo's k-d tree over the same quantised descriptors (the
     // matcher compares whole quantisation steps), each query in parallel, then the same
     // height check: the alternative the matcher's blocked brute force was measured against.
-    let steps = |d: &Descriptor| -> [f32; ECSAD_DIM] {
-        d.map(|v| {
-            let v = if v.is_nan() { std::f32::consts::FRAC_PI_2 } else { v.clamp(0.0, std::f32::consts::PI) };
-            (v * (255.0 / std::f32::consts::PI)).round()
-        })
-    };
     let tree: ImmutableKdTree<f32, u32, ECSAD_DIM, 32> =
-        ImmutableKdTree::new_from_slice(&model.iter().map(steps).collect::<Vec<_>>());
-    let queries: Vec<[f32; ECSAD_DIM]> = scene.descriptors.iter().map(steps).collect();
+        ImmutableKdTree::new_from_slice(&model.iter().map(quantise).collect::<Vec<_>>());
+    let queries: Vec<[f32; ECSAD_DIM]> = scene.descriptors.iter().map(quantise).collect();
     let k = NonZero::new(K).expect("K is positive");
     let kiddo_matches = |band: f32| -> Vec<Vec<f32>> {
         queries
@@ -189,7 +183,7 @@ pub fn benches(c: &mut Criterion) {
     // Both find the same neighbours: the same distances (ties may pick other features at an
     // equal distance, so the check runs before the height filter).
     matcher.match_into(&scene.descriptors, &scene.heights, K, f32::INFINITY, &mut matches).unwrap();
-    let step2 = (std::f32::consts::PI / 255.0).powi(2);
+    let step2 = (std::f32::consts::PI / QUANTISATION_STEPS).powi(2);
     for (i, found) in kiddo_matches(f32::INFINITY).iter().enumerate() {
         let ours: Vec<f32> =
             matches.iter().filter(|m| m.scene as usize == i).map(|m| (m.distance2 / step2).round()).collect();

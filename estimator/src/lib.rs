@@ -34,8 +34,8 @@ pub use depth::{
 };
 pub use error::{Error, ErrorKind, Result};
 pub use features::{
-    is_valid_normal, Correspondence, Descriptor, Downsampler, Ecsad, FeatureExtractor, FeatureMatcher, FeatureTimings,
-    KeypointSelector, NormalEstimator, ECSAD_DIM, MIN_NORMAL_NEIGHBOURS,
+    is_valid_normal, quantise, Correspondence, Descriptor, Downsampler, Ecsad, FeatureExtractor, FeatureMatcher,
+    FeatureTimings, KeypointSelector, NormalEstimator, ECSAD_DIM, MIN_NORMAL_NEIGHBOURS, QUANTISATION_STEPS,
 };
 pub use method::Method;
 pub use pipeline::{Estimator, PoseEstimate, StageTimings};

@@ -191,7 +191,7 @@ impl Estimator {
     /// A frame without a recognisable tray gives a pose with `found = false`, not an error.
     ///
     /// The frame runs on rayon's pool: entered once here, the stages' parallel loops (many a
-    /// frame: RANSAC's rounds among them) share work between the pool's threads directly,
+    /// frame: ICP's iterations among them) share work between the pool's threads directly,
     /// where each loop started from another thread would wait for a worker to wake.
     pub fn process(&mut self, left: &[GrayImage], right: &[GrayImage]) -> Result<PoseEstimate> {
         rayon::scope(|_| self.process_on_pool(left, right))

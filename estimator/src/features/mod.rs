@@ -16,8 +16,8 @@ pub use correspondence::Correspondence;
 pub use downsample::Downsampler;
 pub use ecsad::{Descriptor, Ecsad, ECSAD_DIM};
 pub use keypoints::KeypointSelector;
-pub use matching::FeatureMatcher;
 pub(crate) use matching::MAX_K;
+pub use matching::{quantise, FeatureMatcher, QUANTISATION_STEPS};
 pub use normals::{is_valid_normal, NormalEstimator, MIN_NORMAL_NEIGHBOURS};
 
 use std::time::Instant;
