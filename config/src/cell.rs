@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 
 use crate::formats::mesh;
 use crate::trays::{parse_trays, validate_trays, TrayEntry};
+use crate::realism::{CalibrationError, Effects, Occluder, Optics};
 use crate::{Error, ErrorKind, Placement, RigFile, MAX_DISTANCE_MM};
 
 /// The commented default cell file, as `camplace init` writes it.
@@ -30,6 +31,14 @@ pub struct Cell {
     pub reconstruction: ReconstructionParams,
     pub estimator: EstimatorParams,
     pub metrics: Metrics,
+    /// The lenses' focal lengths, f-numbers and focus (thin-lens defocus).
+    pub optics: Optics,
+    /// The error of the rig the estimator uses, drawn per scenario.
+    pub calibration_error: CalibrationError,
+    /// A box above the tray in some scenarios.
+    pub occluder: Occluder,
+    /// Which of the effects above (and the materials' gloss) are rendered.
+    pub effects: Effects,
     /// Where the world frame lies in the robot's base frame (`[robot]`, optional), so that
     /// `run` can give each pose in the frame the robot moves in.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -61,6 +70,10 @@ pub struct Table {
     /// Extent along world x and y, mm.
     pub size: [f64; 2],
     pub albedo: f64,
+    /// Specular albedo of the glossy lobe (0: matte).
+    pub specular: f64,
+    /// Roughness of the glossy lobe, from 0.02 (mirror-like) to 1 (broad).
+    pub roughness: f64,
 }
 
 /// Built-in tray or a mesh.
@@ -86,6 +99,10 @@ pub struct Tray {
     /// Rotations about tray z (deg) that map the tray onto itself.
     pub symmetries: Vec<f64>,
     pub albedo: f64,
+    /// Specular albedo of the glossy lobe (0: matte).
+    pub specular: f64,
+    /// Roughness of the glossy lobe.
+    pub roughness: f64,
 }
 
 /// Built-in box item or a mesh.
@@ -105,6 +122,10 @@ pub struct Items {
     /// Size of the built-in box `[x, y, z]`, mm.
     pub size: [f64; 3],
     pub albedo: f64,
+    /// Specular albedo of the glossy lobe (0: matte).
+    pub specular: f64,
+    /// Roughness of the glossy lobe.
+    pub roughness: f64,
 }
 
 /// The stereo camera pair and the projector.
@@ -306,6 +327,7 @@ impl Cell {
         if let Some(rig) = &self.rig {
             rig.check().map_err(|e| e.under_key("rig"))?;
         }
+        self.validate_realism()?;
         self.validate_rest()
     }
 
@@ -676,7 +698,7 @@ fn load_mesh_checked(key: &str, path: &Path) -> Result<(), Error> {
     Ok(())
 }
 
-fn pos(key: &str, v: f64) -> Result<(), Error> {
+pub(crate) fn pos(key: &str, v: f64) -> Result<(), Error> {
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
@@ -685,7 +707,7 @@ fn pos(key: &str, v: f64) -> Result<(), Error> {
 }
 
 /// `v` from 0 to `most` (in `unit`).
-fn at_most(key: &str, v: f64, most: f64, unit: &str) -> Result<(), Error> {
+pub(crate) fn at_most(key: &str, v: f64, most: f64, unit: &str) -> Result<(), Error> {
     if v.is_finite() && (0.0..=most).contains(&v) {
         Ok(())
     } else {
@@ -694,7 +716,7 @@ fn at_most(key: &str, v: f64, most: f64, unit: &str) -> Result<(), Error> {
     }
 }
 
-fn unit(key: &str, v: f64) -> Result<(), Error> {
+pub(crate) fn unit(key: &str, v: f64) -> Result<(), Error> {
     if v.is_finite() && (0.0..=1.0).contains(&v) {
         Ok(())
     } else {
@@ -771,7 +793,7 @@ fn angle_open(key: &str, v: f64, lo: f64, hi: f64) -> Result<(), Error> {
     }
 }
 
-fn range(key: &str, v: [f64; 2], lo: f64, hi: f64) -> Result<(), Error> {
+pub(crate) fn range(key: &str, v: [f64; 2], lo: f64, hi: f64) -> Result<(), Error> {
     if v.iter().all(|x| x.is_finite() && *x >= lo && *x <= hi) && v[0] <= v[1] {
         Ok(())
     } else {

@@ -34,12 +34,22 @@ struct Flat {
     slots: Vec<[f64; 4]>,
     symmetries: Vec<f64>,
     albedo: f64,
+    specular: f64,
+    roughness: f64,
     items: Items,
 }
 
 impl From<Flat> for TrayEntry {
     fn from(f: Flat) -> Self {
-        let tray = Tray { kind: f.kind, mesh: f.mesh, slots: f.slots, symmetries: f.symmetries, albedo: f.albedo };
+        let tray = Tray {
+            kind: f.kind,
+            mesh: f.mesh,
+            slots: f.slots,
+            symmetries: f.symmetries,
+            albedo: f.albedo,
+            specular: f.specular,
+            roughness: f.roughness,
+        };
         TrayEntry { name: f.name, tray, items: f.items }
     }
 }
@@ -54,6 +64,8 @@ impl From<TrayEntry> for Flat {
             slots: t.slots,
             symmetries: t.symmetries,
             albedo: t.albedo,
+            specular: t.specular,
+            roughness: t.roughness,
             items: e.items,
         }
     }

@@ -182,6 +182,26 @@ impl Estimator {
         Ok(Estimator { reconstructor, reconstruction, stages })
     }
 
+    /// Uses `rig` from now on (a recalibrated rig, or the one a study's scenario believes
+    /// in); the background must be set again, since it is reconstructed through the rig.
+    /// Its cameras must have the size of the rig it replaces.
+    pub fn set_rig(&mut self, cell: &Cell, rig: &Rig) -> Result<()> {
+        let reconstructor = Reconstructor::new(cell, rig, self.reconstructor.method())?;
+        let (old, new) = (&self.reconstructor.rectification().camera, &reconstructor.rectification().camera);
+        if (old.width, old.height) != (new.width, new.height) {
+            return Err(Error::new(
+                ErrorKind::Rig,
+                format!(
+                    "rig: expected cameras rectified to {}x{} like the rig it replaces, got {}x{}",
+                    old.width, old.height, new.width, new.height
+                ),
+            ));
+        }
+        self.stages.sensor_position = Point3::from(new.t_world_rectified.translation.vector.cast::<f32>());
+        self.reconstructor = reconstructor;
+        Ok(())
+    }
+
     /// Captures the background (the cell without tray) used to clean every later frame.
     pub fn set_background(&mut self, left: &[GrayImage], right: &[GrayImage]) -> Result<()> {
         self.reconstructor.set_background(left, right)

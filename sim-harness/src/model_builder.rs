@@ -70,6 +70,7 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
         ambient: mid(light.ambient),
         lamp_strength: mid(light.lamp_strength),
         lamp_position: Point3::new(0.0, 0.0, light.lamp_distance),
+        occluder: None,
     };
     let poses: Vec<Isometry3<f64>> = (0..VIEWPOINTS)
         .map(|v| {
@@ -176,6 +177,7 @@ fn tray_bounds(objects: &crate::scene::Objects, slots: usize, margin: f32) -> (P
         ambient: 0.0,
         lamp_strength: 0.0,
         lamp_position: Point3::origin(),
+        occluder: None,
     };
     let mut triangles = Vec::new();
     objects.triangles(&spec, &mut triangles);

@@ -17,6 +17,16 @@ pub(crate) fn scenario_key(seed: u64, index: u64) -> u64 {
     mix(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ index.wrapping_add(0xD1B5_4A32_D192_ED03))
 }
 
+/// The RNG seed of scenario `index`'s occluder, apart from its other draws.
+pub(crate) fn occluder_key(seed: u64, index: u64) -> u64 {
+    mix(scenario_key(seed, index) ^ 0x4F43_434C_5544_4552)
+}
+
+/// The RNG seed of scenario `index`'s calibration error, apart from its other draws.
+pub(crate) fn calibration_key(seed: u64, index: u64) -> u64 {
+    mix(scenario_key(seed, index) ^ 0x4341_4C49_4252_4154)
+}
+
 /// Noise key of scenario `index` of `seed` (`background` for its background capture).
 pub fn noise_key(seed: u64, index: u64, background: bool) -> u64 {
     // Packed inputs, then the finaliser: distinct, well-mixed keys.

@@ -3,6 +3,7 @@
 //! frame files written from them.
 
 mod board;
+pub mod defocus;
 pub mod frame_files;
 mod lens;
 pub mod noise;
@@ -14,3 +15,6 @@ mod simulator;
 
 pub use board::{render_board_views, table_board_pose, BoardTruth};
 pub use simulator::{Frame, Method, Simulator};
+
+#[cfg(test)]
+mod realism_tests;

@@ -8,6 +8,8 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
 
+use crate::render::defocus::{level_weight, BlurStack};
+
 /// Phase steps per fringe frequency.
 pub const PHASE_STEPS: usize = 4;
 
@@ -66,21 +68,23 @@ pub fn fringe_set(sensor: &Sensor) -> Vec<GrayImage> {
 /// `footprint` x `footprint` pixels (the projector pixels one camera pixel spans, so the
 /// camera sees the pattern without aliasing), bilinear between pixel centres, black
 /// outside. An image whose rows are all alike (the fringes) is kept as one row, which is
-/// much cheaper to sample.
+/// much cheaper to sample. With defocus, copies blurred at the stack's levels let a point
+/// read the pattern as the projector's circle of confusion there spreads it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProjectorImage {
     width: usize,
     height: usize,
-    /// The filtered image, or its one row.
-    values: Vec<f32>,
     one_row: bool,
     /// The filtered value at index i is centred on pixel i + offset.
     offset: f32,
+    /// Level 0: the filtered image (or its one row); above it, its defocused copies.
+    stack: BlurStack,
 }
 
 impl ProjectorImage {
-    /// Prepares `image` for sampling, box-filtered over `footprint` pixels (1: not at all).
-    pub fn new(image: &GrayImage, footprint: usize) -> ProjectorImage {
+    /// Prepares `image` for sampling, box-filtered over `footprint` pixels (1: not at all),
+    /// with defocused copies up to a blur of `max_sigma` projector pixels (0: none).
+    pub fn new(image: &GrayImage, footprint: usize, max_sigma: f32) -> ProjectorImage {
         let (w, h) = (image.width, image.height);
         let b = footprint.max(1);
         let one_row = h > 0 && (1..h).all(|y| image.row(y) == image.row(0));
@@ -100,15 +104,41 @@ impl ProjectorImage {
                 *o = sum as f32 * scale;
             }
         }
-        ProjectorImage { width: w, height: h, values, one_row, offset: (b as f32 - 1.0) / 2.0 }
+        let mut stack = BlurStack::default();
+        stack.build(&values, w.max(1), max_sigma);
+        ProjectorImage { width: w, height: h, one_row, offset: (b as f32 - 1.0) / 2.0, stack }
     }
 
     /// Brightness at projector pixel coordinates (u, v), pixel centres at integers.
     #[inline(always)]
     pub fn sample(&self, u: f32, v: f32) -> f32 {
+        match self.taps(u, v) {
+            None => 0.0,
+            Some(t) => t.read(&self.stack.levels()[0]),
+        }
+    }
+
+    /// Brightness at (u, v) where the projector's defocus blurs by `sigma` projector pixels
+    /// (clamped to the largest blur the image was prepared for).
+    #[inline(always)]
+    pub fn sample_defocused(&self, u: f32, v: f32, sigma: f32) -> f32 {
+        let Some(t) = self.taps(u, v) else { return 0.0 };
+        let levels = self.stack.levels();
+        let (k, w) = level_weight(sigma, levels.len() - 1);
+        let a = t.read(&levels[k]);
+        if w == 0.0 {
+            a
+        } else {
+            a + w * (t.read(&levels[k + 1]) - a)
+        }
+    }
+
+    /// The bilinear taps of (u, v), `None` outside the image.
+    #[inline(always)]
+    fn taps(&self, u: f32, v: f32) -> Option<Taps> {
         let (w, h) = (self.width as f32, self.height as f32);
         if !(u >= -0.5 && v >= -0.5 && u < w - 0.5 && v < h - 0.5) {
-            return 0.0;
+            return None;
         }
         let (u, v) = (u - self.offset, if self.one_row { v } else { v - self.offset });
         let uc = u.clamp(0.0, w - 1.0);
@@ -116,16 +146,37 @@ impl ProjectorImage {
         let fx = uc - x0 as f32;
         let x1 = (x0 + 1).min(self.width - 1);
         if self.one_row {
-            return self.values[x0] + fx * (self.values[x1] - self.values[x0]);
+            return Some(Taps { r0: 0, r1: 0, x0, x1, fx, fy: 0.0 });
         }
         let vc = v.clamp(0.0, h - 1.0);
         let y0 = (vc as usize).min(self.height.saturating_sub(2));
         let fy = vc - y0 as f32;
         let y1 = (y0 + 1).min(self.height - 1);
-        let (r0, r1) = (y0 * self.width, y1 * self.width);
-        let top = self.values[r0 + x0] + fx * (self.values[r0 + x1] - self.values[r0 + x0]);
-        let bottom = self.values[r1 + x0] + fx * (self.values[r1 + x1] - self.values[r1 + x0]);
-        top + fy * (bottom - top)
+        Some(Taps { r0: y0 * self.width, r1: y1 * self.width, x0, x1, fx, fy })
+    }
+}
+
+/// Where a bilinear sample reads: two row starts, two columns and the fractions.
+#[derive(Debug, Clone, Copy)]
+struct Taps {
+    r0: usize,
+    r1: usize,
+    x0: usize,
+    x1: usize,
+    fx: f32,
+    fy: f32,
+}
+
+impl Taps {
+    #[inline(always)]
+    fn read(&self, values: &[f32]) -> f32 {
+        let (r0, r1, x0, x1) = (self.r0, self.r1, self.x0, self.x1);
+        let top = values[r0 + x0] + self.fx * (values[r0 + x1] - values[r0 + x0]);
+        if r0 == r1 && self.fy == 0.0 {
+            return top;
+        }
+        let bottom = values[r1 + x0] + self.fx * (values[r1 + x1] - values[r1 + x0]);
+        top + self.fy * (bottom - top)
     }
 }
 
@@ -168,7 +219,7 @@ mod tests {
     fn sampling_is_bilinear_and_black_outside() {
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         for img in [random_dots(50, 30, 1, 0.5, 9), fringe(50, 30, 3.0, 1)] {
-            let p = ProjectorImage::new(&img, 1);
+            let p = ProjectorImage::new(&img, 1, 0.0);
             for _ in 0..500 {
                 let u: f32 = rng.random_range(0.0..49.0);
                 let v: f32 = rng.random_range(0.0..29.0);
@@ -190,8 +241,8 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(4);
         for b in [2usize, 3] {
             for img in [random_dots(60, 40, 1, 0.5, 8), fringe(60, 40, 5.0, 2)] {
-                let plain = ProjectorImage::new(&img, 1);
-                let filtered = ProjectorImage::new(&img, b);
+                let plain = ProjectorImage::new(&img, 1, 0.0);
+                let filtered = ProjectorImage::new(&img, b, 0.0);
                 let off = (b as f32 - 1.0) / 2.0;
                 for _ in 0..300 {
                     let u: f32 = rng.random_range(4.0..50.0);

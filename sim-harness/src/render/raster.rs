@@ -546,6 +546,7 @@ mod tests {
             ],
             normal: Vector3::z(),
             albedo: 0.5,
+            gloss: crate::scene::Gloss::MATTE,
             id: 0,
         };
         let mut zb = ZBuffer::new(64, 48);
@@ -575,6 +576,7 @@ mod tests {
                 vertices: [c, Point3::new(a.0, a.1, 0.0), Point3::new(b.0, b.1, 0.0)],
                 normal: Vector3::z(),
                 albedo: 0.5,
+                gloss: crate::scene::Gloss::MATTE,
                 id: 0,
             };
             let mut zb = ZBuffer::new(40, 40);

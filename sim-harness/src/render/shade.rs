@@ -3,10 +3,16 @@
 //! terms of every pixel, computed once per scene, and from those terms and a projector
 //! image to the clean grey image of one shot:
 //!
-//! grey = 255 albedo (ambient + lamp_strength lamp_visible max(0, n.l_lamp)
-//!        + projector_gain pattern(projector uv) projector_visible max(0, n.l_projector))
+//! grey = 255 albedo ambient
+//!        + 255 (albedo + gloss(n.h_lamp)) lamp_strength lamp_visible max(0, n.l_lamp)
+//!        + 255 (albedo + gloss(n.h_projector)) projector_gain pattern(projector uv)
+//!          projector_visible max(0, n.l_projector)
 //!
-//! clamped to 0..255 as the sensor saturates. The lamp is a point light without fall-off
+//! clamped to 0..255 as the sensor saturates; gloss is the material's glossy lobe (see
+//! `Gloss`), h the half-way vector between the light and the camera, so a glossy face
+//! throws a light's highlight where the law of reflection sends it into the camera. With
+//! the projector's defocus, each pixel also keeps the blur its surface point's distance
+//! from the projector gives the pattern, and reads the pattern at that blur. The lamp is a point light without fall-off
 //! (it hangs far away compared with the tray). A camera pixel spans about two projector
 //! pixels; the pattern is pre-filtered over that footprint (see `ProjectorImage`) and
 //! sampled once, bilinearly, at the pixel centre's projector coordinates, which keeps the
@@ -19,7 +25,8 @@ use rayon::prelude::*;
 use crate::render::noise::pixel_noise;
 use crate::render::pattern::ProjectorImage;
 use crate::render::raster::{MapPixel, View, ZBuffer, NO_TRIANGLE};
-use crate::scene::{SceneTriangle, ID_TABLE};
+use crate::render::defocus::ThinLens;
+use crate::scene::{Gloss, SceneTriangle, ID_TABLE};
 
 /// A point is in shadow only when the occluder is nearer to the light than this, mm.
 pub const SHADOW_BIAS_MM: f64 = 1.0;
@@ -41,6 +48,8 @@ pub struct Lights<'a> {
     pub projector_shadow: &'a ZBuffer,
     /// Projector brightness on a surface facing it, units of full white.
     pub projector_gain: f64,
+    /// The projector's lens, when its defocus is rendered.
+    pub projector_lens: Option<ThinLens>,
 }
 
 /// Per pixel of one camera, the parts of its grey level that do not depend on the pattern.
@@ -56,6 +65,11 @@ pub struct ShadingTerms {
     pub projector: Vec<f32>,
     /// Projector coordinates (u, v) of the pixel centre.
     pub projector_uv: Vec<[f32; 2]>,
+    /// The projector's defocus blur at the pixel's surface point, projector pixels (kept
+    /// only with defocus).
+    pub projector_sigma: Vec<f32>,
+    /// Whether the projector's defocus is rendered.
+    defocused: bool,
     triangles: Vec<TriangleTerms>,
 }
 
@@ -69,6 +83,8 @@ impl ShadingTerms {
             base: vec![0.0; n],
             projector: vec![0.0; n],
             projector_uv: vec![[0.0; 2]; n],
+            projector_sigma: vec![0.0; n],
+            defocused: false,
             triangles: Vec::new(),
         }
     }
@@ -108,6 +124,8 @@ impl ShadingTerms {
                 h_projector: to_projector.for_plane(plane),
                 h_lamp: to_lamp.as_ref().map_or([[0.0; 3]; 3], |m| m.for_plane(plane)),
                 albedo: 255.0 * tri.albedo,
+                normal: normal.into(),
+                gloss: tri.gloss,
                 lamp_facing: if lamp_on { normal.dot(&(lights.lamp_position - v0)) } else { 0.0 },
                 projector_facing: normal.dot(&(lights.projector.centre() - v0)),
                 id: tri.id,
@@ -123,14 +141,16 @@ impl ShadingTerms {
             lights,
         };
         let band = w * ROWS_PER_TASK;
+        self.defocused = lights.projector_lens.is_some();
         self.base
             .par_chunks_mut(band)
             .zip(self.projector.par_chunks_mut(band))
             .zip(self.projector_uv.par_chunks_mut(band))
             .zip(depth.data.par_chunks_mut(band))
             .zip(ids.data.par_chunks_mut(band))
+            .zip(self.projector_sigma.par_chunks_mut(band))
             .enumerate()
-            .for_each(|(chunk, ((((base, proj), uv), depth), ids))| {
+            .for_each(|(chunk, (((((base, proj), uv), depth), ids), sigma))| {
                 let y0 = chunk * ROWS_PER_TASK;
                 let rows = base.len() / w;
                 for r in 0..rows {
@@ -141,6 +161,7 @@ impl ShadingTerms {
                         base: &mut base[span.clone()],
                         projector: &mut proj[span.clone()],
                         uv: &mut uv[span.clone()],
+                        sigma: &mut sigma[span.clone()],
                         depth: &mut depth[span.clone()],
                         ids: &mut ids[span],
                     };
@@ -159,7 +180,9 @@ impl ShadingTerms {
             .zip(self.projector_uv.par_chunks(band))
             .enumerate()
             .for_each(|(chunk, (((out, base), proj), uv))| {
-                shade_band(pattern, noise, (chunk * band) as u64, base, proj, uv, out);
+                let span = chunk * band..chunk * band + out.len();
+                let sigma = if self.defocused { &self.projector_sigma[span] } else { &[] };
+                shade_band(pattern, noise, (chunk * band) as u64, base, proj, uv, sigma, out);
             });
     }
 
@@ -181,6 +204,7 @@ camplace_estimator::multiversion! {
         base: &[f32],
         proj: &[f32],
         uv: &[[f32; 2]],
+        sigma: &[f32],
         out: &mut [f32],
     ) => shade_band_body
 }
@@ -193,17 +217,29 @@ fn shade_band_body(
     base: &[f32],
     proj: &[f32],
     uv: &[[f32; 2]],
+    sigma: &[f32],
     out: &mut [f32],
 ) {
     let n = out.len();
     let (base, proj, uv) = (&base[..n], &proj[..n], &uv[..n]);
-    for x in 0..n {
-        let mut g = base[x];
-        let p = proj[x];
-        if p > 0.0 {
-            g += p * pattern.sample(uv[x][0], uv[x][1]);
+    if sigma.len() == n {
+        for x in 0..n {
+            let mut g = base[x];
+            let p = proj[x];
+            if p > 0.0 {
+                g += p * pattern.sample_defocused(uv[x][0], uv[x][1], sigma[x]);
+            }
+            out[x] = g.clamp(0.0, 255.0);
         }
-        out[x] = g.clamp(0.0, 255.0);
+    } else {
+        for x in 0..n {
+            let mut g = base[x];
+            let p = proj[x];
+            if p > 0.0 {
+                g += p * pattern.sample(uv[x][0], uv[x][1]);
+            }
+            out[x] = g.clamp(0.0, 255.0);
+        }
     }
     if let Some((key, amplitude)) = noise.filter(|n| n.1 > 0) {
         for (x, o) in out.iter_mut().enumerate() {
@@ -251,6 +287,10 @@ struct TriangleTerms {
     h_lamp: [[f64; 3]; 3],
     /// 255 albedo, grey levels.
     albedo: f64,
+    /// Unit normal turned towards the camera.
+    normal: [f64; 3],
+    /// Glossy lobe.
+    gloss: Gloss,
     /// n.(lamp - p) with n turned towards the camera: the lamp lights the face only when
     /// positive (0 when the lamp is off).
     lamp_facing: f64,
@@ -266,6 +306,7 @@ struct Row<'r> {
     base: &'r mut [f32],
     projector: &'r mut [f32],
     uv: &'r mut [[f32; 2]],
+    sigma: &'r mut [f32],
     depth: &'r mut [f32],
     ids: &'r mut [u8],
 }
@@ -298,6 +339,7 @@ impl Context<'_> {
         let w = row.tri.len();
         let (base, proj, uvs, depth, ids) =
             (&mut row.base[..w], &mut row.projector[..w], &mut row.uv[..w], &mut row.depth[..w], &mut row.ids[..w]);
+        let sigma = row.sigma;
         let [rx, ry, r0] = self.rays;
         // The unit-depth ray of pixel (x, fy) is ray_row + rx x.
         let ray_row: [f64; 3] = std::array::from_fn(|i| ry[i] * fy + r0[i]);
@@ -318,6 +360,9 @@ impl Context<'_> {
             let z = 1.0 / (a * fx + b * fy + c);
             let pos: [f64; 3] = std::array::from_fn(|i| self.centre[i] + (ray_row[i] + rx[i] * fx) * z);
             let mut light = l.ambient;
+            let mut highlight = 0.0;
+            let glossy = tt.gloss.specular > 0.0;
+            let to_camera = if glossy { unit(sub(&self.centre, &pos)) } else { [0.0; 3] };
             if tt.lamp_facing > 0.0 {
                 let visible = match lamp_map {
                     None => true,
@@ -337,7 +382,12 @@ impl Context<'_> {
                     }
                 };
                 if visible {
-                    light += l.lamp_strength * tt.lamp_facing / distance(&self.lamp_position, &pos);
+                    let cos = tt.lamp_facing / distance(&self.lamp_position, &pos);
+                    light += l.lamp_strength * cos;
+                    if glossy {
+                        let lobe = tt.gloss.reflectance(half_cos(&tt.normal, &self.lamp_position, &pos, &to_camera));
+                        highlight += 255.0 * lobe * l.lamp_strength * cos;
+                    }
                 }
             }
             let mut projector = 0.0;
@@ -355,13 +405,21 @@ impl Context<'_> {
                         MapPixel::Pixel(i) => self.unshadowed(map, i, t, qz * z),
                     };
                     if lit {
-                        projector =
-                            tt.albedo * l.projector_gain * tt.projector_facing / distance(&self.projector_centre, &pos);
+                        let cos = tt.projector_facing / distance(&self.projector_centre, &pos);
+                        let lobe = if glossy {
+                            255.0 * tt.gloss.reflectance(half_cos(&tt.normal, &self.projector_centre, &pos, &to_camera))
+                        } else {
+                            0.0
+                        };
+                        projector = (tt.albedo + lobe) * l.projector_gain * cos;
                         uvs[x] = [u as f32, v as f32];
+                        if let Some(lens) = &l.projector_lens {
+                            sigma[x] = lens.sigma_px(qz * z);
+                        }
                     }
                 }
             }
-            base[x] = (tt.albedo * light) as f32;
+            base[x] = (tt.albedo * light + highlight) as f32;
             proj[x] = projector as f32;
             depth[x] = z as f32;
             ids[x] = tt.id;
@@ -389,6 +447,28 @@ impl Context<'_> {
 fn distance(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
     (dx * dx + dy * dy + dz * dz).sqrt()
+}
+
+/// `a - b`.
+#[inline(always)]
+fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// `v` scaled to unit length.
+#[inline(always)]
+fn unit(v: [f64; 3]) -> [f64; 3] {
+    let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    [v[0] / n, v[1] / n, v[2] / n]
+}
+
+/// n.h for the half-way vector h between the direction from `pos` to `light` and the unit
+/// direction `to_camera`.
+#[inline(always)]
+fn half_cos(normal: &[f64; 3], light: &[f64; 3], pos: &[f64; 3], to_camera: &[f64; 3]) -> f64 {
+    let l = unit(sub(light, pos));
+    let h = unit([l[0] + to_camera[0], l[1] + to_camera[1], l[2] + to_camera[2]]);
+    normal[0] * h[0] + normal[1] * h[1] + normal[2] * h[2]
 }
 
 /// Whether two triangles lie in one plane (the two halves of a box face, say).

@@ -7,12 +7,13 @@
 //! shot then costs one pass of pattern sampling and the noise. Every buffer is allocated
 //! in `Simulator::new` or on the first frame, and reused after.
 
-use camplace_config::{Cell, Placement};
+use camplace_config::{Cell, Effect, Focus, Placement};
 use camplace_config::{FloatImage, GrayImage};
 pub use camplace_estimator::Method;
 use camplace_estimator::{Camera, Rig};
 use nalgebra::Point3;
 
+use crate::render::defocus::{defocus_image, BlurStack, ThinLens, LEVELS};
 use crate::render::lens::LensWarp;
 use crate::render::noise::{add_noise, mean_filter_to_u8};
 use crate::render::pattern::{fringe_set, one_shot, ProjectorImage};
@@ -73,6 +74,16 @@ pub struct Simulator {
     canvas_grey: Vec<f32>,
     canvas_depth: FloatImage,
     canvas_ids: GrayImage,
+    /// Per camera, its lens when defocus is rendered.
+    camera_lenses: [Option<ThinLens>; 2],
+    /// The projector's lens when defocus is rendered.
+    projector_lens: Option<ThinLens>,
+    /// Per camera, each pixel's defocus blur this frame, pixels, and the largest.
+    camera_sigma: [Vec<f32>; 2],
+    camera_max_sigma: [f32; 2],
+    blur_stack: BlurStack,
+    /// The box filter and the largest defocus blur the projector images were prepared with.
+    pattern_prep: (usize, f32),
 }
 
 impl Simulator {
@@ -99,10 +110,25 @@ impl Simulator {
         let fringe_images = fringe_set(sensor);
         let (w, h) = (rig.left.width, rig.left.height);
         let footprint = footprint(&rig.left, projector_camera);
+        let defocus = cell.effect_active(Effect::Defocus);
+        let o = &cell.optics;
+        let lens_of = |view: &View, focal_length: f64, f_number: f64, focus: Focus| {
+            let focus = match focus {
+                Focus::Distance(d) => d,
+                Focus::Table => view.t_view_world.translation.vector.z,
+            };
+            // A lens focused nearer than its focal length is not a lens (the table behind
+            // the camera, say): such a view is drawn sharp.
+            (defocus && focus > focal_length).then(|| ThinLens::new(focal_length, f_number, focus, view.k[(0, 0)]))
+        };
+        let camera_lenses =
+            [0, 1].map(|c| lens_of(&cameras[c], o.camera_focal_length, o.camera_f_number, o.camera_focus));
+        let projector_lens = lens_of(&projector, o.projector_focal_length, o.projector_f_number, o.projector_focus);
+        let max_sigma = projector_lens.map_or(0.0, |lens| largest_blur(&lens, &projector, cell));
         Ok(Simulator {
             objects: Objects::from_cell(cell)?,
-            one_shot: one_shot_images.iter().map(|i| ProjectorImage::new(i, footprint)).collect(),
-            fringes: fringe_images.iter().map(|i| ProjectorImage::new(i, footprint)).collect(),
+            one_shot: one_shot_images.iter().map(|i| ProjectorImage::new(i, footprint, max_sigma)).collect(),
+            fringes: fringe_images.iter().map(|i| ProjectorImage::new(i, footprint, max_sigma)).collect(),
             one_shot_images,
             fringe_images,
             zbuffers: [0, 1].map(|c| ZBuffer::new(cameras[c].width, cameras[c].height)),
@@ -114,6 +140,12 @@ impl Simulator {
             canvas_grey: Vec::new(),
             canvas_depth: FloatImage::default(),
             canvas_ids: GrayImage::default(),
+            camera_lenses,
+            projector_lens,
+            camera_sigma: [Vec::new(), Vec::new()],
+            camera_max_sigma: [0.0; 2],
+            blur_stack: BlurStack::default(),
+            pattern_prep: (footprint, max_sigma),
             triangles: Vec::new(),
             projector_gain: sensor.projector_gain,
             noise_amplitude: sensor.noise_amplitude,
@@ -133,6 +165,20 @@ impl Simulator {
     /// The table, tray and item it places in scenes.
     pub fn objects(&self) -> &Objects {
         &self.objects
+    }
+
+    /// Shows `image` as the one-shot pattern from now on (prepared as the seeded one was).
+    #[cfg(test)]
+    pub(crate) fn set_one_shot_pattern(&mut self, image: GrayImage) {
+        let (footprint, max_sigma) = self.pattern_prep;
+        self.one_shot = vec![ProjectorImage::new(&image, footprint, max_sigma)];
+        self.one_shot_images = vec![image];
+    }
+
+    /// The projector's lens and the left camera's, when defocus is rendered.
+    #[cfg(test)]
+    pub(crate) fn thin_lenses(&self) -> (Option<ThinLens>, Option<ThinLens>) {
+        (self.projector_lens, self.camera_lenses[0])
     }
 
     /// The projector images of a method, in shot order.
@@ -174,16 +220,24 @@ impl Simulator {
                     image.reset(w, h, 0);
                 }
                 let noise = noise_key.map(|key| (image_key(key, cam as u64, shot as u64), self.noise_amplitude));
+                let defocused = self.camera_lenses[cam].is_some();
                 match &self.lenses[cam] {
-                    None => self.terms[cam].shade(pattern, noise, &mut self.clean),
+                    None if !defocused => self.terms[cam].shade(pattern, noise, &mut self.clean),
+                    None => self.terms[cam].shade(pattern, None, &mut self.clean),
                     Some(lens) => {
-                        // The noise is the sensor's, so it is added to the image, not the canvas.
                         self.canvas_grey.resize(self.cameras[cam].width * self.cameras[cam].height, 0.0);
                         self.terms[cam].shade(pattern, None, &mut self.canvas_grey);
                         lens.warp_linear(&self.canvas_grey, &mut self.clean);
-                        if let Some((key, amplitude)) = noise {
-                            add_noise(&mut self.clean, key, amplitude);
-                        }
+                    }
+                }
+                // The lens blurs the light before the sensor adds its noise.
+                if defocused {
+                    let sigma = &self.camera_sigma[cam];
+                    defocus_image(&mut self.clean, w, sigma, self.camera_max_sigma[cam], &mut self.blur_stack);
+                }
+                if defocused || self.lenses[cam].is_some() {
+                    if let Some((key, amplitude)) = noise {
+                        add_noise(&mut self.clean, key, amplitude);
                     }
                 }
                 let blur = if noise.is_some() { self.blur } else { 1 };
@@ -207,6 +261,10 @@ impl Simulator {
             terms,
             canvas_depth,
             canvas_ids,
+            camera_lenses,
+            projector_lens,
+            camera_sigma,
+            camera_max_sigma,
             ..
         } = self;
         objects.triangles(scene, triangles);
@@ -223,6 +281,7 @@ impl Simulator {
             projector,
             projector_shadow: projector_map,
             projector_gain: self.projector_gain,
+            projector_lens: *projector_lens,
         };
         let outputs = [(&mut frame.depth_left, &mut frame.ids_left), (&mut frame.depth_right, &mut frame.ids_right)];
         for (c, (depth, ids)) in outputs.into_iter().enumerate() {
@@ -242,8 +301,31 @@ impl Simulator {
                     lens.warp_nearest(&canvas_ids.data, &mut ids.data, ID_TABLE);
                 }
             }
+            if let Some(lens) = &camera_lenses[c] {
+                let sigma = &mut camera_sigma[c];
+                sigma.clear();
+                sigma.extend(depth.data.iter().map(|&z| lens.sigma_px(z as f64)));
+                camera_max_sigma[c] = sigma.iter().fold(0.0, |m: f32, &s| m.max(s));
+            }
         }
     }
+}
+
+/// The largest blur, projector pixels, that `lens` gives anything the projector can light
+/// in `cell`: the depths of the work volume's and the table's corners bound it (the blur
+/// grows away from the focus distance on either side).
+fn largest_blur(lens: &ThinLens, projector: &View, cell: &Cell) -> f32 {
+    let w = &cell.work_volume;
+    let [tx, ty] = cell.table.size.map(|s| s / 2.0);
+    let corners = (0..8)
+        .map(|i| Point3::new(w.x[i & 1], w.y[(i >> 1) & 1], w.z[(i >> 2) & 1]))
+        .chain((0..4).map(|i| Point3::new([-tx, tx][i & 1], [-ty, ty][i >> 1], 0.0)));
+    corners
+        .map(|p| (projector.t_view_world * p).z)
+        .filter(|&z| z > 0.0)
+        .map(|z| lens.sigma_px(z))
+        .fold(0.0, f32::max)
+        .min(LEVELS[LEVELS.len() - 1])
 }
 
 /// Projector pixels that one camera pixel spans where the optical axes meet the table,

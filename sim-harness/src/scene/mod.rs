@@ -3,10 +3,12 @@
 
 pub mod as_built;
 pub mod placement_rig;
+pub mod rig_error;
 pub mod scenario;
 mod spec;
 pub mod tray;
 
-pub use spec::{Objects, SceneSpec, SceneTriangle, ID_TABLE};
+pub use spec::{Gloss, Objects, OccluderBox, SceneSpec, SceneTriangle, ID_TABLE};
+pub use spec::ID_OCCLUDER;
 #[cfg(test)]
 pub use spec::{ID_FIRST_ITEM, ID_TRAY};

@@ -2,7 +2,7 @@
 //! ranges. Scenario i of seed S depends on nothing else, so every placement sees the same
 //! scenes (common random numbers) and differences between placements are not noise.
 
-use camplace_config::Cell;
+use camplace_config::{Cell, Effect};
 use camplace_estimator::{isometry_from_rows, isometry_to_rows};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
@@ -10,8 +10,8 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::scene::tray::slot_count;
-use crate::scene::SceneSpec;
-use crate::seeds::scenario_key;
+use crate::scene::{OccluderBox, SceneSpec};
+use crate::seeds::{occluder_key, scenario_key};
 
 /// One drawn scene, as `truth.json` stores it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -31,6 +31,9 @@ pub struct Scenario {
     pub lamp_strength: f64,
     /// Lamp position, world mm.
     pub lamp_position: Point3<f64>,
+    /// The box above the tray, when the cell's occluder is on and this scenario drew it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub occluder: Option<OccluderBox>,
 }
 
 impl Scenario {
@@ -44,6 +47,7 @@ impl Scenario {
             ambient: self.ambient,
             lamp_strength: self.lamp_strength,
             lamp_position: self.lamp_position,
+            occluder: self.occluder,
         }
     }
 }
@@ -76,7 +80,28 @@ pub fn draw_scenario(cell: &Cell, seed: u64, index: u64) -> Scenario {
         ambient,
         lamp_strength,
         lamp_position: Point3::new(d * polar.sin() * azimuth.cos(), d * polar.sin() * azimuth.sin(), d * polar.cos()),
+        occluder: draw_occluder(cell, seed, index, [x, y]),
     }
+}
+
+/// The occluder of scenario `index`, drawn from a stream of its own so that switching it
+/// on or off leaves every other draw of the scenario as it was.
+fn draw_occluder(cell: &Cell, seed: u64, index: u64, tray_centre: [f64; 2]) -> Option<OccluderBox> {
+    if !cell.effect_active(Effect::Occluder) {
+        return None;
+    }
+    let o = &cell.occluder;
+    let mut rng = ChaCha8Rng::seed_from_u64(occluder_key(seed, index));
+    let mut uniform = |[lo, hi]: [f64; 2]| lo + (hi - lo) * rng.random::<f64>();
+    let present = uniform([0.0, 1.0]) < o.probability;
+    let cx = tray_centre[0] + uniform([-o.offset, o.offset]);
+    let cy = tray_centre[1] + uniform([-o.offset, o.offset]);
+    let bottom = uniform(o.height);
+    let [sx, sy, sz] = o.size;
+    present.then_some(OccluderBox {
+        min: [cx - sx / 2.0, cy - sy / 2.0, bottom],
+        max: [cx + sx / 2.0, cy + sy / 2.0, bottom + sz],
+    })
 }
 
 /// The background capture of a study: scenario 0's lighting without tray and items. The

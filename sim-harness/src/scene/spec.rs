@@ -5,7 +5,9 @@
 use camplace_config::{Cell, Table};
 use nalgebra::{Isometry3, Point3, Vector3};
 
-use crate::scene::tray::{item_for, Solid, TrayModel};
+use serde::{Deserialize, Serialize};
+
+use crate::scene::tray::{box_triangles, item_for, Solid, TrayModel};
 use crate::Result;
 
 /// Object id of the table and of "nothing" in the id images.
@@ -14,6 +16,51 @@ pub const ID_TABLE: u8 = 0;
 pub const ID_TRAY: u8 = 1;
 /// Object id of the item in slot 0; the item in slot n has `ID_FIRST_ITEM + n`.
 pub const ID_FIRST_ITEM: u8 = 2;
+/// Object id of the occluder (the box standing for the gripper above the tray).
+pub const ID_OCCLUDER: u8 = 255;
+
+/// An axis-aligned box in the world: the occluder of a scene.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct OccluderBox {
+    /// Lowest corner, world mm.
+    pub min: [f64; 3],
+    /// Highest corner, world mm.
+    pub max: [f64; 3],
+}
+
+/// The glossy lobe of a material: normalised Blinn–Phong, whose reflectance towards a view
+/// is specular (e + 8) / 8 (n.h)^e relative to a white Lambertian surface's, with h the
+/// half-way vector between the light and the view and e the lobe's exponent.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Gloss {
+    /// Specular albedo (0: matte).
+    pub specular: f64,
+    /// Blinn–Phong exponent e.
+    pub exponent: f64,
+}
+
+impl Gloss {
+    /// No lobe.
+    pub const MATTE: Gloss = Gloss { specular: 0.0, exponent: 0.0 };
+
+    /// The lobe of specular albedo `specular` and roughness `roughness` (Beckmann's slope
+    /// spread m), whose Blinn–Phong exponent is 2 / m² - 2 (Walter et al. 2007).
+    pub fn new(specular: f64, roughness: f64) -> Gloss {
+        if specular <= 0.0 {
+            return Gloss::MATTE;
+        }
+        Gloss { specular, exponent: (2.0 / (roughness * roughness) - 2.0).max(0.0) }
+    }
+
+    /// The lobe's reflectance at n.h = `cos_half` relative to a white Lambertian surface's.
+    #[inline(always)]
+    pub fn reflectance(&self, cos_half: f64) -> f64 {
+        if self.specular <= 0.0 || cos_half <= 0.0 {
+            return 0.0;
+        }
+        self.specular * (self.exponent + 8.0) / 8.0 * cos_half.powf(self.exponent)
+    }
+}
 
 /// One scene to render: which objects are present, where, and how it is lit.
 #[derive(Debug, Clone, PartialEq)]
@@ -32,12 +79,15 @@ pub struct SceneSpec {
     pub lamp_strength: f64,
     /// Where the (point) lamp hangs, world mm.
     pub lamp_position: Point3<f64>,
+    /// The box above the tray, if the scene has one.
+    pub occluder: Option<OccluderBox>,
 }
 
 impl SceneSpec {
-    /// The same scene without the tray and its items, as the background capture sees it.
+    /// The same scene without the tray, its items and the occluder, as the background
+    /// capture sees it.
     pub fn background(&self) -> SceneSpec {
-        SceneSpec { tray: false, filled: Vec::new(), ..self.clone() }
+        SceneSpec { tray: false, filled: Vec::new(), occluder: None, ..self.clone() }
     }
 }
 
@@ -50,7 +100,9 @@ pub struct SceneTriangle {
     pub normal: Vector3<f64>,
     /// Lambertian albedo.
     pub albedo: f64,
-    /// Object id: table, tray or item (see `ID_*`).
+    /// Glossy lobe.
+    pub gloss: Gloss,
+    /// Object id: table, tray, item or occluder (see `ID_*`).
     pub id: u8,
 }
 
@@ -67,6 +119,10 @@ pub struct Objects {
     pub item: Solid,
     /// Albedo of the items.
     pub item_albedo: f64,
+    /// Glossy lobes of the table, the tray and the items (matte with specular off).
+    pub gloss: [Gloss; 3],
+    /// Albedo of the occluder.
+    pub occluder_albedo: f64,
 }
 
 impl Objects {
@@ -78,6 +134,16 @@ impl Objects {
             tray_albedo: cell.tray.albedo,
             item: item_for(cell)?,
             item_albedo: cell.items.albedo,
+            gloss: if cell.effects.specular {
+                [
+                    Gloss::new(cell.table.specular, cell.table.roughness),
+                    Gloss::new(cell.tray.specular, cell.tray.roughness),
+                    Gloss::new(cell.items.specular, cell.items.roughness),
+                ]
+            } else {
+                [Gloss::MATTE; 3]
+            },
+            occluder_albedo: cell.occluder.albedo,
         })
     }
 
@@ -95,31 +161,38 @@ impl Objects {
                 Point3::new(hx, hy, 0.0),
                 Point3::new(-hx, hy, 0.0),
             ];
-            push(out, [c[0], c[1], c[2]], self.table.albedo, ID_TABLE);
-            push(out, [c[0], c[2], c[3]], self.table.albedo, ID_TABLE);
+            let table = (self.table.albedo, self.gloss[0], ID_TABLE);
+            push(out, [c[0], c[1], c[2]], table);
+            push(out, [c[0], c[2], c[3]], table);
+        }
+        if let Some(b) = &spec.occluder {
+            for t in box_triangles(b.min, b.max) {
+                push(out, t, (self.occluder_albedo, Gloss::MATTE, ID_OCCLUDER));
+            }
         }
         if !spec.tray {
             return;
         }
         for t in &self.tray.solid.triangles {
-            push(out, t.map(|p| spec.t_world_tray * p), self.tray_albedo, ID_TRAY);
+            push(out, t.map(|p| spec.t_world_tray * p), (self.tray_albedo, self.gloss[1], ID_TRAY));
         }
         for &n in &spec.filled {
             let Some(slot) = self.tray.slot_pose(n) else { continue };
             let Some(id) = u8::try_from(n).ok().and_then(|n| n.checked_add(ID_FIRST_ITEM)) else { continue };
             let pose = spec.t_world_tray * slot;
             for t in &self.item.triangles {
-                push(out, t.map(|p| pose * p), self.item_albedo, id);
+                push(out, t.map(|p| pose * p), (self.item_albedo, self.gloss[2], id));
             }
         }
     }
 }
 
-fn push(out: &mut Vec<SceneTriangle>, vertices: [Point3<f64>; 3], albedo: f64, id: u8) {
+/// Pushes a triangle of (albedo, gloss, id).
+fn push(out: &mut Vec<SceneTriangle>, vertices: [Point3<f64>; 3], (albedo, gloss, id): (f64, Gloss, u8)) {
     let n = (vertices[1] - vertices[0]).cross(&(vertices[2] - vertices[0]));
     let len = n.norm();
     if len > 1e-12 && len.is_finite() {
-        out.push(SceneTriangle { vertices, normal: n / len, albedo, id });
+        out.push(SceneTriangle { vertices, normal: n / len, albedo, gloss, id });
     }
 }
 
@@ -144,6 +217,7 @@ mod tests {
             ambient: 0.2,
             lamp_strength: 0.3,
             lamp_position: Point3::new(0.0, 0.0, 1000.0),
+            occluder: None,
         };
         let mut tris = Vec::new();
         objects.triangles(&spec, &mut tris);

@@ -22,6 +22,22 @@ pub const DIVIDER_THICKNESS: f64 = 2.0;
 /// width along y and its height, mm.
 pub const TAB_SIZE: [f64; 3] = [12.0, 40.0, 15.0];
 
+/// The twelve triangles of the axis-aligned box `[min, max]`, its faces wound outwards.
+pub fn box_triangles(min: [f64; 3], max: [f64; 3]) -> impl Iterator<Item = [Point3<f64>; 3]> {
+    let p = move |i: usize, j: usize, k: usize| {
+        Point3::new([min[0], max[0]][i], [min[1], max[1]][j], [min[2], max[2]][k])
+    };
+    let faces = [
+        [p(0, 0, 0), p(0, 0, 1), p(0, 1, 1), p(0, 1, 0)],
+        [p(1, 0, 0), p(1, 1, 0), p(1, 1, 1), p(1, 0, 1)],
+        [p(0, 0, 0), p(1, 0, 0), p(1, 0, 1), p(0, 0, 1)],
+        [p(0, 1, 0), p(0, 1, 1), p(1, 1, 1), p(1, 1, 0)],
+        [p(0, 0, 0), p(0, 1, 0), p(1, 1, 0), p(1, 0, 0)],
+        [p(0, 0, 1), p(1, 0, 1), p(1, 1, 1), p(0, 1, 1)],
+    ];
+    faces.into_iter().flat_map(|[a, b, c, d]| [[a, b, c], [a, c, d]])
+}
+
 /// A triangle soup in its object's frame, mm.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Solid {
@@ -32,20 +48,7 @@ pub struct Solid {
 impl Solid {
     /// Adds the axis-aligned box `[min, max]`, its faces wound outwards.
     pub fn push_box(&mut self, min: [f64; 3], max: [f64; 3]) {
-        let p =
-            |i: usize, j: usize, k: usize| Point3::new([min[0], max[0]][i], [min[1], max[1]][j], [min[2], max[2]][k]);
-        let faces = [
-            [p(0, 0, 0), p(0, 0, 1), p(0, 1, 1), p(0, 1, 0)],
-            [p(1, 0, 0), p(1, 1, 0), p(1, 1, 1), p(1, 0, 1)],
-            [p(0, 0, 0), p(1, 0, 0), p(1, 0, 1), p(0, 0, 1)],
-            [p(0, 1, 0), p(0, 1, 1), p(1, 1, 1), p(1, 1, 0)],
-            [p(0, 0, 0), p(0, 1, 0), p(1, 1, 0), p(1, 0, 0)],
-            [p(0, 0, 1), p(1, 0, 1), p(1, 1, 1), p(0, 1, 1)],
-        ];
-        for [a, b, c, d] in faces {
-            self.triangles.push([a, b, c]);
-            self.triangles.push([a, c, d]);
-        }
+        self.triangles.extend(box_triangles(min, max));
     }
 
     /// The triangles of a loaded mesh; an index past the vertex list is an error.

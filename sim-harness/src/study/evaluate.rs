@@ -12,6 +12,7 @@ use super::record::{score, FrameRecord};
 use crate::model_builder::build_model;
 use crate::render::{Frame, Method, Simulator};
 use crate::scene::scenario::background_scene;
+use crate::scene::rig_error::draw_rig_error;
 use crate::scene::scenario::draw_scenario;
 use crate::seeds::noise_key;
 use crate::Result;
@@ -89,6 +90,13 @@ impl Worker<'_> {
     pub fn scene(&mut self, index: u64) -> Result<FrameRecord> {
         let Evaluator { cell, method, seed, .. } = self.evaluator;
         let scenario = draw_scenario(cell, *seed, index);
+        // Each scenario's estimator believes in its own miscalibrated rig, through which the
+        // background is reconstructed again, as a cell calibrated that way would.
+        if let Some(error) = draw_rig_error(cell, *seed, index) {
+            self.estimator.set_rig(cell, &error.apply(self.sim.rig()))?;
+            let background = &self.evaluator.background;
+            self.estimator.set_background(&background.left, &background.right)?;
+        }
         self.sim.render(&scenario.scene(), *method, noise_key(*seed, index, false), &mut self.frame);
         self.pose = self.estimator.process(&self.frame.left, &self.frame.right)?;
         let mut record = FrameRecord::new(frame_name(index), &self.pose);

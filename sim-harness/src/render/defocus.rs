@@ -1,0 +1,308 @@
+//! Thin-lens defocus: how wide a point off the focus distance spreads, and the blur that
+//! spreads it.
+//!
+//! A thin lens of focal length f and aperture diameter A = f / N focused at distance s
+//! images a point at distance z (both along the optical axis) as a disc, the circle of
+//! confusion, of diameter c = A f |z - s| / (z (s - f)) on the sensor, or
+//! c_px = A fx |z - s| / (z (s - f)) pixels for a focal length of fx pixels. The renderer
+//! blurs with the Gaussian of the disc's variance: a uniform disc of diameter c has a
+//! standard deviation of c / 4 along any axis, so σ = c / 4 and the blur's second moment
+//! is the disc's exactly, while its smooth tails keep the blurred dots free of ringing.
+//!
+//! A blur that changes from pixel to pixel is drawn from a stack of images blurred at fixed
+//! σ levels: a pixel of blur σ between levels σ_k and σ_{k+1} mixes them with the weight
+//! that makes the mixture's variance σ², (σ² - σ_k²) / (σ_{k+1}² - σ_k²). Each level's
+//! kernel is a sampled Gaussian whose width is tuned until its discrete variance is the
+//! level's, so the variances add exactly as levels build on each other.
+//!
+//! The camera's blur gathers: a pixel is blurred by its own depth's circle, which is the
+//! scatter of real defocus wherever the depth is smooth and differs from it only in a
+//! strip one circle wide along depth edges.
+
+use rayon::prelude::*;
+
+/// The blur levels of a stack, σ in pixels; beyond the last, a blur is clamped to it.
+pub const LEVELS: [f32; 13] = [0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0];
+
+/// Rows per task of parallel work.
+const ROWS_PER_TASK: usize = 16;
+
+/// A thin lens in a camera or projector of known focal length in pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ThinLens {
+    /// A fx / (s - f): the circle of confusion far away, pixels.
+    far_circle: f64,
+    /// The focus distance s, mm.
+    focus: f64,
+}
+
+impl ThinLens {
+    /// A lens of `focal_length` mm at `f_number`, focused at `focus` mm (above the focal
+    /// length), in a view whose focal length is `fx` pixels.
+    pub fn new(focal_length: f64, f_number: f64, focus: f64, fx: f64) -> ThinLens {
+        let aperture = focal_length / f_number;
+        ThinLens { far_circle: aperture * fx / (focus - focal_length), focus }
+    }
+
+    /// The diameter of the circle of confusion of a point at distance `z` mm along the
+    /// axis, pixels (that of a point infinitely far for `z` = +inf).
+    #[inline(always)]
+    pub fn circle_px(&self, z: f64) -> f64 {
+        self.far_circle * (1.0 - self.focus / z).abs()
+    }
+
+    /// The blur's standard deviation at distance `z`: a quarter of the circle's diameter.
+    #[inline(always)]
+    pub fn sigma_px(&self, z: f64) -> f32 {
+        (self.circle_px(z) / 4.0) as f32
+    }
+}
+
+/// The symmetric kernel (taps from the centre out, normalised over both sides) of a sampled
+/// Gaussian whose discrete variance is `sigma`² exactly.
+pub fn gaussian_kernel(sigma: f32) -> Vec<f32> {
+    let target = sigma as f64 * sigma as f64;
+    if target <= 0.0 {
+        return vec![1.0];
+    }
+    let radius = (3.0 * sigma).ceil() as usize + 1;
+    let taps = |s: f64| -> Vec<f64> { (0..=radius).map(|i| (-((i * i) as f64) / (2.0 * s * s)).exp()).collect() };
+    let variance = |t: &[f64]| {
+        let sum = t[0] + 2.0 * t[1..].iter().sum::<f64>();
+        2.0 * t.iter().enumerate().map(|(i, w)| (i * i) as f64 * w).sum::<f64>() / sum
+    };
+    // The discrete variance grows with the width; bisect for the one that gives σ².
+    let (mut lo, mut hi) = (1e-3, 2.0 * sigma as f64 + 1.0);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if variance(&taps(mid)) < target {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let t = taps(0.5 * (lo + hi));
+    let sum = t[0] + 2.0 * t[1..].iter().sum::<f64>();
+    t.iter().map(|w| (w / sum) as f32).collect()
+}
+
+/// Blurs the `width`-wide image `src` into `dst` with the separable kernel `kernel` (from
+/// the centre out), edges repeated; `scratch` holds the horizontal pass. One-row images
+/// are blurred along the row only (their rows stand for identical ones).
+pub fn blur(src: &[f32], width: usize, kernel: &[f32], scratch: &mut Vec<f32>, dst: &mut [f32]) {
+    let height = src.len() / width.max(1);
+    scratch.resize(src.len(), 0.0);
+    let band = width * ROWS_PER_TASK;
+    scratch.par_chunks_mut(band).zip(src.par_chunks(band)).for_each(|(out, rows)| {
+        for (o, row) in out.chunks_mut(width).zip(rows.chunks(width)) {
+            blur_row(row, kernel, o);
+        }
+    });
+    if height <= 1 {
+        dst.copy_from_slice(scratch);
+        return;
+    }
+    let tmp = &scratch[..];
+    let r = kernel.len() - 1;
+    dst.par_chunks_mut(band).enumerate().for_each(|(chunk, out)| {
+        let y0 = chunk * ROWS_PER_TASK;
+        for (dy, o) in out.chunks_mut(width).enumerate() {
+            let y = y0 + dy;
+            let centre = &tmp[y * width..(y + 1) * width];
+            for (v, &c) in o.iter_mut().zip(centre) {
+                *v = kernel[0] * c;
+            }
+            for (i, &w) in kernel.iter().enumerate().skip(1) {
+                let up = &tmp[y.saturating_sub(i) * width..][..width];
+                let down = &tmp[(y + i).min(height - 1) * width..][..width];
+                for ((v, &a), &b) in o.iter_mut().zip(up).zip(down) {
+                    *v += w * (a + b);
+                }
+            }
+            debug_assert!(r == 0 || kernel[r] >= 0.0);
+        }
+    });
+}
+
+/// One row blurred along itself, edges repeated.
+fn blur_row(row: &[f32], kernel: &[f32], out: &mut [f32]) {
+    let n = row.len();
+    let r = kernel.len() - 1;
+    let at = |i: isize| row[i.clamp(0, n as isize - 1) as usize];
+    for (x, o) in out.iter_mut().enumerate() {
+        let mut v = kernel[0] * row[x];
+        if x >= r && x + r < n {
+            for (i, &w) in kernel.iter().enumerate().skip(1) {
+                v += w * (row[x - i] + row[x + i]);
+            }
+        } else {
+            for (i, &w) in kernel.iter().enumerate().skip(1) {
+                v += w * (at(x as isize - i as isize) + at((x + i) as isize));
+            }
+        }
+        *o = v;
+    }
+}
+
+/// An image and copies of it blurred at the [`LEVELS`] up to a largest blur, from which any
+/// pixel can be read at any blur up to it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct BlurStack {
+    /// Level k is the image blurred at `LEVELS[k]`; level 0 is the image itself.
+    levels: Vec<Vec<f32>>,
+    scratch: Vec<f32>,
+}
+
+impl BlurStack {
+    /// Fills the stack from `image` (`width` wide) with every level up to the first at or
+    /// above `max_sigma`; buffers are kept from call to call.
+    pub fn build(&mut self, image: &[f32], width: usize, max_sigma: f32) {
+        let top = LEVELS.iter().position(|&s| s >= max_sigma).unwrap_or(LEVELS.len() - 1);
+        self.levels.resize_with(top + 1, Vec::new);
+        self.levels[0].clear();
+        self.levels[0].extend_from_slice(image);
+        for k in 1..=top {
+            let step = (LEVELS[k] * LEVELS[k] - LEVELS[k - 1] * LEVELS[k - 1]).sqrt();
+            let kernel = gaussian_kernel(step);
+            let (done, rest) = self.levels.split_at_mut(k);
+            rest[0].resize(image.len(), 0.0);
+            blur(&done[k - 1], width, &kernel, &mut self.scratch, &mut rest[0]);
+        }
+    }
+
+    /// Pixel `i` blurred at `sigma` (clamped to the stack's top level).
+    #[inline(always)]
+    pub fn sample(&self, i: usize, sigma: f32) -> f32 {
+        let (k, w) = level_weight(sigma, self.levels.len() - 1);
+        if w == 0.0 {
+            self.levels[k][i]
+        } else {
+            let (a, b) = (self.levels[k][i], self.levels[k + 1][i]);
+            a + w * (b - a)
+        }
+    }
+
+    /// The stack's levels (level 0 first).
+    pub fn levels(&self) -> &[Vec<f32>] {
+        &self.levels
+    }
+}
+
+/// For a blur `sigma` and a stack whose top level is `top`: the level k below it and the
+/// weight of level k + 1 that gives the mixture the variance `sigma`² (0 at or past the top).
+#[inline(always)]
+pub fn level_weight(sigma: f32, top: usize) -> (usize, f32) {
+    if !(sigma > 0.0) {
+        return (0, 0.0);
+    }
+    if sigma >= LEVELS[top] {
+        return (top, 0.0);
+    }
+    let mut k = 0;
+    while LEVELS[k + 1] <= sigma {
+        k += 1;
+    }
+    let (a, b) = (LEVELS[k] * LEVELS[k], LEVELS[k + 1] * LEVELS[k + 1]);
+    (k, (sigma * sigma - a) / (b - a))
+}
+
+/// Blurs `image` in place, pixel i by `sigma[i]`, through `stack` (the stack's buffers are
+/// reused from call to call).
+pub fn defocus_image(image: &mut [f32], width: usize, sigma: &[f32], max_sigma: f32, stack: &mut BlurStack) {
+    if !(max_sigma > 0.0) {
+        return;
+    }
+    stack.build(image, width, max_sigma);
+    let band = width * ROWS_PER_TASK;
+    let st = &*stack;
+    image.par_chunks_mut(band).zip(sigma.par_chunks(band)).enumerate().for_each(|(chunk, (out, s))| {
+        let first = chunk * band;
+        for (x, (o, &sg)) in out.iter_mut().zip(s).enumerate() {
+            *o = st.sample(first + x, sg);
+        }
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The discrete variance of a centre-out kernel.
+    fn variance(k: &[f32]) -> f64 {
+        let sum = k[0] as f64 + 2.0 * k[1..].iter().map(|&w| w as f64).sum::<f64>();
+        2.0 * k.iter().enumerate().map(|(i, &w)| (i * i) as f64 * w as f64).sum::<f64>() / sum
+    }
+
+    #[test]
+    fn kernels_have_the_variance_asked_for() {
+        for sigma in [0.1f32, 0.3, 0.5, 0.87, 1.7, 3.46, 6.93, 13.9] {
+            let k = gaussian_kernel(sigma);
+            let sum = k[0] + 2.0 * k[1..].iter().sum::<f32>();
+            assert!((sum - 1.0).abs() < 1e-5);
+            let v = variance(&k);
+            assert!((v.sqrt() - sigma as f64).abs() < 1e-3 * sigma as f64, "σ {sigma}: {}", v.sqrt());
+        }
+    }
+
+    #[test]
+    fn blur_equals_the_direct_two_dimensional_sum() {
+        let (w, h) = (23, 17);
+        let img: Vec<f32> = (0..w * h).map(|i| ((i * 7919) % 251) as f32).collect();
+        let k = gaussian_kernel(1.3);
+        let mut out = vec![0.0; w * h];
+        blur(&img, w, &k, &mut Vec::new(), &mut out);
+        let r = k.len() as isize - 1;
+        for y in 0..h as isize {
+            for x in 0..w as isize {
+                let mut want = 0.0f64;
+                for dy in -r..=r {
+                    for dx in -r..=r {
+                        let (xx, yy) = ((x + dx).clamp(0, w as isize - 1), (y + dy).clamp(0, h as isize - 1));
+                        want += (k[dx.unsigned_abs()] * k[dy.unsigned_abs()]) as f64
+                            * img[yy as usize * w + xx as usize] as f64;
+                    }
+                }
+                let got = out[y as usize * w + x as usize] as f64;
+                assert!((got - want).abs() < 1e-3, "({x}, {y}): {got} vs {want}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_stack_sample_has_the_variance_asked_for() {
+        // A single bright pixel: the variance of the blurred image along x is the blur's.
+        let (w, h) = (161, 161);
+        let mut img = vec![0.0f32; w * h];
+        img[80 * w + 80] = 1.0;
+        let mut stack = BlurStack::default();
+        stack.build(&img, w, 9.0);
+        for sigma in [0.3f32, 0.8, 1.2, 2.5, 5.0, 7.0, 9.0] {
+            let (mut sum, mut m2) = (0.0f64, 0.0f64);
+            for y in 0..h {
+                for x in 0..w {
+                    let v = stack.sample(y * w + x, sigma) as f64;
+                    sum += v;
+                    m2 += v * (x as f64 - 80.0).powi(2);
+                }
+            }
+            let s = (m2 / sum).sqrt();
+            assert!((s - sigma as f64).abs() < 0.01 * sigma as f64 + 1e-3, "σ {sigma}: {s}");
+        }
+    }
+
+    #[test]
+    fn the_circle_of_confusion_is_the_thin_lens_one() {
+        // 6 mm at f/2 (A = 3 mm), 800 px focal length, focused at 600 mm.
+        let lens = ThinLens::new(6.0, 2.0, 600.0, 800.0);
+        assert_eq!(lens.circle_px(600.0), 0.0);
+        for z in [400.0, 500.0, 700.0, 1000.0] {
+            // The image distances of focus and point, and the disc on the sensor by similar
+            // triangles, in pixels of 6 mm / 800.
+            let v = |d: f64| 1.0 / (1.0 / 6.0 - 1.0 / d);
+            let (vs, vz) = (v(600.0), v(z));
+            let c_mm = 3.0 * (vz - vs).abs() / vz;
+            let want = c_mm * 800.0 / 6.0;
+            assert!((lens.circle_px(z) - want).abs() < 1e-9 * want.max(1.0), "z {z}");
+        }
+    }
+}
