@@ -7,8 +7,8 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 use crate::formats::mesh;
-use crate::trays::{parse_trays, validate_trays, TrayEntry};
 use crate::realism::{CalibrationError, Effects, Occluder, Optics};
+use crate::trays::{parse_trays, validate_trays, TrayEntry};
 use crate::{Error, ErrorKind, Placement, RigFile, MAX_DISTANCE_MM};
 
 /// The commented default cell file, as `camplace init` writes it.
@@ -222,10 +222,66 @@ pub struct ReconstructionParams {
     pub background_dilation: u32,
 }
 
+/// Which estimator a cell runs: ours, or the paper's as a preset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum EstimatorPreset {
+    /// The keys of `[estimator]` as given.
+    Ours,
+    /// The paper's estimator (Buch et al.'s RANSAC as the paper ran it): 3-match samples,
+    /// ECSAD support of 10 x SRes, no turn check; Table 1's SRes, k, RIt and ICPIt are the
+    /// defaults already.
+    Paper,
+}
+
+/// The keys the paper preset sets, and to what (the feature radius from SRes).
+fn paper_preset_keys(surface_resolution: f64) -> [(&'static str, toml::Value); 3] {
+    [
+        ("ransac_sample", toml::Value::Integer(3)),
+        ("feature_radius", toml::Value::Float(10.0 * surface_resolution)),
+        ("turn_check", toml::Value::Boolean(false)),
+    ]
+}
+
+/// Lays the paper preset's keys over the merged `[estimator]` table when the user's asks
+/// for it; a key the preset sets given beside it is refused, since one of the two would be
+/// ignored.
+fn apply_preset(merged: &mut toml::Table, user: &toml::Table) -> Result<(), Error> {
+    let user_est = match user.get("estimator") {
+        Some(toml::Value::Table(t)) => t,
+        _ => return Ok(()),
+    };
+    if user_est.get("preset").and_then(|v| v.as_str()) != Some("paper") {
+        return Ok(());
+    }
+    let Some(toml::Value::Table(est)) = merged.get_mut("estimator") else { return Ok(()) };
+    let sres = est.get("surface_resolution").and_then(|v| v.as_float()).unwrap_or(2.0);
+    for (key, value) in paper_preset_keys(sres) {
+        // The same value again (a cell written out and read back) is no conflict.
+        let same = |given: &toml::Value| match (given, &value) {
+            (toml::Value::Integer(a), toml::Value::Float(b)) => *a as f64 == *b,
+            (a, b) => a == b,
+        };
+        if let Some(given) = user_est.get(key).filter(|g| !same(g)) {
+            return Err(Error::value(
+                format!("estimator.{key}"),
+                format!(
+                    "given as {given} beside preset = \"paper\", which sets it to {value}; leave it out or use preset = \"ours\""
+                ),
+            ));
+        }
+        est.insert(key.to_string(), value);
+    }
+    Ok(())
+}
+
 /// The pose estimator's settings (Table 1 of the paper and the rest).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EstimatorParams {
+    /// "ours" (the keys as given) or "paper": the paper's estimator, which sets
+    /// `ransac_sample`, `feature_radius` and `turn_check` (see [`EstimatorPreset`]).
+    pub preset: EstimatorPreset,
     pub surface_resolution: f64,
     /// Radius of the neighbourhood a normal is fitted to, mm.
     pub normal_radius: f64,
@@ -249,6 +305,8 @@ pub struct EstimatorParams {
     pub icp_max_distance: f64,
     /// Share of the farthest ICP correspondences dropped each iteration (0 .. 0.9).
     pub icp_trim: f64,
+    /// Whether the pose turned by quarter turns is scored too (beyond the paper).
+    pub turn_check: bool,
     pub seed: u64,
 }
 
@@ -285,7 +343,9 @@ impl Cell {
         })?;
         let listed = user.remove("trays");
         let mut merged: toml::Table = DEFAULT_CELL_TOML.parse().expect("built-in cell parses");
+        let asked = user.clone();
         merge(&mut merged, user);
+        apply_preset(&mut merged, &asked)?;
         let section = |name: &str| match merged.get(name) {
             Some(toml::Value::Table(t)) => t.clone(),
             _ => toml::Table::new(),

@@ -15,8 +15,9 @@ mod trays;
 mod truth;
 
 pub use cell::{
-    Cell, EstimatorParams, Items, ItemsKind, Lighting, Metrics, PhaseParams, ReconstructionParams, Robot, Scenarios,
-    Sensor, StereoParams, Table, Tray, TrayKind, WorkVolume, DEFAULT_CELL_TOML, MAX_ITERATIONS, MAX_TEXTURE,
+    Cell, EstimatorParams, EstimatorPreset, Items, ItemsKind, Lighting, Metrics, PhaseParams, ReconstructionParams,
+    Robot, Scenarios, Sensor, StereoParams, Table, Tray, TrayKind, WorkVolume, DEFAULT_CELL_TOML, MAX_ITERATIONS,
+    MAX_TEXTURE,
 };
 pub use cell_hash::{CellHashes, ContentHash, MeshHash};
 pub use error::{Error, ErrorKind};

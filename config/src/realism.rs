@@ -205,10 +205,14 @@ impl Cell {
             pos(key, f)?;
             at_most(key, f, MAX_FOCAL_LENGTH_MM, "mm")?;
         }
-        for (key, n) in [("optics.camera_f_number", o.camera_f_number), ("optics.projector_f_number", o.projector_f_number)]
+        for (key, n) in
+            [("optics.camera_f_number", o.camera_f_number), ("optics.projector_f_number", o.projector_f_number)]
         {
             if !(n.is_finite() && (MIN_F_NUMBER..=MAX_F_NUMBER).contains(&n)) {
-                return Err(Error::value(key, format!("expected an f-number from {MIN_F_NUMBER} to {MAX_F_NUMBER}, got {n}")));
+                return Err(Error::value(
+                    key,
+                    format!("expected an f-number from {MIN_F_NUMBER} to {MAX_F_NUMBER}, got {n}"),
+                ));
             }
         }
         for (key, focus, focal) in [
@@ -294,9 +298,24 @@ mod tests {
     }
 
     #[test]
+    fn the_paper_preset_sets_its_keys_and_refuses_them_beside_it() {
+        let c =
+            Cell::from_toml_str("[estimator]\npreset = \"paper\"\nsurface_resolution = 2.5", Path::new(".")).unwrap();
+        assert_eq!(c.estimator.preset, crate::EstimatorPreset::Paper);
+        assert_eq!((c.estimator.ransac_sample, c.estimator.feature_radius, c.estimator.turn_check), (3, 25.0, false));
+        let ours = Cell::default();
+        assert_eq!((ours.estimator.ransac_sample, ours.estimator.turn_check), (2, true));
+        let e = Cell::from_toml_str("[estimator]\npreset = \"paper\"\nransac_sample = 2", Path::new(".")).unwrap_err();
+        assert!(e.to_string().contains("estimator.ransac_sample"), "{e}");
+        assert!(Cell::from_toml_str("[estimator]\npreset = \"buch\"", Path::new(".")).is_err());
+        // Written out and read back, it is the same cell.
+        assert_eq!(Cell::from_toml_str(&c.to_toml_string(), Path::new(".")).unwrap(), c);
+    }
+
+    #[test]
     fn focus_reads_a_distance_or_the_table() {
-        let c = Cell::from_toml_str("[optics]\ncamera_focus = 700.0\nprojector_focus = \"table\"", Path::new("."))
-            .unwrap();
+        let c =
+            Cell::from_toml_str("[optics]\ncamera_focus = 700.0\nprojector_focus = \"table\"", Path::new(".")).unwrap();
         assert_eq!(c.optics.camera_focus, Focus::Distance(700.0));
         assert_eq!(c.optics.projector_focus, Focus::Table);
         let again = Cell::from_toml_str(&c.to_toml_string(), Path::new(".")).unwrap();
@@ -309,7 +328,8 @@ mod tests {
         assert!(c.effect_active(Effect::Defocus) && c.effect_active(Effect::Specular));
         c.effects.set(Effect::Specular, false);
         assert!(!c.effect_active(Effect::Specular));
-        c.calibration_error = CalibrationError { rotation: 0.0, translation: 0.0, stereo_rotation: 0.0, stereo_translation: 0.0 };
+        c.calibration_error =
+            CalibrationError { rotation: 0.0, translation: 0.0, stereo_rotation: 0.0, stereo_translation: 0.0 };
         assert!(!c.effect_active(Effect::CalibrationError));
         c.occluder.probability = 0.0;
         assert!(!c.effect_active(Effect::Occluder));

@@ -331,7 +331,7 @@ impl Stages {
         let pose = if refined { out.icp.t_world_tray } else { coarse };
         let ours = self.icp.explained(self.features.cloud(), &pose, reach);
         let (mut best_turn, mut best_explained) = (pose, ours);
-        for quarters in 1..4 {
+        for quarters in (1..4).filter(|_| p.turn_check) {
             let angle = f64::from(quarters) * std::f64::consts::FRAC_PI_2;
             let turned = pose * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), angle);
             let explained = self.icp.explained(self.features.cloud(), &turned, reach);

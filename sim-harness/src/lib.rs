@@ -36,6 +36,7 @@ pub use scene::scenario::{background_scene, draw_scenario, Scenario};
 pub use scene::SceneSpec;
 pub use search::test_functions::{run_test_function, test_function};
 pub use seeds::noise_key;
+pub use study::ablation::{ablate, ablation_markdown, AblationRow};
 pub use study::folder::open_folder;
 pub use study::grid::{Axis, Grid};
 pub use study::merge::merge;

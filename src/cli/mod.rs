@@ -1,5 +1,6 @@
 //! The subcommands and their flags; one module per subcommand.
 
+mod ablate;
 mod accept;
 mod calibrate;
 mod capture;
@@ -50,6 +51,8 @@ enum Command {
     Study(study::Args),
     /// One placement over N scenarios into a study folder (resumable, shardable).
     Evaluate(evaluate::Args),
+    /// What each effect of the simulation costs: success with each switched off in turn.
+    Ablate(ablate::Args),
     /// A grid over two placement parameters with heat maps (resumable, shardable).
     Sweep(sweep::Args),
     /// RBF surrogate search over placement parameters, or over a standard test function.
@@ -93,6 +96,7 @@ pub fn dispatch() -> anyhow::Result<ExitCode> {
         Command::Estimate(a) => estimate::run(a),
         Command::Study(a) => study::run(a),
         Command::Evaluate(a) => evaluate::run(a),
+        Command::Ablate(a) => ablate::run(a),
         Command::Sweep(a) => sweep::run(a),
         Command::Optimize(a) => optimize::run(a),
         Command::Tolerance(a) => tolerance::run(a),

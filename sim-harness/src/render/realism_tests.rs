@@ -40,10 +40,12 @@ fn edge_width(image: &GrayImage, reach: usize) -> f64 {
         let n = all.len() as f64;
         (0..all[0].len()).map(|i| all.iter().map(|l| l[i]).sum::<f64>() / n).collect::<Vec<f64>>()
     };
-    let across_rows =
-        mean_line(&mut (w / 2 - 100..w / 2 + 100).map(|x| (h / 2 - 150..h / 2 + 150).map(|y| image.get(x, y) as f64).collect()));
-    let across_columns =
-        mean_line(&mut (h / 2 - 100..h / 2 + 100).map(|y| (w / 2 - 200..w / 2 + 200).map(|x| image.get(x, y) as f64).collect()));
+    let across_rows = mean_line(
+        &mut (w / 2 - 100..w / 2 + 100).map(|x| (h / 2 - 150..h / 2 + 150).map(|y| image.get(x, y) as f64).collect()),
+    );
+    let across_columns = mean_line(
+        &mut (h / 2 - 100..h / 2 + 100).map(|y| (w / 2 - 200..w / 2 + 200).map(|x| image.get(x, y) as f64).collect()),
+    );
     let rise = |l: &[f64]| (l[l.len() - 1] - l[0]).abs();
     let line = if rise(&across_rows) > rise(&across_columns) { across_rows } else { across_columns };
     let d: Vec<f64> = line.windows(2).map(|p| p[1] - p[0]).collect();

@@ -22,10 +22,10 @@ use camplace_config::{FloatImage, GrayImage};
 use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 
+use crate::render::defocus::ThinLens;
 use crate::render::noise::pixel_noise;
 use crate::render::pattern::ProjectorImage;
 use crate::render::raster::{MapPixel, View, ZBuffer, NO_TRIANGLE};
-use crate::render::defocus::ThinLens;
 use crate::scene::{Gloss, SceneTriangle, ID_TABLE};
 
 /// A point is in shadow only when the occluder is nearer to the light than this, mm.

@@ -83,6 +83,7 @@ pub struct Simulator {
     camera_max_sigma: [f32; 2],
     blur_stack: BlurStack,
     /// The box filter and the largest defocus blur the projector images were prepared with.
+    #[cfg(test)]
     pattern_prep: (usize, f32),
 }
 
@@ -145,6 +146,7 @@ impl Simulator {
             camera_sigma: [Vec::new(), Vec::new()],
             camera_max_sigma: [0.0; 2],
             blur_stack: BlurStack::default(),
+            #[cfg(test)]
             pattern_prep: (footprint, max_sigma),
             triangles: Vec::new(),
             projector_gain: sensor.projector_gain,

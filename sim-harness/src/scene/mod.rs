@@ -9,6 +9,5 @@ mod spec;
 pub mod tray;
 
 pub use spec::{Gloss, Objects, OccluderBox, SceneSpec, SceneTriangle, ID_TABLE};
-pub use spec::ID_OCCLUDER;
 #[cfg(test)]
-pub use spec::{ID_FIRST_ITEM, ID_TRAY};
+pub use spec::{ID_FIRST_ITEM, ID_OCCLUDER, ID_TRAY};

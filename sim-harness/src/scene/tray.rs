@@ -24,9 +24,8 @@ pub const TAB_SIZE: [f64; 3] = [12.0, 40.0, 15.0];
 
 /// The twelve triangles of the axis-aligned box `[min, max]`, its faces wound outwards.
 pub fn box_triangles(min: [f64; 3], max: [f64; 3]) -> impl Iterator<Item = [Point3<f64>; 3]> {
-    let p = move |i: usize, j: usize, k: usize| {
-        Point3::new([min[0], max[0]][i], [min[1], max[1]][j], [min[2], max[2]][k])
-    };
+    let p =
+        move |i: usize, j: usize, k: usize| Point3::new([min[0], max[0]][i], [min[1], max[1]][j], [min[2], max[2]][k]);
     let faces = [
         [p(0, 0, 0), p(0, 0, 1), p(0, 1, 1), p(0, 1, 0)],
         [p(1, 0, 0), p(1, 1, 0), p(1, 1, 1), p(1, 0, 1)],

@@ -6,6 +6,7 @@
 //! results file, the job evaluator, shards, the sweep's grid, the search and the comparisons
 //! the report states.
 
+pub mod ablation;
 mod evaluate;
 pub mod findings;
 pub mod folder;
