@@ -21,6 +21,8 @@
 
 use rayon::prelude::*;
 
+use crate::render::noise::pixel_noise;
+
 /// The blur levels of a stack, σ in pixels; beyond the last, a blur is clamped to it.
 pub const LEVELS: [f32; 13] = [0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0];
 
@@ -170,6 +172,19 @@ impl BlurStack {
         }
     }
 
+    /// Fills levels 1 to `top` from `image` (level 0 left empty: the image is it).
+    pub fn build_above(&mut self, image: &[f32], width: usize, top: usize) {
+        self.levels.resize_with(top + 1, Vec::new);
+        for k in 1..=top {
+            let step = (LEVELS[k] * LEVELS[k] - LEVELS[k - 1] * LEVELS[k - 1]).sqrt();
+            let kernel = gaussian_kernel(step);
+            let (done, rest) = self.levels.split_at_mut(k);
+            rest[0].resize(image.len(), 0.0);
+            let src = if k == 1 { image } else { &done[k - 1][..] };
+            blur(src, width, &kernel, &mut self.scratch, &mut rest[0]);
+        }
+    }
+
     /// Pixel `i` blurred at `sigma` (clamped to the stack's top level).
     #[inline(always)]
     pub fn sample(&self, i: usize, sigma: f32) -> f32 {
@@ -206,19 +221,39 @@ pub fn level_weight(sigma: f32, top: usize) -> (usize, f32) {
     (k, (sigma * sigma - a) / (b - a))
 }
 
-/// Blurs `image` in place, pixel i by `sigma[i]`, through `stack` (the stack's buffers are
-/// reused from call to call).
-pub fn defocus_image(image: &mut [f32], width: usize, sigma: &[f32], max_sigma: f32, stack: &mut BlurStack) {
-    if !(max_sigma > 0.0) {
-        return;
+/// The top level a stack needs for blurs up to `max_sigma`: the first at or above it.
+pub fn top_level(max_sigma: f32) -> usize {
+    LEVELS.iter().position(|&s| s >= max_sigma).unwrap_or(LEVELS.len() - 1)
+}
+
+/// Blurs `image` in place, pixel i by the blur whose level and weight
+/// ([`level_weight`] with `top`) are `levels[i]`, through `stack` (its buffers reused from
+/// call to call; level 0 is the image itself), and adds the sensor noise of `noise` (image
+/// key and amplitude) to the blurred light.
+pub fn defocus_image(
+    image: &mut [f32],
+    width: usize,
+    levels: &[(u32, f32)],
+    top: usize,
+    stack: &mut BlurStack,
+    noise: Option<(u64, u32)>,
+) {
+    if top > 0 {
+        stack.build_above(image, width, top);
     }
-    stack.build(image, width, max_sigma);
     let band = width * ROWS_PER_TASK;
-    let st = &*stack;
-    image.par_chunks_mut(band).zip(sigma.par_chunks(band)).enumerate().for_each(|(chunk, (out, s))| {
+    let st = &stack.levels;
+    image.par_chunks_mut(band).zip(levels.par_chunks(band)).enumerate().for_each(|(chunk, (out, lv))| {
         let first = chunk * band;
-        for (x, (o, &sg)) in out.iter_mut().zip(s).enumerate() {
-            *o = st.sample(first + x, sg);
+        for (x, (o, &(k, w))) in out.iter_mut().zip(lv).enumerate() {
+            let k = k as usize;
+            let a = if k == 0 { *o } else { st[k][first + x] };
+            *o = if w == 0.0 { a } else { a + w * (st[k + 1][first + x] - a) };
+        }
+        if let Some((key, amplitude)) = noise.filter(|n| n.1 > 0) {
+            for (x, o) in out.iter_mut().enumerate() {
+                *o += pixel_noise(key, (first + x) as u64, amplitude) as f32;
+            }
         }
     });
 }
@@ -287,6 +322,24 @@ mod tests {
             }
             let s = (m2 / sum).sqrt();
             assert!((s - sigma as f64).abs() < 0.01 * sigma as f64 + 1e-3, "σ {sigma}: {s}");
+        }
+    }
+
+    #[test]
+    fn defocus_by_levels_matches_the_stack_and_clamps_at_the_top() {
+        let (w, h) = (40, 30);
+        let img: Vec<f32> = (0..w * h).map(|i| ((i * 7919) % 251) as f32).collect();
+        let sigmas: Vec<f32> = (0..w * h).map(|i| (i % 13) as f32 * 0.3).collect();
+        let max = 2.5f32;
+        let top = top_level(max);
+        let levels: Vec<(u32, f32)> =
+            sigmas.iter().map(|&s| level_weight(s, top)).map(|(k, w)| (k as u32, w)).collect();
+        let mut out = img.clone();
+        defocus_image(&mut out, w, &levels, top, &mut BlurStack::default(), None);
+        let mut stack = BlurStack::default();
+        stack.build(&img, w, max);
+        for i in 0..w * h {
+            assert!((out[i] - stack.sample(i, sigmas[i])).abs() < 1e-3, "pixel {i}");
         }
     }
 

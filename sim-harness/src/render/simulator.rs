@@ -13,7 +13,7 @@ pub use camplace_estimator::Method;
 use camplace_estimator::{Camera, Rig};
 use nalgebra::Point3;
 
-use crate::render::defocus::{defocus_image, BlurStack, ThinLens, LEVELS};
+use crate::render::defocus::{defocus_image, level_weight, top_level, BlurStack, ThinLens, LEVELS};
 use crate::render::lens::LensWarp;
 use crate::render::noise::{add_noise, mean_filter_to_u8};
 use crate::render::pattern::{fringe_set, one_shot, ProjectorImage};
@@ -78,9 +78,10 @@ pub struct Simulator {
     camera_lenses: [Option<ThinLens>; 2],
     /// The projector's lens when defocus is rendered.
     projector_lens: Option<ThinLens>,
-    /// Per camera, each pixel's defocus blur this frame, pixels, and the largest.
-    camera_sigma: [Vec<f32>; 2],
-    camera_max_sigma: [f32; 2],
+    /// Per camera, each pixel's defocus blur this frame as a blur level and weight, and
+    /// the top level the frame needs.
+    camera_levels: [Vec<(u32, f32)>; 2],
+    camera_top: [usize; 2],
     blur_stack: BlurStack,
     /// The box filter and the largest defocus blur the projector images were prepared with.
     #[cfg(test)]
@@ -143,8 +144,8 @@ impl Simulator {
             canvas_ids: GrayImage::default(),
             camera_lenses,
             projector_lens,
-            camera_sigma: [Vec::new(), Vec::new()],
-            camera_max_sigma: [0.0; 2],
+            camera_levels: [Vec::new(), Vec::new()],
+            camera_top: [0; 2],
             blur_stack: BlurStack::default(),
             #[cfg(test)]
             pattern_prep: (footprint, max_sigma),
@@ -234,10 +235,9 @@ impl Simulator {
                 }
                 // The lens blurs the light before the sensor adds its noise.
                 if defocused {
-                    let sigma = &self.camera_sigma[cam];
-                    defocus_image(&mut self.clean, w, sigma, self.camera_max_sigma[cam], &mut self.blur_stack);
-                }
-                if defocused || self.lenses[cam].is_some() {
+                    let (levels, top) = (&self.camera_levels[cam], self.camera_top[cam]);
+                    defocus_image(&mut self.clean, w, levels, top, &mut self.blur_stack, noise);
+                } else if self.lenses[cam].is_some() {
                     if let Some((key, amplitude)) = noise {
                         add_noise(&mut self.clean, key, amplitude);
                     }
@@ -265,8 +265,8 @@ impl Simulator {
             canvas_ids,
             camera_lenses,
             projector_lens,
-            camera_sigma,
-            camera_max_sigma,
+            camera_levels,
+            camera_top,
             ..
         } = self;
         objects.triangles(scene, triangles);
@@ -304,10 +304,15 @@ impl Simulator {
                 }
             }
             if let Some(lens) = &camera_lenses[c] {
-                let sigma = &mut camera_sigma[c];
-                sigma.clear();
-                sigma.extend(depth.data.iter().map(|&z| lens.sigma_px(z as f64)));
-                camera_max_sigma[c] = sigma.iter().fold(0.0, |m: f32, &s| m.max(s));
+                let max_sigma = depth.data.iter().fold(0.0, |m: f32, &z| m.max(lens.sigma_px(z as f64)));
+                let top = top_level(max_sigma);
+                let levels = &mut camera_levels[c];
+                levels.clear();
+                levels.extend(depth.data.iter().map(|&z| {
+                    let (k, w) = level_weight(lens.sigma_px(z as f64), top);
+                    (k as u32, w)
+                }));
+                camera_top[c] = top;
             }
         }
     }
