@@ -184,18 +184,21 @@ impl Estimator {
 
     /// Uses `rig` from now on (a recalibrated rig, or the one a study's scenario believes
     /// in); the background must be set again, since it is reconstructed through the rig.
-    /// Its cameras must have the size of the rig it replaces.
+    /// Buffers sized by the rectified image are made again when its size changes.
     pub fn set_rig(&mut self, cell: &Cell, rig: &Rig) -> Result<()> {
         let reconstructor = Reconstructor::new(cell, rig, self.reconstructor.method())?;
         let (old, new) = (&self.reconstructor.rectification().camera, &reconstructor.rectification().camera);
         if (old.width, old.height) != (new.width, new.height) {
-            return Err(Error::new(
-                ErrorKind::Rig,
-                format!(
-                    "rig: expected cameras rectified to {}x{} like the rig it replaces, got {}x{}",
-                    old.width, old.height, new.width, new.height
-                ),
-            ));
+            let (w, h) = (new.width, new.height);
+            self.reconstruction = Reconstruction {
+                cloud: crate::Cloud::with_capacity(w, h),
+                disparity: crate::FloatImage::new(w, h, f32::INFINITY),
+                ..Reconstruction::default()
+            };
+            self.stages.features = FeatureExtractor::new(&self.stages.params, w * h)?;
+            let keypoints = (w * h / 16).max(1024);
+            self.stages.heights = Vec::with_capacity(keypoints);
+            self.stages.correspondences = Vec::with_capacity(keypoints * self.stages.params.k as usize);
         }
         self.stages.sensor_position = Point3::from(new.t_world_rectified.translation.vector.cast::<f32>());
         self.reconstructor = reconstructor;
