@@ -207,7 +207,8 @@ impl BlurStack {
 /// weight of level k + 1 that gives the mixture the variance `sigma`² (0 at or past the top).
 #[inline(always)]
 pub fn level_weight(sigma: f32, top: usize) -> (usize, f32) {
-    if !(sigma > 0.0) {
+    // NaN and blurs of 0 or less read level 0.
+    if sigma.is_nan() || sigma <= 0.0 {
         return (0, 0.0);
     }
     if sigma >= LEVELS[top] {

@@ -182,7 +182,7 @@ impl ShadingTerms {
             .for_each(|(chunk, (((out, base), proj), uv))| {
                 let span = chunk * band..chunk * band + out.len();
                 let sigma = if self.defocused { &self.projector_sigma[span] } else { &[] };
-                shade_band(pattern, noise, (chunk * band) as u64, base, proj, uv, sigma, out);
+                shade_band(pattern, noise, (chunk * band) as u64, BandTerms { base, proj, uv, sigma }, out);
             });
     }
 
@@ -201,12 +201,17 @@ camplace_estimator::multiversion! {
         pattern: &ProjectorImage,
         noise: Option<(u64, u32)>,
         first: u64,
-        base: &[f32],
-        proj: &[f32],
-        uv: &[[f32; 2]],
-        sigma: &[f32],
+        terms: BandTerms<'_>,
         out: &mut [f32],
     ) => shade_band_body
+}
+
+/// One band's pattern-independent terms (`sigma` empty without the projector's defocus).
+struct BandTerms<'a> {
+    base: &'a [f32],
+    proj: &'a [f32],
+    uv: &'a [[f32; 2]],
+    sigma: &'a [f32],
 }
 
 #[inline(always)]
@@ -214,13 +219,11 @@ fn shade_band_body(
     pattern: &ProjectorImage,
     noise: Option<(u64, u32)>,
     first: u64,
-    base: &[f32],
-    proj: &[f32],
-    uv: &[[f32; 2]],
-    sigma: &[f32],
+    terms: BandTerms<'_>,
     out: &mut [f32],
 ) {
     let n = out.len();
+    let BandTerms { base, proj, uv, sigma } = terms;
     let (base, proj, uv) = (&base[..n], &proj[..n], &uv[..n]);
     if sigma.len() == n {
         for x in 0..n {

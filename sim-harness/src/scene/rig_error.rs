@@ -90,10 +90,15 @@ mod tests {
     }
 
     fn cell_with(rotation: f64, translation: f64, stereo_rotation: f64, stereo_translation: f64) -> Cell {
-        let mut cell = Cell::default();
-        cell.calibration_error =
-            camplace_config::CalibrationError { rotation, translation, stereo_rotation, stereo_translation };
-        cell
+        Cell {
+            calibration_error: camplace_config::CalibrationError {
+                rotation,
+                translation,
+                stereo_rotation,
+                stereo_translation,
+            },
+            ..Cell::default()
+        }
     }
 
     #[test]
