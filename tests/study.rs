@@ -155,3 +155,31 @@ fn optimize_on_a_test_function_prints_one_json_line() {
     assert_eq!(v["evaluations_to_within_1pct"].as_u64().map(|n| n as usize), run.evaluations_to_within_1pct);
     assert_eq!(v["best_value"].as_f64().unwrap(), run.best_value);
 }
+
+#[test]
+fn ablate_switches_each_active_effect_off_on_the_same_scenes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cell = cell();
+    let base = ["ablate", "--cell", &cell, "--seed", "5", "--scenarios", "3"];
+    let o = camplace(d, &[&base[..], &["--weak", "r=abc", "--out", "bad"]].concat());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--weak"), "{}", stderr(&o));
+    let o = camplace(d, &[&base[..], &["--weak", "r=700,alpha=20", "--out", "abl"]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let table = std::fs::read_to_string(d.join("abl/ablation.md")).unwrap();
+    // The occluder is off by default (probability 0), so it has no row of its own.
+    for row in ["| all on |", "| defocus off |", "| specular off |", "| calibration_error off |"] {
+        assert!(table.contains(row), "{row} missing from\n{table}");
+    }
+    assert!(!table.contains("occluder off"), "{table}");
+    // The all-on variant is the cell itself: its scenes at the recommended placement are the
+    // ones `evaluate` computes.
+    let o = camplace(d, &["evaluate", "--cell", &cell, "--seed", "5", "--scenarios", "3", "--out", "ev"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let evaluated = results_without_timings(&d.join("ev/results.jsonl"));
+    let all_on = results_without_timings(&d.join("abl/all-on/results.jsonl"));
+    for line in &evaluated {
+        assert!(all_on.contains(line), "{line:?} not among the ablation's");
+    }
+}
