@@ -3,8 +3,9 @@
 //! method, twelve for the phase-shift method) with ground-truth depth and object ids.
 //!
 //! Per frame the geometry (scene triangles, the projector's and the lamp's shadow maps,
-//! each camera's G-buffer and pattern-independent shading terms) is computed once; each
-//! shot then costs one pass of pattern sampling and the noise. Every buffer is allocated
+//! each camera's G-buffer and pattern-independent shading terms, and with defocus each
+//! pixel's blur) is computed once; each shot then costs one pass of pattern sampling, the
+//! camera's defocus and the noise. Every buffer is allocated
 //! in `Simulator::new` or on the first frame, and reused after.
 
 use camplace_config::{Cell, Effect, Focus, Placement};
