@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use camplace_config::write_atomic;
+use camplace_config::{write_atomic, Cell, Effect, EstimatorPreset};
 
 use super::convergence::{Convergence, Curve};
 use super::html::HtmlPage;
@@ -219,6 +219,8 @@ pub fn write_report(
         format!("preset {}: grid {} × {}, {} scenes per cell; {search}", preset.name, describe(&grid.x), describe(&grid.y), preset.sweep_scenarios),
         trays,
         format!("methods: {}", req.methods.iter().map(|m| m.to_string()).collect::<Vec<_>>().join(", ")),
+        estimator_line(base_cell),
+        effects_line(base_cell),
         format!("study seed {seed}; fresh scenes on seed {}", recheck_seed(seed)),
         format!("median estimator time per scene over the sweeps: {median_ms:.0} ms; this run of camplace study: {:.0} s with {} threads (finished scenes from an earlier run are reused)", started.elapsed().as_secs_f64(), rayon::current_num_threads()),
         format!("success: position error below {} mm and rotation error below {} deg", base_cell.metrics.success_position, base_cell.metrics.success_rotation),
@@ -227,6 +229,35 @@ pub fn write_report(
     let path = out.join("report.html");
     page.write(&path).map_err(|e| Error::Other(format!("{}: {e}", path.display())))?;
     Ok(path)
+}
+
+/// Which estimator the study ran: ours or the paper's preset, with the keys that differ.
+fn estimator_line(cell: &Cell) -> String {
+    let e = &cell.estimator;
+    let which = match e.preset {
+        EstimatorPreset::Paper => "the paper's (preset = \"paper\")",
+        EstimatorPreset::Ours => "ours (preset = \"ours\")",
+    };
+    format!(
+        "estimator: {which}: {}-match RANSAC samples, features of radius {} mm, turn check {}",
+        e.ransac_sample,
+        e.feature_radius,
+        if e.turn_check { "on" } else { "off" }
+    )
+}
+
+/// Which simulated effects changed the scenes (an effect switched on with nothing to do,
+/// such as an occluder of probability 0, is listed as inactive).
+fn effects_line(cell: &Cell) -> String {
+    let (on, off): (Vec<Effect>, Vec<Effect>) = Effect::ALL.iter().partition(|&&e| cell.effect_active(e));
+    let keys = |v: &[Effect]| {
+        if v.is_empty() {
+            "none".to_string()
+        } else {
+            v.iter().map(|e| e.key()).collect::<Vec<_>>().join(", ")
+        }
+    };
+    format!("simulated effects active: {}; inactive: {}", keys(&on), keys(&off))
 }
 
 /// The recommended placement: its values, its success with the interval, each tray's,
@@ -552,4 +583,33 @@ fn summary_cells(placement: &str, s: &Summary) -> Vec<String> {
         opt(s.mean_correct_matches),
         s.scored.to_string(),
     ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    #[test]
+    fn the_settings_name_the_estimator_and_the_effects_that_changed_the_scenes() {
+        let ours = Cell::default();
+        assert_eq!(
+            estimator_line(&ours),
+            "estimator: ours (preset = \"ours\"): 2-match RANSAC samples, features of radius 30 mm, turn check on"
+        );
+        assert_eq!(
+            effects_line(&ours),
+            "simulated effects active: defocus, specular, calibration_error; inactive: occluder"
+        );
+        let text = "[estimator]\npreset = \"paper\"\n[effects]\ndefocus = false\n[occluder]\nprobability = 0.5\n";
+        let paper = Cell::from_toml_str(text, Path::new(".")).unwrap();
+        assert_eq!(
+            estimator_line(&paper),
+            "estimator: the paper's (preset = \"paper\"): 3-match RANSAC samples, features of radius 20 mm, turn check off"
+        );
+        assert_eq!(
+            effects_line(&paper),
+            "simulated effects active: specular, calibration_error, occluder; inactive: defocus"
+        );
+    }
 }
