@@ -1,8 +1,10 @@
 //! Benches of the simulated sensor: a one-shot stereo pair and a 12-shot set at 640x480 at
 //! the default placement, each a full frame (geometry, shading, noise), buffers reused; and
-//! the one-shot pair through lens distortion (a wider canvas and the warp to the image).
+//! the one-shot pair through lens distortion (a wider canvas and the warp to the image);
+//! and the one-shot pair with every simulated effect off, so the effects' cost shows beside
+//! the first.
 
-use camplace_config::Cell;
+use camplace_config::{Cell, Effects};
 use camplace_sim::{draw_scenario, Frame, Method, Simulator};
 use criterion::{criterion_group, Criterion};
 use std::hint::black_box;
@@ -35,6 +37,16 @@ fn render(c: &mut Criterion) {
         b.iter(|| {
             i += 1;
             lens_sim.render(&scenes[i % scenes.len()], Method::OneShot, i as u64, &mut frame);
+            black_box(&frame.left[0].data[0]);
+        })
+    });
+    let mut plain = cell.clone();
+    plain.effects = Effects { defocus: false, specular: false, calibration_error: false, occluder: false };
+    let mut plain_sim = Simulator::new(&plain, &cell.placement, 1).expect("the default cell renders");
+    group.bench_function("one_shot_pair_without_effects", |b| {
+        b.iter(|| {
+            i += 1;
+            plain_sim.render(&scenes[i % scenes.len()], Method::OneShot, i as u64, &mut frame);
             black_box(&frame.left[0].data[0]);
         })
     });

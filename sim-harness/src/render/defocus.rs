@@ -53,6 +53,12 @@ impl ThinLens {
         self.far_circle * (1.0 - self.focus / z).abs()
     }
 
+    /// [`ThinLens::sigma_px`] at the distance whose inverse is `inv_z` (no division).
+    #[inline(always)]
+    pub fn sigma_px_at_inverse(&self, inv_z: f64) -> f32 {
+        (self.far_circle * (1.0 - self.focus * inv_z).abs() / 4.0) as f32
+    }
+
     /// The blur's standard deviation at distance `z`: a quarter of the circle's diameter.
     #[inline(always)]
     pub fn sigma_px(&self, z: f64) -> f32 {
@@ -95,38 +101,45 @@ pub fn blur(src: &[f32], width: usize, kernel: &[f32], scratch: &mut Vec<f32>, d
     let height = src.len() / width.max(1);
     scratch.resize(src.len(), 0.0);
     let band = width * ROWS_PER_TASK;
-    scratch.par_chunks_mut(band).zip(src.par_chunks(band)).for_each(|(out, rows)| {
-        for (o, row) in out.chunks_mut(width).zip(rows.chunks(width)) {
-            blur_row(row, kernel, o);
-        }
-    });
+    scratch.par_chunks_mut(band).zip(src.par_chunks(band)).for_each(|(out, rows)| blur_rows(rows, width, kernel, out));
     if height <= 1 {
         dst.copy_from_slice(scratch);
         return;
     }
     let tmp = &scratch[..];
-    let r = kernel.len() - 1;
     dst.par_chunks_mut(band).enumerate().for_each(|(chunk, out)| {
-        let y0 = chunk * ROWS_PER_TASK;
-        for (dy, o) in out.chunks_mut(width).enumerate() {
-            let y = y0 + dy;
-            let centre = &tmp[y * width..(y + 1) * width];
-            for (v, &c) in o.iter_mut().zip(centre) {
-                *v = kernel[0] * c;
-            }
-            for (i, &w) in kernel.iter().enumerate().skip(1) {
-                let up = &tmp[y.saturating_sub(i) * width..][..width];
-                let down = &tmp[(y + i).min(height - 1) * width..][..width];
-                for ((v, &a), &b) in o.iter_mut().zip(up).zip(down) {
-                    *v += w * (a + b);
-                }
-            }
-            debug_assert!(r == 0 || kernel[r] >= 0.0);
-        }
+        blur_columns(tmp, width, chunk * ROWS_PER_TASK, kernel, out);
     });
 }
 
+camplace_estimator::multiversion! {
+    /// The `width`-wide rows `rows` each blurred along itself with `kernel`, into `out`.
+    fn blur_rows(rows: &[f32], width: usize, kernel: &[f32], out: &mut [f32]) => blur_rows_body
+}
+
+#[inline(always)]
+fn blur_rows_body(rows: &[f32], width: usize, kernel: &[f32], out: &mut [f32]) {
+    for (o, row) in out.chunks_mut(width).zip(rows.chunks(width)) {
+        blur_row(row, kernel, o);
+    }
+}
+
+camplace_estimator::multiversion! {
+    /// Rows `y0..` of the `width`-wide image `rows` blurred along its columns with `kernel`,
+    /// edges repeated, into `out`.
+    fn blur_columns(rows: &[f32], width: usize, y0: usize, kernel: &[f32], out: &mut [f32]) => blur_columns_body
+}
+
+#[inline(always)]
+fn blur_columns_body(rows: &[f32], width: usize, y0: usize, kernel: &[f32], out: &mut [f32]) {
+    let height = rows.len() / width;
+    for (dy, o) in out.chunks_mut(width).enumerate() {
+        column_sums(rows, width, height, y0 + dy, 0, kernel, o);
+    }
+}
+
 /// One row blurred along itself, edges repeated.
+#[inline(always)]
 fn blur_row(row: &[f32], kernel: &[f32], out: &mut [f32]) {
     let n = row.len();
     let r = kernel.len() - 1;
@@ -207,30 +220,81 @@ impl BlurStack {
 /// weight of level k + 1 that gives the mixture the variance `sigma`² (0 at or past the top).
 #[inline(always)]
 pub fn level_weight(sigma: f32, top: usize) -> (usize, f32) {
-    // NaN and blurs of 0 or less read level 0.
-    if sigma.is_nan() || sigma <= 0.0 {
-        return (0, 0.0);
-    }
-    if sigma >= LEVELS[top] {
-        return (top, 0.0);
-    }
+    // Without branches, so that a pass over many pixels runs in vector lanes: NaN and blurs
+    // of 0 or less read level 0 (max drops a NaN), blurs at or past the top read the top;
+    // the level is the last at or below the blur, and at a level's own blur the weight is 0.
+    let c = sigma.max(0.0).min(LEVELS[top]);
+    let k = LEVELS[1..].iter().map(|&l| (l <= c) as usize).sum::<usize>();
+    (k, (c * c - LEVELS[k] * LEVELS[k]) * INV_STEP[k])
+}
+
+/// 1 / (σ_{k+1}² - σ_k²) for each level k below the last, and 0 for the last.
+const INV_STEP: [f32; LEVELS.len()] = {
+    let mut inv = [0.0; LEVELS.len()];
     let mut k = 0;
-    while LEVELS[k + 1] <= sigma {
+    while k + 1 < inv.len() {
+        inv[k] = 1.0 / (LEVELS[k + 1] * LEVELS[k + 1] - LEVELS[k] * LEVELS[k]);
         k += 1;
     }
-    let (a, b) = (LEVELS[k] * LEVELS[k], LEVELS[k + 1] * LEVELS[k + 1]);
-    (k, (sigma * sigma - a) / (b - a))
-}
+    inv
+};
 
 /// The top level a stack needs for blurs up to `max_sigma`: the first at or above it.
 pub fn top_level(max_sigma: f32) -> usize {
     LEVELS.iter().position(|&s| s >= max_sigma).unwrap_or(LEVELS.len() - 1)
 }
 
+/// Each pixel's blur level and weight ([`level_weight`]) under `lens` at its depth in
+/// `depth` (mm along the axis), into `levels`; returns the stack's top level, the first at
+/// or above the largest blur. The blur grows away from the focus distance on either side,
+/// so the nearest and the farthest depth bound it.
+pub fn blur_levels(lens: &ThinLens, depth: &[f32], levels: &mut Vec<(u32, f32)>) -> usize {
+    let (near, far) = depth
+        .par_chunks(CHUNK)
+        .map(|c| {
+            let mut range = (f32::INFINITY, f32::NEG_INFINITY);
+            depth_range(c, &mut range);
+            range
+        })
+        .reduce(|| (f32::INFINITY, f32::NEG_INFINITY), |a, b| (a.0.min(b.0), a.1.max(b.1)));
+    let max_sigma = if near <= far { lens.sigma_px(near as f64).max(lens.sigma_px(far as f64)) } else { 0.0 };
+    let top = top_level(max_sigma);
+    levels.resize(depth.len(), (0, 0.0));
+    levels.par_chunks_mut(CHUNK).zip(depth.par_chunks(CHUNK)).for_each(|(out, z)| chunk_levels(lens, top, z, out));
+    top
+}
+
+camplace_estimator::multiversion! {
+    /// The nearest and farthest of `depth` and `range`, into `range`.
+    fn depth_range(depth: &[f32], range: &mut (f32, f32)) => depth_range_body
+}
+
+#[inline(always)]
+fn depth_range_body(depth: &[f32], range: &mut (f32, f32)) {
+    *range = depth.iter().fold(*range, |(lo, hi), &z| (lo.min(z), hi.max(z)));
+}
+
+camplace_estimator::multiversion! {
+    /// [`blur_levels`] of one chunk of pixels.
+    fn chunk_levels(lens: &ThinLens, top: usize, depth: &[f32], out: &mut [(u32, f32)]) => chunk_levels_body
+}
+
+#[inline(always)]
+fn chunk_levels_body(lens: &ThinLens, top: usize, depth: &[f32], out: &mut [(u32, f32)]) {
+    for (o, &z) in out.iter_mut().zip(depth) {
+        let (k, w) = level_weight(lens.sigma_px(z as f64), top);
+        *o = (k as u32, w);
+    }
+}
+
+/// Pixels per task of [`blur_levels`].
+const CHUNK: usize = 1 << 14;
+
 /// Blurs `image` in place, pixel i by the blur whose level and weight
 /// ([`level_weight`] with `top`) are `levels[i]`, through `stack` (its buffers reused from
 /// call to call; level 0 is the image itself), and adds the sensor noise of `noise` (image
-/// key and amplitude) to the blurred light.
+/// key and amplitude) to the blurred light. The top level is never stored: its rows are
+/// blurred ahead and its columns summed in the pass that mixes, a run of pixels at a time.
 pub fn defocus_image(
     image: &mut [f32],
     width: usize,
@@ -239,24 +303,109 @@ pub fn defocus_image(
     stack: &mut BlurStack,
     noise: Option<(u64, u32)>,
 ) {
+    let height = image.len() / width.max(1);
+    let mut kernel = [0.0f32; MAX_TAPS];
+    let mut taps = 1;
     if top > 0 {
-        stack.build_above(image, width, top);
+        stack.build_above(image, width, top - 1);
+        let step = gaussian_kernel((LEVELS[top] * LEVELS[top] - LEVELS[top - 1] * LEVELS[top - 1]).sqrt());
+        taps = step.len();
+        kernel[..taps].copy_from_slice(&step);
+        let BlurStack { levels, scratch } = stack;
+        let src = if top == 1 { &*image } else { &levels[top - 1][..] };
+        scratch.resize(src.len(), 0.0);
+        let band = width * ROWS_PER_TASK;
+        scratch
+            .par_chunks_mut(band)
+            .zip(src.par_chunks(band))
+            .for_each(|(out, rows)| blur_rows(rows, width, &step, out));
     }
+    let mix = Mix { levels: &stack.levels, rows: &stack.scratch, kernel: &kernel[..taps], width, height, top, noise };
     let band = width * ROWS_PER_TASK;
-    let st = &stack.levels;
     image.par_chunks_mut(band).zip(levels.par_chunks(band)).enumerate().for_each(|(chunk, (out, lv))| {
-        let first = chunk * band;
-        for (x, (o, &(k, w))) in out.iter_mut().zip(lv).enumerate() {
-            let k = k as usize;
-            let a = if k == 0 { *o } else { st[k][first + x] };
-            *o = if w == 0.0 { a } else { a + w * (st[k + 1][first + x] - a) };
-        }
-        if let Some((key, amplitude)) = noise.filter(|n| n.1 > 0) {
-            for (x, o) in out.iter_mut().enumerate() {
-                *o += pixel_noise(key, (first + x) as u64, amplitude) as f32;
+        mix_band(&mix, chunk * ROWS_PER_TASK, lv, out);
+    });
+}
+
+/// What every band of [`defocus_image`]'s mixing pass reads.
+struct Mix<'a> {
+    /// The stack's levels below the top (level 0 unused: the image is it).
+    levels: &'a [Vec<f32>],
+    /// The source of the top level blurred along its rows.
+    rows: &'a [f32],
+    /// The step from the level below the top to the top, from the centre out.
+    kernel: &'a [f32],
+    width: usize,
+    height: usize,
+    top: usize,
+    noise: Option<(u64, u32)>,
+}
+
+camplace_estimator::multiversion! {
+    /// The rows from `y0` on of [`defocus_image`]'s image, `out`, mixed from their levels
+    /// `lv`, with the noise added.
+    fn mix_band(mix: &Mix<'_>, y0: usize, lv: &[(u32, f32)], out: &mut [f32]) => mix_band_body
+}
+
+#[inline(always)]
+fn mix_band_body(mix: &Mix<'_>, y0: usize, lv: &[(u32, f32)], out: &mut [f32]) {
+    let Mix { levels: st, rows, kernel, width, height, top, noise } = *mix;
+    let mut run = [0.0f32; RUN];
+    for (r, (o, lv)) in out.chunks_mut(width).zip(lv.chunks(width)).enumerate() {
+        let y = y0 + r;
+        let start = y * width;
+        for x0 in (0..width).step_by(RUN) {
+            let n = RUN.min(width - x0);
+            let top_run = &mut run[..n];
+            if top > 0 {
+                column_sums(rows, width, height, y, x0, kernel, top_run);
+            }
+            for (j, (o, &(k, w))) in o[x0..x0 + n].iter_mut().zip(&lv[x0..x0 + n]).enumerate() {
+                let i = start + x0 + j;
+                let read = |l: usize, own: f32| match l {
+                    0 => own,
+                    l if l == top => top_run[j],
+                    l => st[l][i],
+                };
+                let a = read(k as usize, *o);
+                *o = if w == 0.0 { a } else { a + w * (read(k as usize + 1, *o) - a) };
             }
         }
-    });
+        if let Some((key, amplitude)) = noise.filter(|n| n.1 > 0) {
+            for (x, o) in o.iter_mut().enumerate() {
+                *o += pixel_noise(key, (start + x) as u64, amplitude) as f32;
+            }
+        }
+    }
+}
+
+/// Pixels a run of [`defocus_image`] blurs at once along its columns.
+const RUN: usize = 64;
+
+/// The most taps a step between two [`LEVELS`] takes (centre included).
+const MAX_TAPS: usize = 72;
+
+/// Row `y`'s pixels `x0..x0 + out.len()` of the `width`-wide, `height`-tall image `rows`
+/// blurred along its columns with `kernel` (from the centre out), edges repeated. A one-row
+/// image stands for identical rows, which the blur leaves as they are.
+#[inline(always)]
+fn column_sums(rows: &[f32], width: usize, height: usize, y: usize, x0: usize, kernel: &[f32], out: &mut [f32]) {
+    let n = out.len();
+    let centre = &rows[y * width + x0..][..n];
+    if height <= 1 {
+        out.copy_from_slice(centre);
+        return;
+    }
+    for (v, &c) in out.iter_mut().zip(centre) {
+        *v = kernel[0] * c;
+    }
+    for (i, &w) in kernel.iter().enumerate().skip(1) {
+        let up = &rows[y.saturating_sub(i) * width + x0..][..n];
+        let down = &rows[(y + i).min(height - 1) * width + x0..][..n];
+        for ((v, &a), &b) in out.iter_mut().zip(up).zip(down) {
+            *v += w * (a + b);
+        }
+    }
 }
 
 #[cfg(test)]
@@ -277,6 +426,37 @@ mod tests {
             assert!((sum - 1.0).abs() < 1e-5);
             let v = variance(&k);
             assert!((v.sqrt() - sigma as f64).abs() < 1e-3 * sigma as f64, "σ {sigma}: {}", v.sqrt());
+        }
+    }
+
+    #[test]
+    fn level_weights_are_the_obvious_search_and_mix() {
+        for (top, &top_sigma) in LEVELS.iter().enumerate() {
+            for i in -10..=4000 {
+                let sigma = i as f32 * 0.0091;
+                let (k, w) = level_weight(sigma, top);
+                if sigma <= 0.0 {
+                    assert_eq!((k, w), (0, 0.0));
+                } else if sigma >= top_sigma {
+                    assert_eq!((k, w), (top, 0.0), "σ {sigma}, top {top}");
+                } else {
+                    let want = (0..top).rev().find(|&j| LEVELS[j] <= sigma).unwrap();
+                    assert_eq!(k, want, "σ {sigma}, top {top}");
+                    let (a, b) = (LEVELS[k] * LEVELS[k], LEVELS[k + 1] * LEVELS[k + 1]);
+                    let mix = (sigma * sigma - a) / (b - a);
+                    assert!((w - mix).abs() < 1e-5 && (0.0..1.0).contains(&w), "σ {sigma}, top {top}: {w} vs {mix}");
+                }
+            }
+        }
+        assert_eq!(level_weight(f32::NAN, 5), (0, 0.0));
+        assert_eq!(level_weight(f32::INFINITY, 5), (5, 0.0));
+    }
+
+    #[test]
+    fn every_step_between_levels_fits_the_fused_top_level() {
+        for k in 1..LEVELS.len() {
+            let step = (LEVELS[k] * LEVELS[k] - LEVELS[k - 1] * LEVELS[k - 1]).sqrt();
+            assert!(gaussian_kernel(step).len() <= MAX_TAPS, "level {k}");
         }
     }
 
@@ -328,19 +508,39 @@ mod tests {
 
     #[test]
     fn defocus_by_levels_matches_the_stack_and_clamps_at_the_top() {
-        let (w, h) = (40, 30);
-        let img: Vec<f32> = (0..w * h).map(|i| ((i * 7919) % 251) as f32).collect();
-        let sigmas: Vec<f32> = (0..w * h).map(|i| (i % 13) as f32 * 0.3).collect();
-        let max = 2.5f32;
-        let top = top_level(max);
-        let levels: Vec<(u32, f32)> =
-            sigmas.iter().map(|&s| level_weight(s, top)).map(|(k, w)| (k as u32, w)).collect();
-        let mut out = img.clone();
-        defocus_image(&mut out, w, &levels, top, &mut BlurStack::default(), None);
-        let mut stack = BlurStack::default();
-        stack.build(&img, w, max);
-        for i in 0..w * h {
-            assert!((out[i] - stack.sample(i, sigmas[i])).abs() < 1e-3, "pixel {i}");
+        // Narrower and wider than a run, one row, and tops from the first level to high ones.
+        for (w, h, max) in [(40, 30, 2.5f32), (150, 20, 0.5), (150, 20, 7.0), (97, 1, 3.0), (70, 90, 20.0)] {
+            let img: Vec<f32> = (0..w * h).map(|i| ((i * 7919) % 251) as f32).collect();
+            let sigmas: Vec<f32> = (0..w * h).map(|i| (i % 13) as f32 * max / 10.0).collect();
+            let top = top_level(max);
+            let levels: Vec<(u32, f32)> =
+                sigmas.iter().map(|&s| level_weight(s, top)).map(|(k, w)| (k as u32, w)).collect();
+            let mut out = img.clone();
+            defocus_image(&mut out, w, &levels, top, &mut BlurStack::default(), None);
+            let mut stack = BlurStack::default();
+            stack.build(&img, w, max);
+            for i in 0..w * h {
+                assert_eq!(out[i], stack.sample(i, sigmas[i]), "{w}x{h} up to σ {max}: pixel {i}");
+            }
+        }
+    }
+
+    #[test]
+    fn blur_levels_are_each_pixels_own_and_the_top_bounds_them_all() {
+        let lens = ThinLens::new(6.0, 2.0, 600.0, 800.0);
+        for depth in [
+            (0..5000).map(|i| 300.0 + (i * 37 % 1000) as f32).collect::<Vec<_>>(),
+            (0..5000).map(|i| if i % 7 == 0 { f32::INFINITY } else { 590.0 + (i % 20) as f32 }).collect(),
+            vec![600.0; 100],
+        ] {
+            let max = depth.iter().fold(0.0f32, |m, &z| m.max(lens.sigma_px(z as f64)));
+            let mut levels = Vec::new();
+            let top = blur_levels(&lens, &depth, &mut levels);
+            assert_eq!(top, top_level(max));
+            for (&z, &(k, w)) in depth.iter().zip(&levels) {
+                let (k0, w0) = level_weight(lens.sigma_px(z as f64), top);
+                assert_eq!((k, w), (k0 as u32, w0), "depth {z}");
+            }
         }
     }
 
@@ -349,6 +549,10 @@ mod tests {
         // 6 mm at f/2 (A = 3 mm), 800 px focal length, focused at 600 mm.
         let lens = ThinLens::new(6.0, 2.0, 600.0, 800.0);
         assert_eq!(lens.circle_px(600.0), 0.0);
+        for z in [100.0, 599.0, 601.0, 5000.0] {
+            let (a, b) = (lens.sigma_px(z), lens.sigma_px_at_inverse(1.0 / z));
+            assert!((a - b).abs() <= 1e-6 * a, "z {z}: {a} vs {b}");
+        }
         for z in [400.0, 500.0, 700.0, 1000.0] {
             // The image distances of focus and point, and the disc on the sensor by similar
             // triangles, in pixels of 6 mm / 800.

@@ -8,7 +8,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::f64::consts::PI;
 
-use crate::render::defocus::{level_weight, BlurStack};
+use crate::render::defocus::BlurStack;
 
 /// Phase steps per fringe frequency.
 pub const PHASE_STEPS: usize = 4;
@@ -118,13 +118,14 @@ impl ProjectorImage {
         }
     }
 
-    /// Brightness at (u, v) where the projector's defocus blurs by `sigma` projector pixels
-    /// (clamped to the largest blur the image was prepared for).
+    /// Brightness at (u, v) where the projector's defocus blurs by the blur whose level
+    /// and weight are `blur` ([`crate::render::defocus::level_weight`] with the top level of
+    /// the stack, that of the largest blur the image was prepared for).
     #[inline(always)]
-    pub fn sample_defocused(&self, u: f32, v: f32, sigma: f32) -> f32 {
+    pub fn sample_defocused(&self, u: f32, v: f32, blur: (u32, f32)) -> f32 {
         let Some(t) = self.taps(u, v) else { return 0.0 };
         let levels = self.stack.levels();
-        let (k, w) = level_weight(sigma, levels.len() - 1);
+        let (k, w) = (blur.0 as usize, blur.1);
         let a = t.read(&levels[k]);
         if w == 0.0 {
             a

@@ -12,8 +12,9 @@
 //! `Gloss`), h the half-way vector between the light and the camera, so a glossy face
 //! throws a light's highlight where the law of reflection sends it into the camera. With
 //! the projector's defocus, each pixel also keeps the blur its surface point's distance
-//! from the projector gives the pattern, and reads the pattern at that blur. The lamp is a point light without fall-off
-//! (it hangs far away compared with the tray). A camera pixel spans about two projector
+//! from the projector gives the pattern, as a level and weight of the pattern's blur stack,
+//! and reads the pattern at that blur. The lamp is a point light without fall-off (it hangs
+//! far away compared with the tray). A camera pixel spans about two projector
 //! pixels; the pattern is pre-filtered over that footprint (see `ProjectorImage`) and
 //! sampled once, bilinearly, at the pixel centre's projector coordinates, which keeps the
 //! dots from aliasing at a quarter of the cost of four sub-samples.
@@ -22,7 +23,7 @@ use camplace_config::{FloatImage, GrayImage};
 use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 
-use crate::render::defocus::ThinLens;
+use crate::render::defocus::{level_weight, ThinLens};
 use crate::render::noise::pixel_noise;
 use crate::render::pattern::ProjectorImage;
 use crate::render::raster::{MapPixel, View, ZBuffer, NO_TRIANGLE};
@@ -48,8 +49,9 @@ pub struct Lights<'a> {
     pub projector_shadow: &'a ZBuffer,
     /// Projector brightness on a surface facing it, units of full white.
     pub projector_gain: f64,
-    /// The projector's lens, when its defocus is rendered.
-    pub projector_lens: Option<ThinLens>,
+    /// The projector's lens, when its defocus is rendered, and the top level of the
+    /// patterns' blur stacks.
+    pub projector_lens: Option<(ThinLens, usize)>,
 }
 
 /// Per pixel of one camera, the parts of its grey level that do not depend on the pattern.
@@ -65,9 +67,9 @@ pub struct ShadingTerms {
     pub projector: Vec<f32>,
     /// Projector coordinates (u, v) of the pixel centre.
     pub projector_uv: Vec<[f32; 2]>,
-    /// The projector's defocus blur at the pixel's surface point, projector pixels (kept
-    /// only with defocus).
-    pub projector_sigma: Vec<f32>,
+    /// The projector's defocus blur at the pixel's surface point, as the level and weight
+    /// ([`level_weight`]) of the patterns' blur stacks that give it (kept only with defocus).
+    pub projector_blur: Vec<(u32, f32)>,
     /// Whether the projector's defocus is rendered.
     defocused: bool,
     triangles: Vec<TriangleTerms>,
@@ -83,7 +85,7 @@ impl ShadingTerms {
             base: vec![0.0; n],
             projector: vec![0.0; n],
             projector_uv: vec![[0.0; 2]; n],
-            projector_sigma: vec![0.0; n],
+            projector_blur: vec![(0, 0.0); n],
             defocused: false,
             triangles: Vec::new(),
         }
@@ -148,9 +150,9 @@ impl ShadingTerms {
             .zip(self.projector_uv.par_chunks_mut(band))
             .zip(depth.data.par_chunks_mut(band))
             .zip(ids.data.par_chunks_mut(band))
-            .zip(self.projector_sigma.par_chunks_mut(band))
+            .zip(self.projector_blur.par_chunks_mut(band))
             .enumerate()
-            .for_each(|(chunk, (((((base, proj), uv), depth), ids), sigma))| {
+            .for_each(|(chunk, (((((base, proj), uv), depth), ids), blur))| {
                 let y0 = chunk * ROWS_PER_TASK;
                 let rows = base.len() / w;
                 for r in 0..rows {
@@ -161,7 +163,7 @@ impl ShadingTerms {
                         base: &mut base[span.clone()],
                         projector: &mut proj[span.clone()],
                         uv: &mut uv[span.clone()],
-                        sigma: &mut sigma[span.clone()],
+                        blur: &mut blur[span.clone()],
                         depth: &mut depth[span.clone()],
                         ids: &mut ids[span],
                     };
@@ -181,8 +183,8 @@ impl ShadingTerms {
             .enumerate()
             .for_each(|(chunk, (((out, base), proj), uv))| {
                 let span = chunk * band..chunk * band + out.len();
-                let sigma = if self.defocused { &self.projector_sigma[span] } else { &[] };
-                shade_band(pattern, noise, (chunk * band) as u64, BandTerms { base, proj, uv, sigma }, out);
+                let blur = if self.defocused { &self.projector_blur[span] } else { &[] };
+                shade_band(pattern, noise, (chunk * band) as u64, BandTerms { base, proj, uv, blur }, out);
             });
     }
 
@@ -206,12 +208,12 @@ camplace_estimator::multiversion! {
     ) => shade_band_body
 }
 
-/// One band's pattern-independent terms (`sigma` empty without the projector's defocus).
+/// One band's pattern-independent terms (`blur` empty without the projector's defocus).
 struct BandTerms<'a> {
     base: &'a [f32],
     proj: &'a [f32],
     uv: &'a [[f32; 2]],
-    sigma: &'a [f32],
+    blur: &'a [(u32, f32)],
 }
 
 #[inline(always)]
@@ -223,14 +225,14 @@ fn shade_band_body(
     out: &mut [f32],
 ) {
     let n = out.len();
-    let BandTerms { base, proj, uv, sigma } = terms;
+    let BandTerms { base, proj, uv, blur } = terms;
     let (base, proj, uv) = (&base[..n], &proj[..n], &uv[..n]);
-    if sigma.len() == n {
+    if blur.len() == n {
         for x in 0..n {
             let mut g = base[x];
             let p = proj[x];
             if p > 0.0 {
-                g += p * pattern.sample_defocused(uv[x][0], uv[x][1], sigma[x]);
+                g += p * pattern.sample_defocused(uv[x][0], uv[x][1], blur[x]);
             }
             out[x] = g.clamp(0.0, 255.0);
         }
@@ -309,7 +311,7 @@ struct Row<'r> {
     base: &'r mut [f32],
     projector: &'r mut [f32],
     uv: &'r mut [[f32; 2]],
-    sigma: &'r mut [f32],
+    blur: &'r mut [(u32, f32)],
     depth: &'r mut [f32],
     ids: &'r mut [u8],
 }
@@ -342,7 +344,7 @@ impl Context<'_> {
         let w = row.tri.len();
         let (base, proj, uvs, depth, ids) =
             (&mut row.base[..w], &mut row.projector[..w], &mut row.uv[..w], &mut row.depth[..w], &mut row.ids[..w]);
-        let sigma = row.sigma;
+        let blur = row.blur;
         let [rx, ry, r0] = self.rays;
         // The unit-depth ray of pixel (x, fy) is ray_row + rx x.
         let ray_row: [f64; 3] = std::array::from_fn(|i| ry[i] * fy + r0[i]);
@@ -360,7 +362,8 @@ impl Context<'_> {
             let t = t as usize;
             let fx = x as f64;
             let [a, b, c] = tt.plane;
-            let z = 1.0 / (a * fx + b * fy + c);
+            let inv_z = a * fx + b * fy + c;
+            let z = 1.0 / inv_z;
             let pos: [f64; 3] = std::array::from_fn(|i| self.centre[i] + (ray_row[i] + rx[i] * fx) * z);
             let mut light = l.ambient;
             let mut highlight = 0.0;
@@ -388,7 +391,8 @@ impl Context<'_> {
                     let cos = tt.lamp_facing / distance(&self.lamp_position, &pos);
                     light += l.lamp_strength * cos;
                     if glossy {
-                        let lobe = tt.gloss.reflectance(half_cos(&tt.normal, &self.lamp_position, &pos, &to_camera));
+                        let lobe =
+                            tt.gloss.reflectance_half_way(&tt.normal, &half_way(&self.lamp_position, &pos, &to_camera));
                         highlight += 255.0 * lobe * l.lamp_strength * cos;
                     }
                 }
@@ -410,14 +414,20 @@ impl Context<'_> {
                     if lit {
                         let cos = tt.projector_facing / distance(&self.projector_centre, &pos);
                         let lobe = if glossy {
-                            255.0 * tt.gloss.reflectance(half_cos(&tt.normal, &self.projector_centre, &pos, &to_camera))
+                            255.0
+                                * tt.gloss.reflectance_half_way(
+                                    &tt.normal,
+                                    &half_way(&self.projector_centre, &pos, &to_camera),
+                                )
                         } else {
                             0.0
                         };
                         projector = (tt.albedo + lobe) * l.projector_gain * cos;
                         uvs[x] = [u as f32, v as f32];
-                        if let Some(lens) = &l.projector_lens {
-                            sigma[x] = lens.sigma_px(qz * z);
+                        if let Some((lens, top)) = &l.projector_lens {
+                            // The point lies qz z from the projector along its axis.
+                            let (k, w) = level_weight(lens.sigma_px_at_inverse(inv * inv_z), *top);
+                            blur[x] = (k as u32, w);
                         }
                     }
                 }
@@ -465,13 +475,12 @@ fn unit(v: [f64; 3]) -> [f64; 3] {
     [v[0] / n, v[1] / n, v[2] / n]
 }
 
-/// n.h for the half-way vector h between the direction from `pos` to `light` and the unit
-/// direction `to_camera`.
+/// The half-way vector, unnormalised, between the direction from `pos` to `light` and the
+/// unit vector `to_camera`.
 #[inline(always)]
-fn half_cos(normal: &[f64; 3], light: &[f64; 3], pos: &[f64; 3], to_camera: &[f64; 3]) -> f64 {
+fn half_way(light: &[f64; 3], pos: &[f64; 3], to_camera: &[f64; 3]) -> [f64; 3] {
     let l = unit(sub(light, pos));
-    let h = unit([l[0] + to_camera[0], l[1] + to_camera[1], l[2] + to_camera[2]]);
-    normal[0] * h[0] + normal[1] * h[1] + normal[2] * h[2]
+    [l[0] + to_camera[0], l[1] + to_camera[1], l[2] + to_camera[2]]
 }
 
 /// Whether two triangles lie in one plane (the two halves of a box face, say).

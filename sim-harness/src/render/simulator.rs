@@ -14,7 +14,7 @@ pub use camplace_estimator::Method;
 use camplace_estimator::{Camera, Rig};
 use nalgebra::Point3;
 
-use crate::render::defocus::{defocus_image, level_weight, top_level, BlurStack, ThinLens, LEVELS};
+use crate::render::defocus::{blur_levels, defocus_image, top_level, BlurStack, ThinLens, LEVELS};
 use crate::render::lens::LensWarp;
 use crate::render::noise::{add_noise, mean_filter_to_u8};
 use crate::render::pattern::{fringe_set, one_shot, ProjectorImage};
@@ -79,6 +79,8 @@ pub struct Simulator {
     camera_lenses: [Option<ThinLens>; 2],
     /// The projector's lens when defocus is rendered.
     projector_lens: Option<ThinLens>,
+    /// The top level of the patterns' blur stacks.
+    projector_top: usize,
     /// Per camera, each pixel's defocus blur this frame as a blur level and weight, and
     /// the top level the frame needs.
     camera_levels: [Vec<(u32, f32)>; 2],
@@ -145,6 +147,7 @@ impl Simulator {
             canvas_ids: GrayImage::default(),
             camera_lenses,
             projector_lens,
+            projector_top: top_level(max_sigma),
             camera_levels: [Vec::new(), Vec::new()],
             camera_top: [0; 2],
             blur_stack: BlurStack::default(),
@@ -266,6 +269,7 @@ impl Simulator {
             canvas_ids,
             camera_lenses,
             projector_lens,
+            projector_top,
             camera_levels,
             camera_top,
             ..
@@ -284,7 +288,7 @@ impl Simulator {
             projector,
             projector_shadow: projector_map,
             projector_gain: self.projector_gain,
-            projector_lens: *projector_lens,
+            projector_lens: projector_lens.map(|lens| (lens, *projector_top)),
         };
         let outputs = [(&mut frame.depth_left, &mut frame.ids_left), (&mut frame.depth_right, &mut frame.ids_right)];
         for (c, (depth, ids)) in outputs.into_iter().enumerate() {
@@ -305,15 +309,7 @@ impl Simulator {
                 }
             }
             if let Some(lens) = &camera_lenses[c] {
-                let max_sigma = depth.data.iter().fold(0.0, |m: f32, &z| m.max(lens.sigma_px(z as f64)));
-                let top = top_level(max_sigma);
-                let levels = &mut camera_levels[c];
-                levels.clear();
-                levels.extend(depth.data.iter().map(|&z| {
-                    let (k, w) = level_weight(lens.sigma_px(z as f64), top);
-                    (k as u32, w)
-                }));
-                camera_top[c] = top;
+                camera_top[c] = blur_levels(lens, &depth.data, &mut camera_levels[c]);
             }
         }
     }

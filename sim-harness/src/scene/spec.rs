@@ -30,18 +30,26 @@ pub struct OccluderBox {
 
 /// The glossy lobe of a material: normalised Blinn–Phong, whose reflectance towards a view
 /// is specular (e + 8) / 8 (n.h)^e relative to a white Lambertian surface's, with h the
-/// half-way vector between the light and the view and e the lobe's exponent.
+/// half-way vector between the light and the view and e the lobe's exponent. Where the
+/// lobe is below [`Gloss::NEGLIGIBLE`] of a white Lambertian surface's it is taken as 0, so
+/// the power is only taken near the mirror direction.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Gloss {
     /// Specular albedo (0: matte).
     pub specular: f64,
     /// Blinn–Phong exponent e.
     pub exponent: f64,
+    /// The n.h below which the lobe is under [`Gloss::NEGLIGIBLE`].
+    cos_min: f64,
 }
 
 impl Gloss {
     /// No lobe.
-    pub const MATTE: Gloss = Gloss { specular: 0.0, exponent: 0.0 };
+    pub const MATTE: Gloss = Gloss { specular: 0.0, exponent: 0.0, cos_min: 1.0 };
+
+    /// The reflectance, relative to a white Lambertian surface's, below which the lobe is
+    /// dropped: a fortieth of a grey level under full white.
+    pub const NEGLIGIBLE: f64 = 1e-4;
 
     /// The lobe of specular albedo `specular` and roughness `roughness` (Beckmann's slope
     /// spread m), whose Blinn–Phong exponent is 2 / m² - 2 (Walter et al. 2007).
@@ -49,16 +57,38 @@ impl Gloss {
         if specular <= 0.0 {
             return Gloss::MATTE;
         }
-        Gloss { specular, exponent: (2.0 / (roughness * roughness) - 2.0).max(0.0) }
+        let exponent = (2.0 / (roughness * roughness) - 2.0).max(0.0);
+        let peak = specular * (exponent + 8.0) / 8.0;
+        // peak · cos^e = NEGLIGIBLE; a lobe that never reaches it (or has e = 0) is kept whole.
+        let cos_min = if peak > Gloss::NEGLIGIBLE && exponent > 0.0 {
+            (Gloss::NEGLIGIBLE / peak).powf(1.0 / exponent)
+        } else {
+            0.0
+        };
+        Gloss { specular, exponent, cos_min }
     }
 
     /// The lobe's reflectance at n.h = `cos_half` relative to a white Lambertian surface's.
     #[inline(always)]
     pub fn reflectance(&self, cos_half: f64) -> f64 {
-        if self.specular <= 0.0 || cos_half <= 0.0 {
+        if self.specular <= 0.0 || cos_half <= 0.0 || cos_half < self.cos_min {
             return 0.0;
         }
         self.specular * (self.exponent + 8.0) / 8.0 * cos_half.powf(self.exponent)
+    }
+
+    /// [`Gloss::reflectance`] towards a view whose half-way vector with the light is `half`
+    /// (any length) on a face of unit `normal`; the length is only taken near the mirror
+    /// direction, where the lobe is not negligible.
+    #[inline(always)]
+    pub fn reflectance_half_way(&self, normal: &[f64; 3], half: &[f64; 3]) -> f64 {
+        let dot = normal[0] * half[0] + normal[1] * half[1] + normal[2] * half[2];
+        let length2 = half[0] * half[0] + half[1] * half[1] + half[2] * half[2];
+        // n.h / |h| below cos_min, without the root.
+        if self.specular <= 0.0 || dot.is_nan() || dot <= 0.0 || dot * dot < self.cos_min * self.cos_min * length2 {
+            return 0.0;
+        }
+        self.reflectance(dot / length2.sqrt())
     }
 }
 
@@ -237,5 +267,36 @@ mod tests {
         assert!((centre - want.coords).norm() < 1e-9);
         objects.triangles(&spec.background(), &mut tris);
         assert_eq!(tris.len(), 2);
+    }
+
+    #[test]
+    fn the_lobe_is_the_blinn_phong_one_down_to_the_negligible_level() {
+        for (specular, roughness) in [(0.05, 0.1), (0.3, 0.5), (1.0, 0.02), (0.001, 0.9)] {
+            let g = Gloss::new(specular, roughness);
+            let full = |c: f64| specular * (g.exponent + 8.0) / 8.0 * c.powf(g.exponent);
+            for i in 0..=2000 {
+                let c = i as f64 / 2000.0;
+                let (got, want) = (g.reflectance(c), full(c));
+                if want >= Gloss::NEGLIGIBLE * (1.0 + 1e-9) {
+                    assert_eq!(got, want, "specular {specular}, roughness {roughness}, n.h {c}");
+                } else {
+                    assert!(got == 0.0 || got == want, "specular {specular}, roughness {roughness}, n.h {c}: {got}");
+                }
+            }
+        }
+        assert_eq!(Gloss::new(0.0, 0.1).reflectance(1.0), 0.0);
+        // The same lobe from an unnormalised half-way vector.
+        let g = Gloss::new(0.05, 0.1);
+        let n = [0.0, 0.6, 0.8];
+        for i in 0..=500 {
+            let a = i as f64 * std::f64::consts::PI / 500.0;
+            let h = [3.0 * a.sin(), 0.0, 3.0 * a.cos()];
+            let want = g.reflectance((n[0] * h[0] + n[1] * h[1] + n[2] * h[2]) / 3.0);
+            let got = g.reflectance_half_way(&n, &h);
+            assert!(
+                (got - want).abs() <= 1e-12 * want.max(1.0) || (got == 0.0 && want < Gloss::NEGLIGIBLE * 1.01),
+                "angle {a}: {got} vs {want}"
+            );
+        }
     }
 }
