@@ -165,17 +165,28 @@ fn ablate_switches_each_active_effect_off_on_the_same_scenes() {
     let o = camplace(d, &[&base[..], &["--weak", "r=abc", "--out", "bad"]].concat());
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("--weak"), "{}", stderr(&o));
-    let o = camplace(d, &[&base[..], &["--weak", "r=700,alpha=20", "--out", "abl"]].concat());
+    // The recommended placement from a study folder: its placement and method, not the cell's.
+    let planned = "r=650,alpha=25,baseline=120,vergence=auto";
+    std::fs::create_dir_all(d.join("st")).unwrap();
+    let rec = format!("{{\"placement\": \"{planned}\", \"method\": \"one-shot\"}}");
+    std::fs::write(d.join("st/recommended.json"), rec).unwrap();
+    let o = camplace(d, &[&base[..], &["--study", "st", "--placement", planned, "--out", "bad"]].concat());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let o = camplace(d, &[&base[..], &["--study", "st", "--weak", "r=700,alpha=20", "--out", "abl"]].concat());
     assert!(o.status.success(), "{}", stderr(&o));
     let table = std::fs::read_to_string(d.join("abl/ablation.md")).unwrap();
+    assert!(table.contains(&format!("recommended ({planned})")), "{table}");
     // The occluder is off by default (probability 0), so it has no row of its own.
     for row in ["| all on |", "| defocus off |", "| specular off |", "| calibration_error off |"] {
         assert!(table.contains(row), "{row} missing from\n{table}");
     }
     assert!(!table.contains("occluder off"), "{table}");
     // The all-on variant is the cell itself: its scenes at the recommended placement are the
-    // ones `evaluate` computes.
-    let o = camplace(d, &["evaluate", "--cell", &cell, "--seed", "5", "--scenarios", "3", "--out", "ev"]);
+    // ones `evaluate` computes there.
+    let o = camplace(
+        d,
+        &["evaluate", "--cell", &cell, "--placement", planned, "--seed", "5", "--scenarios", "3", "--out", "ev"],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     let evaluated = results_without_timings(&d.join("ev/results.jsonl"));
     let all_on = results_without_timings(&d.join("abl/all-on/results.jsonl"));

@@ -1,5 +1,6 @@
 //! `camplace ablate`: what each effect of the simulation costs, at the recommended placement
-//! and at a weak one, on the same scenarios; a table on screen and in `ablation.md`.
+//! (a study's, or the cell's) and at a weak one, on the same scenarios; a table on screen and
+//! in `ablation.md`.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -8,7 +9,7 @@ use anyhow::Context;
 use camplace_sim::{ablate, ablation_markdown};
 
 use super::cell_args::CellArgs;
-use super::study_args::{check_scenarios, SceneArgs};
+use super::study_args::{check_scenarios, recommended, SceneArgs};
 
 /// Flags of `camplace ablate`.
 #[derive(clap::Args, Debug)]
@@ -18,6 +19,10 @@ pub struct Args {
     cell: CellArgs,
     #[command(flatten)]
     scene: SceneArgs,
+    /// A study folder: its recommended placement and method (`recommended.json`) instead of
+    /// --placement and --method.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["placement", "method"])]
+    study: Option<PathBuf>,
     /// The weak placement to set beside it, as placement overrides.
     #[arg(long, value_name = "P", default_value = "r=1000,alpha=60")]
     weak: String,
@@ -34,7 +39,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (cell, placement) = a.cell.load()?;
     let weak = cell.placement.with_overrides(&a.weak).context("--weak")?;
     let scenarios = check_scenarios(a.scenarios)?;
-    let (method, seed) = (a.scene.method, a.scene.seed(&cell));
+    let (placement, method) = match &a.study {
+        Some(dir) => recommended(dir)?,
+        None => (placement, a.scene.method),
+    };
+    let seed = a.scene.seed(&cell);
     let placements = [("recommended".to_string(), placement), ("weak".to_string(), weak)];
     let rows = ablate(&a.out, &cell, &placements, method, seed, scenarios)?;
     let text = ablation_markdown(&rows);

@@ -9,9 +9,10 @@ use std::process::ExitCode;
 use anyhow::{bail, Context};
 use camplace_config::{Placement, RigFile};
 use camplace_estimator::Rig;
-use camplace_sim::{as_built, azimuth_difference, tolerance_dir, Method, ToleranceReport};
+use camplace_sim::{as_built, azimuth_difference, tolerance_dir, ToleranceReport};
 
 use super::cell_args::CellArgs;
+use super::study_args::recommended;
 
 /// Flags of `camplace placement`.
 #[derive(clap::Args, Debug)]
@@ -129,23 +130,4 @@ fn read_tolerance(path: &Path) -> anyhow::Result<ToleranceReport> {
     let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
     serde_json::from_str(&text)
         .with_context(|| format!("{}: expected the tolerance.json camplace tolerance or study writes", path.display()))
-}
-
-/// The recommended placement and its method from a study folder's `recommended.json`.
-fn recommended(dir: &Path) -> anyhow::Result<(Placement, Method)> {
-    let path = dir.join("recommended.json");
-    let text = std::fs::read_to_string(&path).with_context(|| format!("{}: cannot read", path.display()))?;
-    let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
-    let Some(p) = v["placement"].as_str() else {
-        bail!(
-            "{}: placement: expected a placement such as \"r=605,alpha=32,baseline=81,vergence=3.5\"",
-            path.display()
-        );
-    };
-    let method = v["method"]
-        .as_str()
-        .and_then(|m| m.parse::<Method>().ok())
-        .with_context(|| format!("{}: method: expected \"one-shot\" or \"phase-12\"", path.display()))?;
-    let base = Placement { r: 0.0, alpha: 0.0, baseline: 0.0, vergence: camplace_config::Vergence::Auto, azimuth: 0.0 };
-    Ok((base.with_overrides(p).with_context(|| format!("{}: placement", path.display()))?, method))
 }
