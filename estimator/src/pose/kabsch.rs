@@ -11,6 +11,8 @@ use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaterni
 #[derive(Debug, Clone, Copy, Default)]
 pub struct RigidFit {
     count: u32,
+    /// Whether the origins were given rather than taken from the first pair.
+    anchored: bool,
     source_origin: Vector3<f64>,
     target_origin: Vector3<f64>,
     source_sum: Vector3<f64>,
@@ -25,11 +27,41 @@ impl RigidFit {
         Self::default()
     }
 
+    /// An empty fit whose sums are kept about the given points (near the pairs to come), so
+    /// that fits of parts of one set of pairs can be merged.
+    pub fn about(source_origin: &Point3<f32>, target_origin: &Point3<f32>) -> Self {
+        RigidFit {
+            anchored: true,
+            source_origin: source_origin.coords.cast::<f64>(),
+            target_origin: target_origin.coords.cast::<f64>(),
+            ..Self::default()
+        }
+    }
+
+    /// Pairs added so far.
+    pub fn pairs(&self) -> u32 {
+        self.count
+    }
+
+    /// Adds the pairs of `other`, which was made [`RigidFit::about`] the same origins.
+    pub fn merge(&mut self, other: &RigidFit) {
+        debug_assert!(
+            self.anchored
+                && other.anchored
+                && self.source_origin == other.source_origin
+                && self.target_origin == other.target_origin
+        );
+        self.count += other.count;
+        self.source_sum += other.source_sum;
+        self.target_sum += other.target_sum;
+        self.cross += other.cross;
+    }
+
     /// Adds one pair: `source` should land on `target`.
     pub fn add(&mut self, source: &Point3<f32>, target: &Point3<f32>) {
         let s64 = source.coords.cast::<f64>();
         let t64 = target.coords.cast::<f64>();
-        if self.count == 0 {
+        if self.count == 0 && !self.anchored {
             self.source_origin = s64;
             self.target_origin = t64;
         }
@@ -205,5 +237,29 @@ mod tests {
         let two = [Point3::new(0.0, 0.0, 0.0), Point3::new(1.0, 0.0, 0.0)];
         assert!(fit_rigid(&two, &two).is_none());
         assert!(fit_rigid(&line[..3], &line[..4]).is_none());
+    }
+
+    #[test]
+    fn fits_of_parts_merged_equal_the_fit_of_the_whole() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let truth = random_pose(&mut rng);
+        let source = random_points(&mut rng, 300);
+        let target: Vec<Point3<f32>> = source.iter().map(|p| truth.cast::<f32>() * p).collect();
+        let whole = fit_rigid(&source, &target).unwrap();
+        let (so, to) = (Point3::new(20.0, -10.0, 5.0), truth.cast::<f32>() * Point3::new(20.0, -10.0, 5.0));
+        let mut merged = RigidFit::about(&so, &to);
+        for (s, t) in source.chunks(37).zip(target.chunks(37)) {
+            let mut part = RigidFit::about(&so, &to);
+            for (a, b) in s.iter().zip(t) {
+                part.add(a, b);
+            }
+            merged.merge(&part);
+        }
+        assert_eq!(merged.pairs(), 300);
+        let merged = merged.solve().unwrap();
+        let (dt, dr) = pose_gap(&merged, &whole);
+        assert!(dt < 1e-6 && dr < 1e-6, "merged fit off by {dt} mm, {dr} rad");
+        let (dt, dr) = pose_gap(&merged, &truth);
+        assert!(dt < 1e-3 && dr < 1e-5, "merged fit off the truth by {dt} mm, {dr} rad");
     }
 }

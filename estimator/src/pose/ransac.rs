@@ -21,6 +21,12 @@
 //!
 //! A pose is returned only when its inliers reach `min_inlier_share` of the view's points:
 //! a scene without the tray then yields no pose rather than the least bad wrong one.
+//!
+//! Sampling runs in rounds over the cores: each of [`STREAMS`] random streams draws its
+//! samples, pre-rejects them and scores the survivors against the best of the earlier
+//! rounds; the survivors are then taken in draw order, each against the best before it, as
+//! a single stream would take them. The streams are fixed by the seed and the round, so the
+//! pose is the same whatever the number of threads.
 
 use std::sync::Arc;
 
@@ -57,9 +63,15 @@ const EARLY_EXIT_SIGMAS: f32 = 3.0;
 const MIN_TRIANGLE_SHAPE: f32 = 0.05;
 /// Probability of having drawn an all-right sample at which sampling stops early.
 const CONFIDENCE: f64 = 0.999;
-/// Consensus re-fits of the winner (each a point-to-point step on its inliers); ICP does the
-/// fine work, so one is enough.
-const REFITS: usize = 1;
+/// Random streams a round of sampling is split into. Fixed, so the samples drawn, and the
+/// pose found, are the same whatever the number of threads.
+const STREAMS: usize = 8;
+/// Samples each stream draws per round: long against the cost of a parallel step, short
+/// against the tens of thousands of samples a scene needs (so little is drawn past the
+/// stopping rule's count).
+const STREAM_DRAWS: usize = 512;
+/// View points per part of the consensus fit.
+const CONSENSUS_CHUNK: usize = 4096;
 
 /// The outcome of [`Ransac::estimate`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -84,6 +96,18 @@ impl Default for RansacResult {
     }
 }
 
+/// A sample that passed pre-rejection: its pose, the view it is scored on, which draw of
+/// its stream it was, and its score.
+#[derive(Debug, Clone, Copy)]
+struct Hypothesis {
+    pose: Isometry3<f64>,
+    view: usize,
+    draw: u32,
+    /// Its outcome of [`Ransac::score`] against the best of the earlier rounds, when there
+    /// was one.
+    scored: Option<Option<u32>>,
+}
+
 /// The prerejective RANSAC with every buffer it needs, built for one model, which it keeps.
 #[derive(Debug, Clone)]
 pub struct Ransac {
@@ -106,6 +130,10 @@ pub struct Ransac {
     /// Key points with at least one match.
     matched: Vec<u32>,
     ranks: RankWeights,
+    /// Each stream's hypotheses of the current round.
+    streams: Vec<Vec<Hypothesis>>,
+    /// The consensus fit's parts.
+    consensus_parts: Vec<RigidFit>,
 }
 
 impl Ransac {
@@ -126,6 +154,7 @@ impl Ransac {
             })
             .collect();
         let inlier_distance = params.inlier_distance as f32;
+        let max_view = model.views.iter().map(|v| v.points.len()).max().unwrap_or(0);
         Ok(Ransac {
             model,
             iterations: params.ransac_iterations,
@@ -145,6 +174,8 @@ impl Ransac {
             match_model: Vec::with_capacity(1 << 17),
             matched: Vec::with_capacity(1 << 13),
             ranks: RankWeights::new(),
+            streams: (0..STREAMS).map(|_| Vec::with_capacity(STREAM_DRAWS)).collect(),
+            consensus_parts: Vec::with_capacity(max_view.div_ceil(CONSENSUS_CHUNK)),
         })
     }
 
@@ -191,58 +222,113 @@ impl Ransac {
         }
         self.grid.rebuild(scene_points);
 
-        let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
-        let min_edge2 = self.min_edge * self.min_edge;
-        let mut best: Option<(Isometry3<f64>, usize)> = None;
-        let mut best_inliers = 0u32;
-        let mut iterations = 0;
-        let mut needed = self.iterations;
-        while iterations < needed {
-            iterations += 1;
-            // As PCL does: 3 distinct key points, then one of each one's matches. The key
-            // points are few enough to stay in cache, and the scene-side checks run before
-            // any match is looked at.
-            let pose = if self.sample == 2 {
-                let Some(pose) = self.table_pair(&mut rng, scene_keypoints, model, min_edge2) else { continue };
-                pose
-            } else {
-                let Some(pose) = self.triple(&mut rng, scene_keypoints, model, min_edge2) else { continue };
-                pose
-            };
-            let view = model.closest_view(&pose, sensor_position_world);
-            // Reaching the minimum exactly is enough to qualify.
-            let to_beat = best_inliers.max(self.required_in_sample(view).saturating_sub(1));
-            if let Some(inliers) = self.score(&pose, view, to_beat) {
-                if inliers > best_inliers {
-                    best_inliers = inliers;
-                    best = Some((pose, view));
-                    needed = self.iterations_needed(&pose, scene_keypoints, model);
-                }
-            }
-        }
+        let (best, iterations) = self.search(scene_keypoints, model, sensor_position_world);
         let Some((mut pose, mut view)) = best else {
             return Ok(RansacResult { iterations, ..RansacResult::default() });
         };
-        best_inliers = self.count(&pose, view);
-
-        for _ in 0..REFITS {
-            let Some(refit) = self.consensus_fit(&pose, view) else { break };
-            if !self.on_table(&refit) {
-                break;
-            }
+        // One consensus re-fit (a point-to-point step on the inliers, kept if it explains no
+        // fewer points); ICP does the fine work.
+        let (refit, mut best_inliers) = self.consensus(&pose, view);
+        if let Some(refit) = refit.filter(|r| self.on_table(r)) {
             let refit_view = model.closest_view(&refit, sensor_position_world);
             let inliers = self.count(&refit, refit_view);
-            if inliers < best_inliers {
-                break;
-            }
-            let gain = inliers - best_inliers;
-            (pose, view, best_inliers) = (refit, refit_view, inliers);
-            if gain == 0 {
-                break;
+            if inliers >= best_inliers {
+                (pose, view, best_inliers) = (refit, refit_view, inliers);
             }
         }
         let found = best_inliers >= self.required(view);
         Ok(RansacResult { found, t_world_tray: pose, inliers: best_inliers, iterations, view })
+    }
+
+    /// The sampling: the best hypothesis (pose and view scored) and the iterations run.
+    fn search(
+        &mut self,
+        scene_keypoints: &[Point3<f32>],
+        model: &Model,
+        sensor_position_world: &Point3<f32>,
+    ) -> (Option<(Isometry3<f64>, usize)>, u32) {
+        let min_edge2 = self.min_edge * self.min_edge;
+        let mut best: Option<(Isometry3<f64>, usize)> = None;
+        let mut best_inliers = 0u32;
+        let mut iterations = 0u32;
+        let mut needed = self.iterations;
+        let mut streams = std::mem::take(&mut self.streams);
+        let mut round = 0u64;
+        'rounds: while iterations < needed {
+            // Drawing and pre-rejection run in parallel streams; the survivors are scored
+            // here in draw order, each against the best before it, as one stream would.
+            let draws = (needed - iterations).min((STREAMS * STREAM_DRAWS) as u32);
+            let this = &*self;
+            let round_best = best_inliers;
+            streams.par_iter_mut().enumerate().for_each(|(lane, hypotheses)| {
+                let first = (lane * STREAM_DRAWS) as u32;
+                let n = draws.saturating_sub(first).min(STREAM_DRAWS as u32);
+                let stream = round * STREAMS as u64 + lane as u64;
+                this.draw(stream, n, round_best, scene_keypoints, model, sensor_position_world, min_edge2, hypotheses);
+            });
+            round += 1;
+            for (lane, hypotheses) in streams.iter().enumerate() {
+                for h in hypotheses {
+                    let drawn = iterations + (lane * STREAM_DRAWS) as u32 + h.draw;
+                    if drawn >= needed {
+                        iterations = needed;
+                        break 'rounds;
+                    }
+                    // Scored in parallel against the round's starting best, which is exact
+                    // until a hypothesis of this round beats it; after that, scored again.
+                    let scored = if let Some(scored) = h.scored.filter(|_| best_inliers == round_best) {
+                        scored
+                    } else {
+                        self.score(&h.pose, h.view, self.to_beat(best_inliers, h.view))
+                    };
+                    if let Some(inliers) = scored {
+                        if inliers > best_inliers {
+                            best_inliers = inliers;
+                            best = Some((h.pose, h.view));
+                            needed = self.iterations_needed(&h.pose, scene_keypoints, model).max(drawn + 1);
+                        }
+                    }
+                }
+            }
+            iterations = (iterations + draws).min(needed);
+        }
+        self.streams = streams;
+        (best, iterations)
+    }
+
+    /// Draws `draws` samples from random stream `stream` of the seed and keeps, in
+    /// `hypotheses`, the poses that pass pre-rejection with the index of their draw and their
+    /// score against `best_inliers`.
+    #[allow(clippy::too_many_arguments)]
+    fn draw(
+        &self,
+        stream: u64,
+        draws: u32,
+        best_inliers: u32,
+        scene_keypoints: &[Point3<f32>],
+        model: &Model,
+        sensor_position_world: &Point3<f32>,
+        min_edge2: f32,
+        hypotheses: &mut Vec<Hypothesis>,
+    ) {
+        hypotheses.clear();
+        let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
+        rng.set_stream(stream);
+        for draw in 0..draws {
+            let pose = if self.sample == 2 {
+                self.table_pair(&mut rng, scene_keypoints, model, min_edge2)
+            } else {
+                self.triple(&mut rng, scene_keypoints, model, min_edge2)
+            };
+            if let Some(pose) = pose {
+                let view = model.closest_view(&pose, sensor_position_world);
+                // Before any hypothesis qualified, the bar is low and most samples would be
+                // scored far; the first hypotheses are scored in order instead, each raising
+                // the bar for the next.
+                let scored = (best_inliers > 0).then(|| self.score(&pose, view, self.to_beat(best_inliers, view)));
+                hypotheses.push(Hypothesis { pose, view, draw, scored });
+            }
+        }
     }
 
     /// One 3-match hypothesis, or `None` when the sample is rejected before scoring: three
@@ -417,6 +503,12 @@ impl Ransac {
         self.match_start[keypoints] = correspondences.len() as u32;
     }
 
+    /// The inliers a hypothesis scored on `view` must beat: the best so far, and at least
+    /// one short of the fewest it needs to be kept (reaching the minimum exactly is enough).
+    fn to_beat(&self, best_inliers: u32, view: usize) -> u32 {
+        best_inliers.max(self.required_in_sample(view).saturating_sub(1))
+    }
+
     /// The fewest inliers among `view`'s scoring sample a hypothesis needs to be kept.
     fn required_in_sample(&self, view: usize) -> u32 {
         (self.min_inlier_share * self.views[view].len().min(SCORE_SAMPLE) as f32).ceil() as u32
@@ -473,17 +565,33 @@ impl Ransac {
             .sum()
     }
 
-    /// The pose fitted to the inliers of `pose`, each paired with its nearest scene point.
-    fn consensus_fit(&self, pose: &Isometry3<f64>, view: usize) -> Option<Isometry3<f64>> {
+    /// The pose fitted to the inliers of `pose` on `view` (each paired with its nearest scene
+    /// point), and their count, which is [`Ransac::count`]'s. The view is fitted in fixed
+    /// chunks, summed in order, so the fit is the same whatever the number of threads.
+    fn consensus(&mut self, pose: &Isometry3<f64>, view: usize) -> (Option<Isometry3<f64>>, u32) {
         let (r, t) = split(pose);
         let r2 = self.inlier_distance * self.inlier_distance;
-        let mut fit = RigidFit::new();
-        for p in &self.views[view] {
-            if let Some(s) = self.grid.nearest_within(&(r * p + t), r2) {
-                fit.add(p, &s);
+        let points = &self.views[view];
+        let origin = points[0];
+        let target_origin = Point3::from(r * origin.coords + t);
+        let chunks = points.len().div_ceil(CONSENSUS_CHUNK);
+        let mut parts = std::mem::take(&mut self.consensus_parts);
+        parts.clear();
+        parts.resize(chunks, RigidFit::about(&origin, &target_origin));
+        let grid = &self.grid;
+        points.par_chunks(CONSENSUS_CHUNK).zip(parts.par_iter_mut()).for_each(|(chunk, fit)| {
+            for p in chunk {
+                if let Some(s) = grid.nearest_within(&(r * p + t), r2) {
+                    fit.add(p, &s);
+                }
             }
+        });
+        let mut fit = RigidFit::about(&origin, &target_origin);
+        for part in &parts {
+            fit.merge(part);
         }
-        fit.solve()
+        self.consensus_parts = parts;
+        (fit.solve(), fit.pairs())
     }
 }
 
@@ -715,5 +823,57 @@ mod tests {
         assert_eq!(e.kind(), ErrorKind::Input);
         let empty = Model { surface_resolution: 2.0, ..Model::default() };
         assert_eq!(Ransac::new(&params(), Arc::new(empty)).unwrap_err().kind(), ErrorKind::Model);
+    }
+
+    /// The parallel rounds find what one stream per round-lane, drawn and scored in draw
+    /// order against the running best, finds (the slow obvious version), and the same on
+    /// pools of 1, 2 and 3 threads.
+    #[test]
+    fn parallel_rounds_equal_the_sequential_search_on_any_thread_count() {
+        let model = Arc::new(testing::tray(false, 1));
+        for (seed, sample) in (0..3).flat_map(|seed| [(seed, 2), (seed, 3)]) {
+            let mut p = params();
+            p.ransac_sample = sample;
+            p.seed = 11 + seed;
+            let mut ransac = Ransac::new(&p, model.clone()).unwrap();
+            let spec = SceneSpec { seed, correct_share: 0.3, matches_per_keypoint: 8, ..SceneSpec::default() };
+            let scene = Scene::generate(&model, false, &spec);
+            ransac.group_matches(scene.keypoints.len(), &scene.correspondences);
+            ransac.grid.rebuild(&scene.points);
+
+            // The oracle: every draw of every stream in order, each scored against the best
+            // before it, stopping where the stopping rule says.
+            let min_edge2 = ransac.min_edge * ransac.min_edge;
+            let (mut best, mut best_inliers, mut needed, mut drawn) = (None, 0u32, ransac.iterations, 0u32);
+            'oracle: for stream in 0u64.. {
+                let mut rng = ChaCha8Rng::seed_from_u64(ransac.seed);
+                rng.set_stream(stream);
+                for _ in 0..STREAM_DRAWS {
+                    if drawn >= needed {
+                        break 'oracle;
+                    }
+                    drawn += 1;
+                    let pose = if sample == 2 {
+                        ransac.table_pair(&mut rng, &scene.keypoints, &model, min_edge2)
+                    } else {
+                        ransac.triple(&mut rng, &scene.keypoints, &model, min_edge2)
+                    };
+                    let Some(pose) = pose else { continue };
+                    let view = model.closest_view(&pose, &scene.sensor_position);
+                    if let Some(inliers) = ransac.score(&pose, view, ransac.to_beat(best_inliers, view)) {
+                        if inliers > best_inliers {
+                            (best, best_inliers) = (Some((pose, view)), inliers);
+                            needed = ransac.iterations_needed(&pose, &scene.keypoints, &model).max(drawn);
+                        }
+                    }
+                }
+            }
+            assert!(best.is_some(), "seed {seed}, sample {sample}: the oracle found nothing");
+            for threads in [1, 2, 3] {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                let got = pool.install(|| ransac.search(&scene.keypoints, &model, &scene.sensor_position));
+                assert_eq!(got, (best, drawn), "seed {seed}, sample {sample}, {threads} threads");
+            }
+        }
     }
 }

@@ -33,7 +33,7 @@ pub struct Neighbours {
 /// Integer cell coordinate of `v`, clamped so it packs into 21 bits.
 #[inline]
 fn cell_coord(v: f32, inv_cell: f32) -> i64 {
-    ((v * inv_cell).floor() as i64).clamp(-CELL_LIMIT, CELL_LIMIT - 1)
+    i64::from(super::floor_i32(v * inv_cell)).clamp(-CELL_LIMIT, CELL_LIMIT - 1)
 }
 
 impl Neighbours {

@@ -1,7 +1,10 @@
 //! RANSAC's scene index: a spatial hash with cells twice the query reach, answering "is
-//! any scene point within reach" and "which is nearest" by reading exactly 8 cells.
+//! any scene point within reach" and "which is nearest" by reading exactly 8 cells, behind a
+//! bitmap that answers "no" at once far from the scene.
 
 use nalgebra::Point3;
+
+use super::floor_i32;
 
 /// A spatial hash of the scene cloud with cells twice the query radius, so a radius query
 /// visits 8 cells. Rebuilt every frame into buffers that only grow when a scene is larger
@@ -20,6 +23,7 @@ pub(crate) struct SceneGrid {
     starts: Vec<u32>,
     points: Vec<Point3<f32>>,
     bucket_of: Vec<u32>,
+    near: NearMask,
 }
 
 impl SceneGrid {
@@ -31,15 +35,12 @@ impl SceneGrid {
             starts: vec![0; buckets + 1],
             points: Vec::with_capacity(capacity),
             bucket_of: Vec::with_capacity(capacity),
+            near: NearMask::new(0.25 * cell),
         }
     }
 
     fn cell(&self, p: &Point3<f32>) -> [i32; 3] {
-        [
-            (p.x * self.inv_cell).floor() as i32,
-            (p.y * self.inv_cell).floor() as i32,
-            (p.z * self.inv_cell).floor() as i32,
-        ]
+        [floor_i32(p.x * self.inv_cell), floor_i32(p.y * self.inv_cell), floor_i32(p.z * self.inv_cell)]
     }
 
     fn bucket(&self, c: [i32; 3]) -> usize {
@@ -77,6 +78,7 @@ impl SceneGrid {
         let n = self.starts.len();
         self.starts.copy_within(1..n, 0);
         self.starts[n - 1] = scene.len() as u32;
+        self.near.rebuild(scene);
     }
 
     /// The 8 cells that hold every point within half a cell of `q`, starting with q's own.
@@ -100,7 +102,11 @@ impl SceneGrid {
         out
     }
 
+    /// Whether a scene point lies within `sqrt(r2)` of `q`; `r2` at most a quarter cell squared.
     pub(crate) fn any_within(&self, q: &Point3<f32>, r2: f32) -> bool {
+        if !self.near.may_reach(q) {
+            return false;
+        }
         for b in self.neighbour_buckets(q) {
             let (lo, hi) = (self.starts[b] as usize, self.starts[b + 1] as usize);
             if self.points[lo..hi].iter().any(|p| (p - q).norm_squared() <= r2) {
@@ -110,7 +116,12 @@ impl SceneGrid {
         false
     }
 
+    /// The nearest scene point within `sqrt(r2)` of `q` (the last of equally near ones in
+    /// visiting order); `r2` at most a quarter cell squared.
     pub(crate) fn nearest_within(&self, q: &Point3<f32>, r2: f32) -> Option<Point3<f32>> {
+        if !self.near.may_reach(q) {
+            return None;
+        }
         let mut best = (r2, None);
         for b in self.neighbour_buckets(q) {
             let (lo, hi) = (self.starts[b] as usize, self.starts[b + 1] as usize);
@@ -122,6 +133,161 @@ impl SceneGrid {
             }
         }
         best.1
+    }
+}
+
+/// Voxels a point reaches along each axis in [`NearMask`]: the reach is two voxels.
+const REACH_VOXELS: i32 = 2;
+
+/// The largest mask kept, in 64-bit words (4 MiB); a scene whose box needs more is queried
+/// without one.
+const MAX_MASK_WORDS: usize = 1 << 19;
+
+/// A bitmap over the scene's box in voxels of half the reach: a voxel's bit is set when some
+/// scene point lies within [`REACH_VOXELS`] voxels of it along every axis. A query within
+/// reach of a scene point is at most that many voxels from it along each axis, so a clear
+/// bit (or a query outside the box) means no point is within reach, and only set bits go
+/// on to the exact search: the answers are exactly those of the search alone. Built each
+/// frame by setting each point's voxel and dilating along x, y and z in turn.
+#[derive(Debug, Clone)]
+struct NearMask {
+    inv_voxel: f32,
+    /// Lowest voxel index of the box along each axis.
+    origin: [i32; 3],
+    /// Voxels along y and z, and 64-bit words per row along x.
+    dims: [usize; 3],
+    words: Vec<u64>,
+    spare: Vec<u64>,
+    /// Whether the mask holds this frame's scene (false: every query goes to the search).
+    active: bool,
+}
+
+impl NearMask {
+    fn new(voxel: f32) -> Self {
+        NearMask {
+            inv_voxel: 1.0 / voxel,
+            origin: [0; 3],
+            dims: [0; 3],
+            // Reserved once, so a larger scene box in a later frame does not allocate; only
+            // the words a box uses are ever touched.
+            words: Vec::with_capacity(MAX_MASK_WORDS),
+            spare: Vec::with_capacity(MAX_MASK_WORDS),
+            active: false,
+        }
+    }
+
+    fn voxel(&self, p: &Point3<f32>) -> [i32; 3] {
+        [floor_i32(p.x * self.inv_voxel), floor_i32(p.y * self.inv_voxel), floor_i32(p.z * self.inv_voxel)]
+    }
+
+    fn rebuild(&mut self, scene: &[Point3<f32>]) {
+        self.active = false;
+        let finite = |v: &[i32; 3]| v.iter().all(|c| c.abs() < i32::MAX / 4);
+        let mut lo = [i32::MAX; 3];
+        let mut hi = [i32::MIN; 3];
+        for p in scene {
+            let v = self.voxel(p);
+            if !finite(&v) {
+                return;
+            }
+            for a in 0..3 {
+                lo[a] = lo[a].min(v[a]);
+                hi[a] = hi[a].max(v[a]);
+            }
+        }
+        if scene.is_empty() {
+            return;
+        }
+        let origin = lo.map(|c| c - REACH_VOXELS);
+        let extent: [usize; 3] = std::array::from_fn(|a| (hi[a] - lo[a] + 2 * REACH_VOXELS + 1) as usize);
+        let row = extent[0].div_ceil(64);
+        let Some(len) = row.checked_mul(extent[1]).and_then(|n| n.checked_mul(extent[2])) else { return };
+        if len > MAX_MASK_WORDS {
+            return;
+        }
+        self.origin = origin;
+        self.dims = [row, extent[1], extent[2]];
+        self.words.clear();
+        self.words.resize(len, 0);
+        for p in scene {
+            let v = self.voxel(p);
+            let [x, y, z] = std::array::from_fn(|a| (v[a] - origin[a]) as usize);
+            self.words[(z * extent[1] + y) * row + x / 64] |= 1 << (x % 64);
+        }
+        self.dilate_x();
+        self.dilate_rows(1);
+        self.dilate_rows(extent[1]);
+        self.active = true;
+    }
+
+    /// Sets every bit within [`REACH_VOXELS`] of a set bit along its row.
+    fn dilate_x(&mut self) {
+        let row = self.dims[0];
+        for r in self.words.chunks_exact_mut(row) {
+            // Upwards first (towards higher x), carrying the top bits into the next word...
+            let mut carry = 0u64;
+            for w in r.iter_mut() {
+                let v = *w;
+                let mut up = v;
+                for s in 1..=REACH_VOXELS {
+                    up |= v << s;
+                }
+                *w = up | carry;
+                carry = (1..=REACH_VOXELS).fold(0, |c, s| c | v >> (64 - s));
+            }
+            // ...then downwards: grown by 0..=2 up and then 0..=2 down, a bit covers 2 voxels
+            // either side.
+            let mut carry = 0u64;
+            for w in r.iter_mut().rev() {
+                let v = *w;
+                let mut down = v;
+                for s in 1..=REACH_VOXELS {
+                    down |= v >> s;
+                }
+                *w = down | carry;
+                carry = (1..=REACH_VOXELS).fold(0, |c, s| c | v << (64 - s));
+            }
+        }
+    }
+
+    /// Sets every row within [`REACH_VOXELS`] rows of a row with the bit set, rows `stride`
+    /// rows apart being neighbours (1: along y; voxels along y: along z).
+    fn dilate_rows(&mut self, stride: usize) {
+        let [row, ny, nz] = self.dims;
+        self.spare.clear();
+        self.spare.resize(self.words.len(), 0);
+        let count = if stride == 1 { ny } else { nz };
+        for r in 0..ny * nz {
+            let (z, y) = (r / ny, r % ny);
+            let at = if stride == 1 { y } else { z };
+            let lo = at.saturating_sub(REACH_VOXELS as usize);
+            let hi = (at + REACH_VOXELS as usize).min(count - 1);
+            let out = &mut self.spare[r * row..(r + 1) * row];
+            for n in lo..=hi {
+                let other = r - at * stride + n * stride;
+                for (o, w) in out.iter_mut().zip(&self.words[other * row..(other + 1) * row]) {
+                    *o |= w;
+                }
+            }
+        }
+        std::mem::swap(&mut self.words, &mut self.spare);
+    }
+
+    /// False only when no scene point is within the reach of `q`.
+    #[inline]
+    fn may_reach(&self, q: &Point3<f32>) -> bool {
+        if !self.active {
+            return true;
+        }
+        let v = self.voxel(q);
+        let [row, ny, nz] = self.dims;
+        let x = v[0].wrapping_sub(self.origin[0]) as u32 as usize;
+        let y = v[1].wrapping_sub(self.origin[1]) as u32 as usize;
+        let z = v[2].wrapping_sub(self.origin[2]) as u32 as usize;
+        if x >= 64 * row || y >= ny || z >= nz {
+            return false;
+        }
+        self.words[(z * ny + y) * row + x / 64] >> (x % 64) & 1 != 0
     }
 }
 

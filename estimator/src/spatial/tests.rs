@@ -100,3 +100,40 @@ fn every_index_answers_as_a_brute_force_scan() {
         }
     }
 }
+
+#[test]
+fn floor_i32_equals_the_cast_of_the_floor() {
+    use super::floor_i32;
+    let special = [
+        0.0,
+        -0.0,
+        0.5,
+        -0.5,
+        1.0,
+        -1.0,
+        -1e-30,
+        2147483520.0,
+        -2147483648.0,
+        -2147483904.0,
+        3e9,
+        -3e9,
+        16777217.0,
+        -16777217.0,
+        f32::MAX,
+        f32::MIN,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::NAN,
+    ];
+    for v in special {
+        assert_eq!(floor_i32(v), v.floor() as i32, "{v}");
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    for _ in 0..200_000 {
+        let scale = 10f32.powi(rng.random_range(-3..10));
+        let v = rng.random_range(-1.0f32..1.0) * scale;
+        assert_eq!(floor_i32(v), v.floor() as i32, "{v}");
+        let bits = f32::from_bits(rng.random::<u32>());
+        assert_eq!(floor_i32(bits), bits.floor() as i32, "{bits}");
+    }
+}

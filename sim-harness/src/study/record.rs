@@ -122,6 +122,9 @@ pub struct FrameRecord {
     pub keypoints: u32,
     /// Matches after the height filter.
     pub matches: u32,
+    /// RANSAC iterations run (samples drawn, rejected ones included).
+    #[serde(default)]
+    pub ransac_iterations: u32,
     /// ICP iterations run.
     pub icp_iterations: u32,
     /// Per-stage time, ms.
@@ -144,6 +147,7 @@ impl FrameRecord {
             scene_points: pose.scene_points,
             keypoints: pose.keypoints,
             matches: pose.matches,
+            ransac_iterations: pose.ransac.iterations,
             icp_iterations: pose.icp.iterations,
             timings_ms: Timings::from(&pose.timings),
             ms: pose.timings.total_ms,
