@@ -164,7 +164,10 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
             "model: the sensor saw no tray features at this placement (is the tray in view?)".to_string(),
         ));
     }
-    Ok(model)
+    // The model as its file holds it (points and normals rounded to the file's steps), so a
+    // model used as built and one read back from a file or a study's cache give the same
+    // poses.
+    Ok(Model::from_bytes(&model.to_bytes())?)
 }
 
 /// Bounding box, tray frame, of the tray with every slot filled, grown by `margin` mm.
