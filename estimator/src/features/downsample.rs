@@ -24,9 +24,7 @@ impl Downsampler {
 
     /// A down-sampler with room for clouds of up to `points` points.
     pub fn with_capacity(points: usize) -> Self {
-        let mut d = Downsampler { table: VoxelTable::default(), sums: Vec::with_capacity(points) };
-        d.table.reset(points);
-        d
+        Downsampler { table: VoxelTable::with_capacity(points), sums: Vec::with_capacity(points) }
     }
 
     /// Replaces `out` with one point per occupied voxel of side `voxel_size` (mm): the

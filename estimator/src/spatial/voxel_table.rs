@@ -36,6 +36,13 @@ pub(crate) struct VoxelTable {
 }
 
 impl VoxelTable {
+    /// An empty table with room for `points` distinct voxels reserved but not yet touched,
+    /// so memory is committed only as far as frames use it.
+    pub(crate) fn with_capacity(points: usize) -> Self {
+        let (len, _) = table_size(points);
+        VoxelTable { keys: Vec::with_capacity(len), slots: Vec::with_capacity(len), ..Self::default() }
+    }
+
     /// Empties the table, sized for up to `points` distinct voxels.
     pub(crate) fn reset(&mut self, points: usize) {
         let (len, shift) = table_size(points);
