@@ -6,8 +6,9 @@ use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaterni
 
 /// Running sums of point pairs, enough to fit the rigid pose without storing the pairs.
 ///
-/// Sums are kept in f64 about the first source and target point, so coordinates of a few
-/// hundred mm do not lose the sub-mm structure to cancellation.
+/// Sums are kept in f64 about the first source and target point (or about given origins,
+/// see [`RigidFit::about`]), so coordinates of a few hundred mm do not lose the sub-mm
+/// structure to cancellation.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct RigidFit {
     count: u32,
@@ -45,11 +46,12 @@ impl RigidFit {
 
     /// Adds the pairs of `other`, which was made [`RigidFit::about`] the same origins.
     pub fn merge(&mut self, other: &RigidFit) {
-        debug_assert!(
+        assert!(
             self.anchored
                 && other.anchored
                 && self.source_origin == other.source_origin
-                && self.target_origin == other.target_origin
+                && self.target_origin == other.target_origin,
+            "rigid fits merge only when made about the same origins"
         );
         self.count += other.count;
         self.source_sum += other.source_sum;

@@ -80,16 +80,19 @@ const TAG_ORIG: [u8; 4] = *b"ORIG";
 const MAX_ORIGIN_TEXT: usize = 4096;
 /// Magic, version and body length.
 const PREAMBLE_LEN: usize = 8 + 4 + 8;
-/// A feature and a view point in versions 1 and 2.
+/// A feature in versions 1 and 2: point, normal, descriptor, all f32.
 const FEATURE_BYTES_F32: usize = 4 * (3 + 3 + DESCRIPTOR_LEN);
+/// A view point in versions 1 and 2: point and normal, f32.
 const VIEW_POINT_BYTES_F32: usize = 4 * 6;
-/// A feature and a view point in version 3: point i16×3, normal i16×2, (descriptor u8×30).
+/// A feature in version 3: point i16×3, normal i16×2, descriptor u8×30.
 const FEATURE_BYTES: usize = 2 * 3 + 2 * 2 + DESCRIPTOR_LEN;
+/// A view point in version 3: point i16×3, normal i16×2.
 const VIEW_POINT_BYTES: usize = 2 * 3 + 2 * 2;
 /// The largest magnitude a 16-bit point coordinate holds, in steps.
 const MAX_STEPS: f32 = 32767.0;
-/// The step of the 16-bit points lies in 2^-20 .. 2^20 mm.
+/// The smallest step of the 16-bit points, as a power of two (mm).
 const MIN_STEP_EXP: i32 = -20;
+/// The largest step of the 16-bit points, as a power of two (mm).
 const MAX_STEP_EXP: i32 = 20;
 
 impl Model {
@@ -165,9 +168,10 @@ impl Model {
     /// largest coordinate into i16: 1/64 mm or finer for anything within 500 mm of the
     /// tray's origin. Versions 1 and 2 held every number as f32.
     ///
-    /// Encoding rounds: points move by at most half a step, normals turn by at most about
-    /// 0.005 deg, and descriptors keep exactly what the matcher compares.
+    /// Encoding rounds: points move by at most half a step, normals turn by less than
+    /// 0.006 deg, and descriptors keep exactly what the matcher compares.
     pub fn to_bytes(&self) -> Vec<u8> {
+        debug_assert!(self.validate().is_ok(), "a model to write must be valid");
         self.encode(MODEL_FORMAT_VERSION)
     }
 
@@ -244,8 +248,8 @@ impl Model {
         out
     }
 
-    /// Decodes [`Model::to_bytes`]'s layout (and versions 1 and 2, all `f32`, version 1
-    /// without `ORIG`); a wrong
+    /// Decodes [`Model::to_bytes`]'s layout, and versions 1 and 2 (all `f32`, version 1
+    /// without `ORIG`), rounded as version 3 holds them; a wrong
     /// magic, another version, a truncated or corrupted file each give an
     /// [`ErrorKind::Model`] error saying what was expected.
     pub fn from_bytes(bytes: &[u8]) -> Result<Model> {
@@ -363,6 +367,10 @@ impl Model {
         let model =
             Model { surface_resolution, feature_points, feature_normals, descriptors, views, symmetries_deg, origin };
         model.validate()?;
+        // A model is what the current format holds, whichever version it was read from: an
+        // older file's points and normals are rounded as version 3 rounds them, so it gives
+        // the poses a model built now gives.
+        let model = if compact { model } else { Model::from_bytes(&model.to_bytes())? };
         // A file from `camplace model` always has both; an estimator cannot run without.
         if model.feature_points.is_empty() || model.views.is_empty() {
             return Err(err(format!(
@@ -533,8 +541,11 @@ impl<'a> Reader<'a> {
     /// A 16-bit point's step: a power of two from 2^-20 to 2^20 mm.
     fn step(&mut self, what: &str) -> Result<f32> {
         let step = self.f32(what)?;
-        let exp = step.log2();
-        if !(exp.fract() == 0.0 && (MIN_STEP_EXP as f32..=MAX_STEP_EXP as f32).contains(&exp)) {
+        let bits = step.to_bits();
+        // A positive normal f32 with an empty mantissa is a power of two; its biased exponent
+        // is the power plus 127.
+        let exponent = (bits >> 23) as i32 - 127;
+        if !(bits >> 31 == 0 && bits & 0x7F_FFFF == 0 && (MIN_STEP_EXP..=MAX_STEP_EXP).contains(&exponent)) {
             return Err(Error::new(
                 ErrorKind::Model,
                 format!("model: corrupted: expected {what} to be a power of two from 2^-20 to 2^20 mm, found {step}"),
@@ -706,8 +717,8 @@ mod tests {
             assert_eq!((&twice.feature_points, &twice.descriptors), (&once.feature_points, &once.descriptors));
             assert!(twice.views.iter().zip(&once.views).all(|(a, b)| a.points == b.points));
             assert_close(&twice, &m);
-            // Versions 1 and 2 hold every number as written.
-            assert_eq!(Model::from_bytes(&m.encode(2)).unwrap(), m);
+            // Versions 1 and 2 hold every number as written, and read as version 3 holds them.
+            assert_eq!(Model::from_bytes(&m.encode(2)).unwrap(), once);
         }
     }
 
@@ -779,7 +790,7 @@ mod tests {
     fn a_version_1_file_reads_without_an_origin() {
         let m = Model { origin: None, ..small_model(6) };
         let v1 = m.encode(1);
-        assert_eq!(Model::from_bytes(&v1).unwrap(), m);
+        assert_eq!(Model::from_bytes(&v1).unwrap(), Model::from_bytes(&m.to_bytes()).unwrap());
         for len in 0..v1.len() {
             assert!(Model::from_bytes(&v1[..len]).is_err());
         }

@@ -250,36 +250,46 @@ impl Ransac {
         let min_edge2 = self.min_edge * self.min_edge;
         let mut best: Option<(Isometry3<f64>, usize)> = None;
         let mut best_inliers = 0u32;
-        let mut iterations = 0u32;
         let mut needed = self.iterations;
         let mut streams = std::mem::take(&mut self.streams);
-        let mut round = 0u64;
-        'rounds: while iterations < needed {
-            // Drawing and pre-rejection run in parallel streams; the survivors are scored
-            // here in draw order, each against the best before it, as one stream would.
-            let draws = (needed - iterations).min((STREAMS * STREAM_DRAWS) as u32);
+        let round_draws = (STREAMS * STREAM_DRAWS) as u32;
+        // Round r holds draws r x round_draws onwards, stream 8r + lane the lane's 512 of
+        // them, whatever the stopping rule says in the meantime.
+        let mut start = 0u32;
+        'rounds: while start < needed {
             let this = &*self;
-            let round_best = best_inliers;
+            let (round_best, round_needed) = (best_inliers, needed);
+            let round = u64::from(start / round_draws);
             streams.par_iter_mut().enumerate().for_each(|(lane, hypotheses)| {
-                let first = (lane * STREAM_DRAWS) as u32;
-                let n = draws.saturating_sub(first).min(STREAM_DRAWS as u32);
+                let first = start + lane as u32 * STREAM_DRAWS as u32;
+                let n = this.iterations.saturating_sub(first).min(STREAM_DRAWS as u32);
                 let stream = round * STREAMS as u64 + lane as u64;
-                this.draw(stream, n, round_best, scene_keypoints, model, sensor_position_world, min_edge2, hypotheses);
+                // Draws past the count the stopping rule asks for now are not scored ahead:
+                // they are scored only if a better pose raises the count.
+                let score_below = round_needed.saturating_sub(first);
+                this.draw(
+                    stream,
+                    n,
+                    round_best,
+                    score_below,
+                    scene_keypoints,
+                    model,
+                    sensor_position_world,
+                    min_edge2,
+                    hypotheses,
+                );
             });
-            round += 1;
             for (lane, hypotheses) in streams.iter().enumerate() {
                 for h in hypotheses {
-                    let drawn = iterations + (lane * STREAM_DRAWS) as u32 + h.draw;
+                    let drawn = start + lane as u32 * STREAM_DRAWS as u32 + h.draw;
                     if drawn >= needed {
-                        iterations = needed;
                         break 'rounds;
                     }
                     // Scored in parallel against the round's starting best, which is exact
                     // until a hypothesis of this round beats it; after that, scored again.
-                    let scored = if let Some(scored) = h.scored.filter(|_| best_inliers == round_best) {
-                        scored
-                    } else {
-                        self.score(&h.pose, h.view, self.to_beat(best_inliers, h.view))
+                    let scored = match h.scored {
+                        Some(scored) if best_inliers == round_best => scored,
+                        _ => self.score(&h.pose, h.view, self.to_beat(best_inliers, h.view)),
                     };
                     if let Some(inliers) = scored {
                         if inliers > best_inliers {
@@ -290,21 +300,25 @@ impl Ransac {
                     }
                 }
             }
-            iterations = (iterations + draws).min(needed);
+            start = start.saturating_add(round_draws);
         }
+        // Every draw before the count the stopping rule settled on was taken.
+        let iterations = needed;
         self.streams = streams;
         (best, iterations)
     }
 
     /// Draws `draws` samples from random stream `stream` of the seed and keeps, in
-    /// `hypotheses`, the poses that pass pre-rejection with the index of their draw and their
-    /// score against `best_inliers`.
+    /// `hypotheses`, the poses that pass pre-rejection with the index of their draw and, for
+    /// draws before `score_below`, their score against `best_inliers` once a hypothesis has
+    /// qualified.
     #[allow(clippy::too_many_arguments)]
     fn draw(
         &self,
         stream: u64,
         draws: u32,
         best_inliers: u32,
+        score_below: u32,
         scene_keypoints: &[Point3<f32>],
         model: &Model,
         sensor_position_world: &Point3<f32>,
@@ -325,7 +339,8 @@ impl Ransac {
                 // Before any hypothesis qualified, the bar is low and most samples would be
                 // scored far; the first hypotheses are scored in order instead, each raising
                 // the bar for the next.
-                let scored = (best_inliers > 0).then(|| self.score(&pose, view, self.to_beat(best_inliers, view)));
+                let scored = (best_inliers > 0 && draw < score_below)
+                    .then(|| self.score(&pose, view, self.to_beat(best_inliers, view)));
                 hypotheses.push(Hypothesis { pose, view, draw, scored });
             }
         }
@@ -831,12 +846,17 @@ mod tests {
     #[test]
     fn parallel_rounds_equal_the_sequential_search_on_any_thread_count() {
         let model = Arc::new(testing::tray(false, 1));
-        for (seed, sample) in (0..3).flat_map(|seed| [(seed, 2), (seed, 3)]) {
+        // Short limits end inside a round, where a better pose may raise the count again.
+        let cases = (0..3)
+            .flat_map(|seed| [(seed, 2, 100_000, 0.3), (seed, 3, 100_000, 0.3)])
+            .chain((3..9).flat_map(|seed| [(seed, 2, 4_500, 0.1), (seed, 3, 5_000 + 300 * seed as u32, 0.15)]));
+        for (seed, sample, iterations, correct_share) in cases {
             let mut p = params();
             p.ransac_sample = sample;
+            p.ransac_iterations = iterations;
             p.seed = 11 + seed;
             let mut ransac = Ransac::new(&p, model.clone()).unwrap();
-            let spec = SceneSpec { seed, correct_share: 0.3, matches_per_keypoint: 8, ..SceneSpec::default() };
+            let spec = SceneSpec { seed, correct_share, matches_per_keypoint: 8, ..SceneSpec::default() };
             let scene = Scene::generate(&model, false, &spec);
             ransac.group_matches(scene.keypoints.len(), &scene.correspondences);
             ransac.grid.rebuild(&scene.points);
@@ -868,7 +888,9 @@ mod tests {
                     }
                 }
             }
-            assert!(best.is_some(), "seed {seed}, sample {sample}: the oracle found nothing");
+            if iterations == 100_000 {
+                assert!(best.is_some(), "seed {seed}, sample {sample}: the oracle found nothing");
+            }
             for threads in [1, 2, 3] {
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
                 let got = pool.install(|| ransac.search(&scene.keypoints, &model, &scene.sensor_position));

@@ -102,7 +102,7 @@ impl SceneGrid {
         out
     }
 
-    /// Whether a scene point lies within `sqrt(r2)` of `q`; `r2` at most a quarter cell squared.
+    /// Whether a scene point lies within `sqrt(r2)` of `q`; `r2` at most (half a cell)².
     pub(crate) fn any_within(&self, q: &Point3<f32>, r2: f32) -> bool {
         if !self.near.may_reach(q) {
             return false;
@@ -117,7 +117,7 @@ impl SceneGrid {
     }
 
     /// The nearest scene point within `sqrt(r2)` of `q` (the last of equally near ones in
-    /// visiting order); `r2` at most a quarter cell squared.
+    /// visiting order); `r2` at most (half a cell)².
     pub(crate) fn nearest_within(&self, q: &Point3<f32>, r2: f32) -> Option<Point3<f32>> {
         if !self.near.may_reach(q) {
             return None;
@@ -136,19 +136,23 @@ impl SceneGrid {
     }
 }
 
-/// Voxels a point reaches along each axis in [`NearMask`]: the reach is two voxels.
-const REACH_VOXELS: i32 = 2;
+/// Voxels a point reaches along each axis in [`NearMask`]: the reach is two voxels, and one
+/// more covers rounding (a point a hair inside a voxel boundary and a query on the far
+/// boundary can be three voxel indices apart when f32 arithmetic puts them at exactly the
+/// reach).
+const REACH_VOXELS: i32 = 3;
 
 /// The largest mask kept, in 64-bit words (4 MiB); a scene whose box needs more is queried
 /// without one.
 const MAX_MASK_WORDS: usize = 1 << 19;
 
 /// A bitmap over the scene's box in voxels of half the reach: a voxel's bit is set when some
-/// scene point lies within [`REACH_VOXELS`] voxels of it along every axis. A query within
-/// reach of a scene point is at most that many voxels from it along each axis, so a clear
-/// bit (or a query outside the box) means no point is within reach, and only set bits go
-/// on to the exact search: the answers are exactly those of the search alone. Built each
-/// frame by setting each point's voxel and dilating along x, y and z in turn.
+/// finite scene point lies within [`REACH_VOXELS`] voxels of it along every axis. A query
+/// within reach of a scene point is at most that many voxels from it along each axis, so a
+/// clear bit (or a query outside the box) means no point is within reach, and only set bits
+/// go on to the exact search: the answers are exactly those of the search alone (points
+/// that are not finite are never within reach of anything). Built each frame by setting
+/// each point's voxel and dilating along x, y and z in turn.
 #[derive(Debug, Clone)]
 struct NearMask {
     inv_voxel: f32,
@@ -182,12 +186,12 @@ impl NearMask {
 
     fn rebuild(&mut self, scene: &[Point3<f32>]) {
         self.active = false;
-        let finite = |v: &[i32; 3]| v.iter().all(|c| c.abs() < i32::MAX / 4);
         let mut lo = [i32::MAX; 3];
         let mut hi = [i32::MIN; 3];
-        for p in scene {
+        for p in scene.iter().filter(|p| is_finite(p)) {
             let v = self.voxel(p);
-            if !finite(&v) {
+            // Far beyond any cell: no mask (the search alone answers).
+            if v.iter().any(|c| c.abs() >= i32::MAX / 4) {
                 return;
             }
             for a in 0..3 {
@@ -195,7 +199,7 @@ impl NearMask {
                 hi[a] = hi[a].max(v[a]);
             }
         }
-        if scene.is_empty() {
+        if lo[0] > hi[0] {
             return;
         }
         let origin = lo.map(|c| c - REACH_VOXELS);
@@ -209,7 +213,7 @@ impl NearMask {
         self.dims = [row, extent[1], extent[2]];
         self.words.clear();
         self.words.resize(len, 0);
-        for p in scene {
+        for p in scene.iter().filter(|p| is_finite(p)) {
             let v = self.voxel(p);
             let [x, y, z] = std::array::from_fn(|a| (v[a] - origin[a]) as usize);
             self.words[(z * extent[1] + y) * row + x / 64] |= 1 << (x % 64);
@@ -291,6 +295,10 @@ impl NearMask {
     }
 }
 
+fn is_finite(p: &Point3<f32>) -> bool {
+    p.x.is_finite() && p.y.is_finite() && p.z.is_finite()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -325,5 +333,27 @@ mod tests {
                 assert_eq!(got, (nearest <= 9.0).then_some(nearest));
             }
         }
+    }
+
+    /// Points that f32 rounding puts at exactly the reach, three voxel indices apart, and
+    /// points that are not finite: the mask answers as the search does.
+    #[test]
+    fn the_mask_keeps_rounded_boundary_pairs_and_skips_points_that_are_not_finite() {
+        for (cell, p, q) in [(6.0f32, 1.4999999f32, 4.5f32), (8.0, 1.9999999, 6.0)] {
+            let reach2 = (cell / 2.0) * (cell / 2.0);
+            let mut grid = SceneGrid::new(cell, 16);
+            grid.rebuild(&[Point3::new(p, 0.0, 0.0)]);
+            let q = Point3::new(q, 0.0, 0.0);
+            assert_eq!((Point3::new(p, 0.0, 0.0) - q).norm_squared(), reach2);
+            assert!(grid.any_within(&q, reach2), "cell {cell}: {p} and {q}");
+            assert!(grid.nearest_within(&q, reach2).is_some());
+        }
+        let mut grid = SceneGrid::new(6.0, 16);
+        let scene =
+            [Point3::new(f32::NAN, 0.0, 0.0), Point3::new(10.0, 10.0, 1.0), Point3::new(f32::INFINITY, 1e30, 0.0)];
+        grid.rebuild(&scene);
+        assert!(grid.near.active);
+        assert!(grid.any_within(&Point3::new(11.0, 10.0, 1.0), 9.0));
+        assert!(!grid.any_within(&Point3::new(0.0, 0.0, 0.0), 9.0));
     }
 }
