@@ -136,18 +136,26 @@ impl SceneGrid {
     }
 }
 
-/// Voxels a point reaches along each axis in [`NearMask`]: the reach is two voxels, and one
-/// more covers rounding (a point a hair inside a voxel boundary and a query on the far
-/// boundary can be three voxel indices apart when f32 arithmetic puts them at exactly the
-/// reach).
-const REACH_VOXELS: i32 = 3;
+/// Voxels a point reaches along each axis in [`NearMask`]: the reach is two voxels.
+const REACH_VOXELS: i32 = 2;
+
+/// How far, in voxels, a point's own voxel is widened before the dilation: f32 rounding
+/// can put a point a hair inside a voxel boundary and a query on the far boundary at
+/// exactly the reach, three voxel indices apart. The products and differences behind that
+/// err by a few units in the last place of the voxel coordinate, far below this margin
+/// while coordinates stay below [`MAX_VOXEL_INDEX`] voxels.
+const ROUNDING_VOXELS: f32 = 0.01;
+
+/// Scenes with a point farther out than this many voxels get no mask.
+const MAX_VOXEL_INDEX: f32 = 100_000.0;
 
 /// The largest mask kept, in 64-bit words (4 MiB); a scene whose box needs more is queried
 /// without one.
 const MAX_MASK_WORDS: usize = 1 << 19;
 
 /// A bitmap over the scene's box in voxels of half the reach: a voxel's bit is set when some
-/// finite scene point lies within [`REACH_VOXELS`] voxels of it along every axis. A query
+/// finite scene point lies within [`REACH_VOXELS`] voxels of it along every axis (the point's
+/// voxel widened by [`ROUNDING_VOXELS`] for rounding). A query
 /// within reach of a scene point is at most that many voxels from it along each axis, so a
 /// clear bit (or a query outside the box) means no point is within reach, and only set bits
 /// go on to the exact search: the answers are exactly those of the search alone (points
@@ -184,19 +192,26 @@ impl NearMask {
         [floor_i32(p.x * self.inv_voxel), floor_i32(p.y * self.inv_voxel), floor_i32(p.z * self.inv_voxel)]
     }
 
+    /// The voxels of `p` along each axis, widened by [`ROUNDING_VOXELS`] (one or two each).
+    fn voxel_span(&self, p: &Point3<f32>) -> [[i32; 2]; 3] {
+        std::array::from_fn(|a| {
+            let c = p[a] * self.inv_voxel;
+            [floor_i32(c - ROUNDING_VOXELS), floor_i32(c + ROUNDING_VOXELS)]
+        })
+    }
+
     fn rebuild(&mut self, scene: &[Point3<f32>]) {
         self.active = false;
         let mut lo = [i32::MAX; 3];
         let mut hi = [i32::MIN; 3];
         for p in scene.iter().filter(|p| is_finite(p)) {
-            let v = self.voxel(p);
-            // Far beyond any cell: no mask (the search alone answers).
-            if v.iter().any(|c| c.abs() >= i32::MAX / 4) {
+            // Far out: no mask (the search alone answers).
+            if p.coords.iter().any(|c| (c * self.inv_voxel).abs() >= MAX_VOXEL_INDEX) {
                 return;
             }
-            for a in 0..3 {
-                lo[a] = lo[a].min(v[a]);
-                hi[a] = hi[a].max(v[a]);
+            for (a, [first, last]) in self.voxel_span(p).into_iter().enumerate() {
+                lo[a] = lo[a].min(first);
+                hi[a] = hi[a].max(last);
             }
         }
         if lo[0] > hi[0] {
@@ -214,9 +229,15 @@ impl NearMask {
         self.words.clear();
         self.words.resize(len, 0);
         for p in scene.iter().filter(|p| is_finite(p)) {
-            let v = self.voxel(p);
-            let [x, y, z] = std::array::from_fn(|a| (v[a] - origin[a]) as usize);
-            self.words[(z * extent[1] + y) * row + x / 64] |= 1 << (x % 64);
+            let [sx, sy, sz] = self.voxel_span(p).map(|[first, last]| first..=last);
+            for z in sz {
+                for y in sy.clone() {
+                    for x in sx.clone() {
+                        let [x, y, z] = [x - origin[0], y - origin[1], z - origin[2]].map(|c| c as usize);
+                        self.words[(z * extent[1] + y) * row + x / 64] |= 1 << (x % 64);
+                    }
+                }
+            }
         }
         self.dilate_x();
         self.dilate_rows(1);
@@ -355,5 +376,43 @@ mod tests {
         assert!(grid.near.active);
         assert!(grid.any_within(&Point3::new(11.0, 10.0, 1.0), 9.0));
         assert!(!grid.any_within(&Point3::new(0.0, 0.0, 0.0), 9.0));
+    }
+
+    /// Scene points on voxel boundaries (give or take a few units in the last place) and
+    /// queries at about the reach from them, in every direction: the mask never hides a
+    /// point the search finds.
+    #[test]
+    fn boundary_points_at_the_reach_agree_with_brute_force() {
+        let mut rng = ChaCha8Rng::seed_from_u64(21);
+        for cell in [6.0f32, 8.0, 5.0, 2.4] {
+            let reach = cell / 2.0;
+            let voxel = cell / 4.0;
+            let mut grid = SceneGrid::new(cell, 16);
+            for _ in 0..2000 {
+                let on_boundary = |rng: &mut ChaCha8Rng| {
+                    let c = rng.random_range(-400i32..400) as f32 * voxel;
+                    f32::from_bits((c.to_bits() as i64 + rng.random_range(-3i64..=3)).max(0) as u32)
+                };
+                let p = Point3::new(on_boundary(&mut rng), on_boundary(&mut rng), on_boundary(&mut rng));
+                grid.rebuild(&[p, Point3::new(p.x + 50.0, p.y, p.z)]);
+                let dir = nalgebra::Vector3::new(
+                    rng.random_range(-1.0f32..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                let Some(mut dir) = dir.try_normalize(1e-3) else { continue };
+                // Along an axis half the time: there the rounding lands on voxel boundaries.
+                if rng.random_bool(0.5) {
+                    let axis = rng.random_range(0..3);
+                    dir = nalgebra::Vector3::zeros();
+                    dir[axis] = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+                }
+                let q = (p + dir * reach).map(|c| {
+                    f32::from_bits((c.to_bits() as i64 + rng.random_range(-3i64..=3)).clamp(0, u32::MAX as i64) as u32)
+                });
+                let r2 = reach * reach;
+                assert_eq!(grid.any_within(&q, r2), (p - q).norm_squared() <= r2, "cell {cell}: {p} {q}");
+            }
+        }
     }
 }
