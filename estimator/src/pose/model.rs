@@ -200,7 +200,7 @@ impl Model {
         put_u32(&mut out, self.symmetries_deg.len() as u32);
 
         section(&mut out, TAG_FEAT, step_bytes + self.feature_points.len() * feature_bytes);
-        let step = position_step(&self.feature_points);
+        let step = if compact { position_step(&self.feature_points) } else { 0.0 };
         if compact {
             put_f32(&mut out, step);
         }
@@ -221,7 +221,7 @@ impl Model {
             section(&mut out, TAG_VIEW, 16 + step_bytes + view.points.len() * point_bytes);
             put_vec3(&mut out, &view.view_direction);
             put_u32(&mut out, view.points.len() as u32);
-            let step = position_step(&view.points);
+            let step = if compact { position_step(&view.points) } else { 0.0 };
             if compact {
                 put_f32(&mut out, step);
             }

@@ -115,7 +115,8 @@ pub struct Ransac {
     iterations: u32,
     sample: u32,
     edge_similarity: f32,
-    min_edge: f32,
+    /// Squared shortest scene edge of a sample, mm².
+    min_edge2: f32,
     table_height: f64,
     cos_tilt: f64,
     inlier_distance: f32,
@@ -162,7 +163,7 @@ impl Ransac {
             edge_similarity: params.edge_similarity as f32,
             // Key points closer than a feature's support share most of it, so their matches
             // are not independent evidence, and short edges make a shaky rotation.
-            min_edge: params.feature_radius as f32,
+            min_edge2: (params.feature_radius as f32).powi(2),
             table_height: params.table_height,
             cos_tilt: params.table_tilt.to_radians().cos(),
             inlier_distance,
@@ -247,7 +248,6 @@ impl Ransac {
         model: &Model,
         sensor_position_world: &Point3<f32>,
     ) -> (Option<(Isometry3<f64>, usize)>, u32) {
-        let min_edge2 = self.min_edge * self.min_edge;
         let mut best: Option<(Isometry3<f64>, usize)> = None;
         let mut best_inliers = 0u32;
         let mut needed = self.iterations;
@@ -275,7 +275,6 @@ impl Ransac {
                     scene_keypoints,
                     model,
                     sensor_position_world,
-                    min_edge2,
                     hypotheses,
                 );
             });
@@ -322,19 +321,13 @@ impl Ransac {
         scene_keypoints: &[Point3<f32>],
         model: &Model,
         sensor_position_world: &Point3<f32>,
-        min_edge2: f32,
         hypotheses: &mut Vec<Hypothesis>,
     ) {
         hypotheses.clear();
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
         rng.set_stream(stream);
         for draw in 0..draws {
-            let pose = if self.sample == 2 {
-                self.table_pair(&mut rng, scene_keypoints, model, min_edge2)
-            } else {
-                self.triple(&mut rng, scene_keypoints, model, min_edge2)
-            };
-            if let Some(pose) = pose {
+            if let Some(pose) = self.hypothesis(&mut rng, scene_keypoints, model) {
                 let view = model.closest_view(&pose, sensor_position_world);
                 // Before any hypothesis qualified, the bar is low and most samples would be
                 // scored far; the first hypotheses are scored in order instead, each raising
@@ -346,16 +339,25 @@ impl Ransac {
         }
     }
 
-    /// One 3-match hypothesis, or `None` when the sample is rejected before scoring: three
-    /// distinct key points forming a good triangle, one match of each, edges that agree in
-    /// length, and a fitted pose that rests on the table.
-    fn triple(
+    /// One hypothesis of the configured sample size, or `None` when the sample is rejected
+    /// before scoring.
+    fn hypothesis(
         &self,
         rng: &mut ChaCha8Rng,
         scene_keypoints: &[Point3<f32>],
         model: &Model,
-        min_edge2: f32,
     ) -> Option<Isometry3<f64>> {
+        if self.sample == 2 {
+            self.table_pair(rng, scene_keypoints, model)
+        } else {
+            self.triple(rng, scene_keypoints, model)
+        }
+    }
+
+    /// One 3-match hypothesis, or `None` when the sample is rejected before scoring: three
+    /// distinct key points forming a good triangle, one match of each, edges that agree in
+    /// length, and a fitted pose that rests on the table.
+    fn triple(&self, rng: &mut ChaCha8Rng, scene_keypoints: &[Point3<f32>], model: &Model) -> Option<Isometry3<f64>> {
         let n = self.matched.len() as u32;
         let k = [
             self.matched[rng.random_range(0..n) as usize] as usize,
@@ -366,7 +368,7 @@ impl Ransac {
             return None;
         }
         let s = k.map(|i| scene_keypoints[i]);
-        if !good_scene_triangle(&s, min_edge2) {
+        if !good_scene_triangle(&s, self.min_edge2) {
             return None;
         }
         let f = k.map(|i| self.draw_match(rng, i));
@@ -389,7 +391,7 @@ impl Ransac {
     }
 
     /// One 2-match hypothesis of a tray resting on the table, or `None` when the sample is
-    /// rejected before scoring. Two key points at least `min_edge` apart horizontally, one
+    /// rejected before scoring. Two key points at least `feature_radius` apart horizontally, one
     /// match of each; the pair must agree in horizontal length (to `edge_similarity`) and in
     /// height difference (to twice the inlier distance), as a level tray's would. Yaw is the
     /// turn between the horizontal directions, x and y the mean offset, z the mean height
@@ -399,7 +401,6 @@ impl Ransac {
         rng: &mut ChaCha8Rng,
         scene_keypoints: &[Point3<f32>],
         model: &Model,
-        min_edge2: f32,
     ) -> Option<Isometry3<f64>> {
         let n = self.matched.len() as u32;
         let k = [self.matched[rng.random_range(0..n) as usize], self.matched[rng.random_range(0..n) as usize]]
@@ -410,7 +411,7 @@ impl Ransac {
         let s = k.map(|i| scene_keypoints[i]);
         let ds = s[1] - s[0];
         let ls2 = ds.x * ds.x + ds.y * ds.y;
-        if ls2 < min_edge2 {
+        if ls2 < self.min_edge2 {
             return None;
         }
         let f = k.map(|i| self.draw_match(rng, i));
@@ -863,7 +864,6 @@ mod tests {
 
             // The oracle: every draw of every stream in order, each scored against the best
             // before it, stopping where the stopping rule says.
-            let min_edge2 = ransac.min_edge * ransac.min_edge;
             let (mut best, mut best_inliers, mut needed, mut drawn) = (None, 0u32, ransac.iterations, 0u32);
             'oracle: for stream in 0u64.. {
                 let mut rng = ChaCha8Rng::seed_from_u64(ransac.seed);
@@ -873,12 +873,7 @@ mod tests {
                         break 'oracle;
                     }
                     drawn += 1;
-                    let pose = if sample == 2 {
-                        ransac.table_pair(&mut rng, &scene.keypoints, &model, min_edge2)
-                    } else {
-                        ransac.triple(&mut rng, &scene.keypoints, &model, min_edge2)
-                    };
-                    let Some(pose) = pose else { continue };
+                    let Some(pose) = ransac.hypothesis(&mut rng, &scene.keypoints, &model) else { continue };
                     let view = model.closest_view(&pose, &scene.sensor_position);
                     if let Some(inliers) = ransac.score(&pose, view, ransac.to_beat(best_inliers, view)) {
                         if inliers > best_inliers {
