@@ -160,18 +160,33 @@ fn blur_row(row: &[f32], kernel: &[f32], out: &mut [f32]) {
     let n = row.len();
     let r = kernel.len() - 1;
     let at = |i: isize| row[i.clamp(0, n as isize - 1) as usize];
-    for (x, o) in out.iter_mut().enumerate() {
+    let edge = |x: usize| {
         let mut v = kernel[0] * row[x];
-        if x >= r && x + r < n {
-            for (i, &w) in kernel.iter().enumerate().skip(1) {
-                v += w * (row[x - i] + row[x + i]);
-            }
-        } else {
-            for (i, &w) in kernel.iter().enumerate().skip(1) {
-                v += w * (at(x as isize - i as isize) + at((x + i) as isize));
-            }
+        for (i, &w) in kernel.iter().enumerate().skip(1) {
+            v += w * (at(x as isize - i as isize) + at((x + i) as isize));
         }
-        *o = v;
+        v
+    };
+    if n <= 2 * r {
+        for (x, o) in out.iter_mut().enumerate() {
+            *o = edge(x);
+        }
+        return;
+    }
+    // Pixels r .. n - r read no clamped index: tap by tap over the whole run, which runs in
+    // vector lanes.
+    let inner = &mut out[r..n - r];
+    for (o, &c) in inner.iter_mut().zip(&row[r..n - r]) {
+        *o = kernel[0] * c;
+    }
+    for (i, &w) in kernel.iter().enumerate().skip(1) {
+        let (left, right) = (&row[r - i..n - r - i], &row[r + i..n - r + i]);
+        for ((o, &a), &b) in inner.iter_mut().zip(left).zip(right) {
+            *o += w * (a + b);
+        }
+    }
+    for x in (0..r).chain(n - r..n) {
+        out[x] = edge(x);
     }
 }
 
@@ -304,16 +319,18 @@ const CHUNK: usize = 1 << 14;
 
 /// Blurs `image` in place, pixel i by the blur whose level and weight
 /// ([`level_weight`] with `top`) are `levels[i]`, through `stack` (its buffers reused from
-/// call to call; level 0 is the image itself), and adds the sensor noise of `noise` (image
-/// key and amplitude) to the blurred light. The top level is never stored: its rows are
-/// blurred ahead and its columns summed in the pass that mixes, a run of pixels at a time.
+/// call to call; level 0 is the image itself). With `sense` given, the sensor then
+/// saturates the blurred light to 0..255 and adds the noise `sense` holds (image key and
+/// amplitude), if any; without, the blurred light is left as it is. The top level is never
+/// stored: its rows are blurred ahead and its columns summed in the pass that mixes, a run
+/// of pixels at a time.
 pub fn defocus_image(
     image: &mut [f32],
     width: usize,
     levels: &[(u32, f32)],
     top: usize,
     stack: &mut BlurStack,
-    noise: Option<(u64, u32)>,
+    sense: Option<Option<(u64, u32)>>,
 ) {
     let height = image.len() / width.max(1);
     let kernel = step_kernel(top);
@@ -328,7 +345,7 @@ pub fn defocus_image(
             .zip(src.par_chunks(band))
             .for_each(|(out, rows)| blur_rows(rows, width, kernel, out));
     }
-    let mix = Mix { levels: &stack.levels, rows: &stack.scratch, kernel, width, height, top, noise };
+    let mix = Mix { levels: &stack.levels, rows: &stack.scratch, kernel, width, height, top, sense };
     let band = width * ROWS_PER_TASK;
     image.par_chunks_mut(band).zip(levels.par_chunks(band)).enumerate().for_each(|(chunk, (out, lv))| {
         mix_band(&mix, chunk * ROWS_PER_TASK, lv, out);
@@ -346,7 +363,8 @@ struct Mix<'a> {
     width: usize,
     height: usize,
     top: usize,
-    noise: Option<(u64, u32)>,
+    /// Whether the sensor saturates the light, and its noise.
+    sense: Option<Option<(u64, u32)>>,
 }
 
 camplace_estimator::multiversion! {
@@ -357,7 +375,7 @@ camplace_estimator::multiversion! {
 
 #[inline(always)]
 fn mix_band_body(mix: &Mix<'_>, y0: usize, lv: &[(u32, f32)], out: &mut [f32]) {
-    let Mix { levels: st, rows, kernel, width, height, top, noise } = *mix;
+    let Mix { levels: st, rows, kernel, width, height, top, sense } = *mix;
     let mut run = [0.0f32; RUN];
     for (r, (o, lv)) in out.chunks_mut(width).zip(lv.chunks(width)).enumerate() {
         let y = y0 + r;
@@ -378,6 +396,10 @@ fn mix_band_body(mix: &Mix<'_>, y0: usize, lv: &[(u32, f32)], out: &mut [f32]) {
                 let a = read(k as usize, *o);
                 *o = if w == 0.0 { a } else { a + w * (read(k as usize + 1, *o) - a) };
             }
+        }
+        let Some(noise) = sense else { continue };
+        for o in o.iter_mut() {
+            *o = o.clamp(0.0, 255.0);
         }
         if let Some((key, amplitude)) = noise.filter(|n| n.1 > 0) {
             for (x, o) in o.iter_mut().enumerate() {
@@ -459,9 +481,15 @@ mod tests {
 
     #[test]
     fn blur_equals_the_direct_two_dimensional_sum() {
-        let (w, h) = (23, 17);
+        // Rows wider than the kernel, and rows the kernel overhangs on both sides.
+        for (w, h, sigma) in [(23, 17, 1.3), (7, 5, 2.5), (11, 3, 1.7), (12, 12, 0.4)] {
+            blur_is_the_direct_sum(w, h, sigma);
+        }
+    }
+
+    fn blur_is_the_direct_sum(w: usize, h: usize, sigma: f32) {
         let img: Vec<f32> = (0..w * h).map(|i| ((i * 7919) % 251) as f32).collect();
-        let k = gaussian_kernel(1.3);
+        let k = gaussian_kernel(sigma);
         let mut out = vec![0.0; w * h];
         blur(&img, w, &k, &mut Vec::new(), &mut out);
         let r = k.len() as isize - 1;

@@ -29,13 +29,21 @@ pub fn random_dots(width: usize, height: usize, dot_size: usize, density: f64, s
     img
 }
 
-/// Fringe image of `periods` periods across the width at phase step `step`:
+/// Fringe image of `periods` periods across the width at phase step `step` (0 to 3):
 /// I = 0.5 + 0.5 cos(phi - step pi/2) with phi = 2 pi periods x / width, x the column.
+/// Steps 2 and 3 are the exact complements (255 - value) of steps 0 and 1, as the cosine
+/// has them, so that rounding to grey levels keeps each pair summing to full white.
 pub fn fringe(width: usize, height: usize, periods: f64, step: usize) -> GrayImage {
     let row: Vec<u8> = (0..width)
         .map(|x| {
             let phi = 2.0 * PI * periods * x as f64 / width as f64;
-            (255.0 * (0.5 + 0.5 * (phi - step as f64 * PI / 2.0).cos())).round() as u8
+            let half = (step % 2) as f64 * PI / 2.0;
+            let v = (255.0 * (0.5 + 0.5 * (phi - half).cos())).round() as u8;
+            if step % 4 >= 2 {
+                255 - v
+            } else {
+                v
+            }
         })
         .collect();
     let mut img = GrayImage::new(width, height, 0);
@@ -43,6 +51,12 @@ pub fn fringe(width: usize, height: usize, periods: f64, step: usize) -> GrayIma
         img.row_mut(y).copy_from_slice(&row);
     }
     img
+}
+
+/// A full white image at a sensor's projector resolution.
+pub fn white(sensor: &Sensor) -> GrayImage {
+    let [w, h] = sensor.projector_resolution;
+    GrayImage::new(w as usize, h as usize, 255)
 }
 
 /// The one-shot pattern of a sensor at its projector resolution.
@@ -212,6 +226,11 @@ mod tests {
                     let want = 255.0 * (0.5 + 0.5 * (2.0 * PI * f * x as f64 / w - k as f64 * PI / 2.0).cos());
                     assert!((img.get(x, 0) as f64 - want).abs() <= 0.5 && img.get(x, 0) == img.get(x, 799));
                 }
+            }
+            // Opposite steps are complements, so the renderer may draw one from the other.
+            for k in 0..2 {
+                let (a, b) = (&set[4 * fi + k], &set[4 * fi + k + 2]);
+                assert!(a.data.iter().zip(&b.data).all(|(&p, &q)| p as u16 + q as u16 == 255));
             }
         }
     }

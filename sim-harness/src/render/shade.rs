@@ -175,6 +175,17 @@ impl ShadingTerms {
     /// The grey image of one shot under `pattern`, clamped to 0..255 as the sensor
     /// saturates, plus the noise of image key `noise.0` at amplitude `noise.1` if given.
     pub fn shade(&self, pattern: &ProjectorImage, noise: Option<(u64, u32)>, out: &mut [f32]) {
+        self.shade_with(pattern, Exposure::Sensed(noise), out);
+    }
+
+    /// The light that reaches the lens under `pattern`, grey levels, not yet saturated: what
+    /// the lens's blur acts on. With `base_scale` 2 the pattern-independent light counts
+    /// twice (the sum of two shots under complementary patterns, when `pattern` is white).
+    pub fn light(&self, pattern: &ProjectorImage, base_scale: f32, out: &mut [f32]) {
+        self.shade_with(pattern, Exposure::Light(base_scale), out);
+    }
+
+    fn shade_with(&self, pattern: &ProjectorImage, exposure: Exposure, out: &mut [f32]) {
         let band = self.width * ROWS_PER_TASK;
         out.par_chunks_mut(band)
             .zip(self.base.par_chunks(band))
@@ -184,7 +195,7 @@ impl ShadingTerms {
             .for_each(|(chunk, (((out, base), proj), uv))| {
                 let span = chunk * band..chunk * band + out.len();
                 let blur = if self.defocused { &self.projector_blur[span] } else { &[] };
-                shade_band(pattern, noise, (chunk * band) as u64, BandTerms { base, proj, uv, blur }, out);
+                shade_band(pattern, exposure, (chunk * band) as u64, BandTerms { base, proj, uv, blur }, out);
             });
     }
 
@@ -196,12 +207,21 @@ impl ShadingTerms {
     }
 }
 
+/// What one shading pass makes of the light.
+#[derive(Debug, Clone, Copy)]
+enum Exposure {
+    /// The light as it is, its pattern-independent part scaled by the factor given.
+    Light(f32),
+    /// Saturated to 0..255 and with the noise of an image key at an amplitude, if given.
+    Sensed(Option<(u64, u32)>),
+}
+
 camplace_estimator::multiversion! {
     /// [`ShadingTerms::shade`] of one band of pixels, the first of which is pixel `first`
     /// of the image.
     fn shade_band(
         pattern: &ProjectorImage,
-        noise: Option<(u64, u32)>,
+        exposure: Exposure,
         first: u64,
         terms: BandTerms<'_>,
         out: &mut [f32],
@@ -217,33 +237,36 @@ struct BandTerms<'a> {
 }
 
 #[inline(always)]
-fn shade_band_body(
-    pattern: &ProjectorImage,
-    noise: Option<(u64, u32)>,
-    first: u64,
-    terms: BandTerms<'_>,
-    out: &mut [f32],
-) {
+fn shade_band_body(pattern: &ProjectorImage, exposure: Exposure, first: u64, terms: BandTerms<'_>, out: &mut [f32]) {
     let n = out.len();
     let BandTerms { base, proj, uv, blur } = terms;
     let (base, proj, uv) = (&base[..n], &proj[..n], &uv[..n]);
+    let (scale, noise) = match exposure {
+        Exposure::Light(scale) => (scale, None),
+        Exposure::Sensed(noise) => (1.0, noise),
+    };
     if blur.len() == n {
         for x in 0..n {
-            let mut g = base[x];
+            let mut g = scale * base[x];
             let p = proj[x];
             if p > 0.0 {
                 g += p * pattern.sample_defocused(uv[x][0], uv[x][1], blur[x]);
             }
-            out[x] = g.clamp(0.0, 255.0);
+            out[x] = g;
         }
     } else {
         for x in 0..n {
-            let mut g = base[x];
+            let mut g = scale * base[x];
             let p = proj[x];
             if p > 0.0 {
                 g += p * pattern.sample(uv[x][0], uv[x][1]);
             }
-            out[x] = g.clamp(0.0, 255.0);
+            out[x] = g;
+        }
+    }
+    if let Exposure::Sensed(_) = exposure {
+        for o in out.iter_mut() {
+            *o = o.clamp(0.0, 255.0);
         }
     }
     if let Some((key, amplitude)) = noise.filter(|n| n.1 > 0) {

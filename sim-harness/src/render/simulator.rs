@@ -16,8 +16,8 @@ use nalgebra::Point3;
 
 use crate::render::defocus::{blur_levels, defocus_image, top_level, BlurStack, ThinLens, LEVELS};
 use crate::render::lens::LensWarp;
-use crate::render::noise::{add_noise, mean_filter_to_u8};
-use crate::render::pattern::{fringe_set, one_shot, ProjectorImage};
+use crate::render::noise::{add_noise, mean_filter_to_u8, sense};
+use crate::render::pattern::{fringe_set, one_shot, white, ProjectorImage, PHASE_STEPS};
 use crate::render::raster::{View, ZBuffer};
 use crate::render::shade::{Lights, ShadingTerms};
 use crate::scene::placement_rig::{look_at, sensor_rig};
@@ -64,6 +64,10 @@ pub struct Simulator {
     fringe_images: Vec<GrayImage>,
     one_shot: Vec<ProjectorImage>,
     fringes: Vec<ProjectorImage>,
+    /// A white projector image, prepared as the fringes are.
+    white: ProjectorImage,
+    /// The blurred light of a complementary pair's sum and of a period's first two steps.
+    basis: [Vec<f32>; 3],
     triangles: Vec<SceneTriangle>,
     zbuffers: [ZBuffer; 2],
     terms: [ShadingTerms; 2],
@@ -89,6 +93,9 @@ pub struct Simulator {
     /// The box filter and the largest defocus blur the projector images were prepared with.
     #[cfg(test)]
     pattern_prep: (usize, f32),
+    /// Renders every fringe shot on its own, the obvious way the pairs are checked against.
+    #[cfg(test)]
+    fringes_one_by_one: bool,
 }
 
 impl Simulator {
@@ -134,6 +141,8 @@ impl Simulator {
             objects: Objects::from_cell(cell)?,
             one_shot: one_shot_images.iter().map(|i| ProjectorImage::new(i, footprint, max_sigma)).collect(),
             fringes: fringe_images.iter().map(|i| ProjectorImage::new(i, footprint, max_sigma)).collect(),
+            white: ProjectorImage::new(&white(sensor), footprint, max_sigma),
+            basis: Default::default(),
             one_shot_images,
             fringe_images,
             zbuffers: [0, 1].map(|c| ZBuffer::new(cameras[c].width, cameras[c].height)),
@@ -153,6 +162,8 @@ impl Simulator {
             blur_stack: BlurStack::default(),
             #[cfg(test)]
             pattern_prep: (footprint, max_sigma),
+            #[cfg(test)]
+            fringes_one_by_one: false,
             triangles: Vec::new(),
             projector_gain: sensor.projector_gain,
             noise_amplitude: sensor.noise_amplitude,
@@ -209,10 +220,6 @@ impl Simulator {
 
     fn render_with(&mut self, scene: &SceneSpec, method: Method, noise_key: Option<u64>, frame: &mut Frame) {
         self.geometry(scene, frame);
-        let patterns = match method {
-            Method::OneShot => &self.one_shot,
-            Method::Phase12 => &self.fringes,
-        };
         for (cam, images) in [&mut frame.left, &mut frame.right].into_iter().enumerate() {
             let (w, h) = if cam == 0 {
                 (self.rig.left.width, self.rig.left.height)
@@ -220,34 +227,120 @@ impl Simulator {
                 (self.rig.right.width, self.rig.right.height)
             };
             self.clean.resize(w * h, 0.0);
-            images.truncate(patterns.len());
-            images.resize_with(patterns.len(), GrayImage::default);
-            for (shot, (pattern, image)) in patterns.iter().zip(images.iter_mut()).enumerate() {
+            let shots = self.patterns(method).len();
+            images.truncate(shots);
+            images.resize_with(shots, GrayImage::default);
+            for image in images.iter_mut() {
                 if !(image.width == w && image.height == h && image.data.len() == w * h) {
                     image.reset(w, h, 0);
                 }
-                let noise = noise_key.map(|key| (image_key(key, cam as u64, shot as u64), self.noise_amplitude));
-                let defocused = self.camera_lenses[cam].is_some();
-                match &self.lenses[cam] {
-                    None if !defocused => self.terms[cam].shade(pattern, noise, &mut self.clean),
-                    None => self.terms[cam].shade(pattern, None, &mut self.clean),
-                    Some(lens) => {
+            }
+            let amplitude = self.noise_amplitude;
+            let noise = |shot: usize| noise_key.map(|key| (image_key(key, cam as u64, shot as u64), amplitude));
+            let blur = if noise_key.is_some() { self.blur } else { 1 };
+            if method == Method::Phase12 && self.camera_lenses[cam].is_some() && self.draws_pairs() {
+                self.fringes_defocused(cam, &noise, blur, images);
+                continue;
+            }
+            let patterns = match method {
+                Method::OneShot => &self.one_shot,
+                Method::Phase12 => &self.fringes,
+            };
+            for (shot, (pattern, image)) in patterns.iter().zip(images.iter_mut()).enumerate() {
+                let noise = noise(shot);
+                match (&self.lenses[cam], self.camera_lenses[cam].is_some()) {
+                    (None, false) => self.terms[cam].shade(pattern, noise, &mut self.clean),
+                    (None, true) => self.terms[cam].light(pattern, 1.0, &mut self.clean),
+                    (Some(lens), defocused) => {
                         self.canvas_grey.resize(self.cameras[cam].width * self.cameras[cam].height, 0.0);
-                        self.terms[cam].shade(pattern, None, &mut self.canvas_grey);
+                        if defocused {
+                            self.terms[cam].light(pattern, 1.0, &mut self.canvas_grey);
+                        } else {
+                            self.terms[cam].shade(pattern, None, &mut self.canvas_grey);
+                        }
                         lens.warp_linear(&self.canvas_grey, &mut self.clean);
                     }
                 }
-                // The lens blurs the light before the sensor adds its noise.
-                if defocused {
+                // The lens blurs the light before the sensor saturates and adds its noise.
+                if self.camera_lenses[cam].is_some() {
                     let (levels, top) = (&self.camera_levels[cam], self.camera_top[cam]);
-                    defocus_image(&mut self.clean, w, levels, top, &mut self.blur_stack, noise);
+                    defocus_image(&mut self.clean, w, levels, top, &mut self.blur_stack, Some(noise));
                 } else if self.lenses[cam].is_some() {
                     if let Some((key, amplitude)) = noise {
                         add_noise(&mut self.clean, key, amplitude);
                     }
                 }
-                let blur = if noise.is_some() { self.blur } else { 1 };
                 mean_filter_to_u8(&self.clean, w, blur, &mut self.scratch, &mut image.data);
+            }
+        }
+    }
+
+    /// Whether fringe shots under complementary patterns are drawn from their pair's sum.
+    fn draws_pairs(&self) -> bool {
+        #[cfg(test)]
+        if self.fringes_one_by_one {
+            return false;
+        }
+        true
+    }
+
+    /// The 12 shots of camera `cam` through its defocused lens. Light, the lens's blur and
+    /// the projector's are linear up to the sensor, and steps 2 and 3 of a fringe period
+    /// show the complements of steps 0 and 1; so the light of step k + 2 is the light under
+    /// a white pattern with the pattern-independent light counted twice, less the light of
+    /// step k. Per camera that blurs 7 images instead of 12; the sensor then saturates,
+    /// adds the noise and filters every shot as it would each alone.
+    fn fringes_defocused(
+        &mut self,
+        cam: usize,
+        noise: &dyn Fn(usize) -> Option<(u64, u32)>,
+        blur: usize,
+        images: &mut [GrayImage],
+    ) {
+        let (w, pixels) = images.first().map_or((0, 0), |i| (i.width, i.data.len()));
+        let Simulator {
+            terms,
+            lenses,
+            cameras,
+            canvas_grey,
+            camera_levels,
+            camera_top,
+            blur_stack,
+            basis,
+            white,
+            fringes,
+            clean,
+            scratch,
+            ..
+        } = self;
+        let (levels, top) = (&camera_levels[cam], camera_top[cam]);
+        let mut blurred_light = |pattern: &ProjectorImage, base_scale: f32, out: &mut Vec<f32>| {
+            out.resize(pixels, 0.0);
+            match &lenses[cam] {
+                None => terms[cam].light(pattern, base_scale, out),
+                Some(lens) => {
+                    canvas_grey.resize(cameras[cam].width * cameras[cam].height, 0.0);
+                    terms[cam].light(pattern, base_scale, canvas_grey);
+                    lens.warp_linear(canvas_grey, out);
+                }
+            }
+            defocus_image(out, w, levels, top, blur_stack, None);
+        };
+        let [pair_sum, first, second] = basis;
+        blurred_light(white, 2.0, pair_sum);
+        for (period, shots) in images.chunks_mut(PHASE_STEPS).enumerate() {
+            let steps = &fringes[period * PHASE_STEPS..][..PHASE_STEPS];
+            blurred_light(&steps[0], 1.0, first);
+            blurred_light(&steps[1], 1.0, second);
+            for (k, image) in shots.iter_mut().enumerate() {
+                let (light, less) = match k {
+                    0 => (&first[..], None),
+                    1 => (&second[..], None),
+                    2 => (&pair_sum[..], Some(&first[..])),
+                    _ => (&pair_sum[..], Some(&second[..])),
+                };
+                sense(light, less, noise(period * PHASE_STEPS + k), clean);
+                mean_filter_to_u8(clean, w, blur, scratch, &mut image.data);
             }
         }
     }
@@ -574,6 +667,39 @@ mod tests {
         sim2.render_clean(&scene, Method::OneShot, &mut f2);
         assert!(differ(&f1.left[0], &f2.left[0]) > f1.left[0].data.len() / 4);
         assert_eq!(f1.depth_left, f2.depth_left);
+    }
+
+    #[test]
+    fn fringe_pairs_drawn_from_their_sum_are_the_shots_rendered_alone() {
+        // Defocused, with lens distortion and without, in focus and far out of it, with
+        // noise and clean: only float rounding may tell the two apart.
+        let mut distorted = Cell::default();
+        distorted.sensor.camera_dist = [-0.1, 0.05, 0.0005, -0.0003, 0.0];
+        let mut near_focus = Cell::default();
+        near_focus.optics.camera_focus = camplace_config::Focus::Distance(400.0);
+        near_focus.optics.camera_f_number = 1.4;
+        for cell in [Cell::default(), distorted, near_focus] {
+            for scenario in [2, 5] {
+                let scene = draw_scenario(&cell, 1, scenario).scene();
+                let mut sim = Simulator::new(&cell, &cell.placement, 1).unwrap();
+                assert!(sim.camera_lenses[0].is_some());
+                for noise in [Some(7), None] {
+                    let mut render = |one_by_one: bool| {
+                        sim.fringes_one_by_one = one_by_one;
+                        let mut frame = Frame::default();
+                        sim.render_with(&scene, Method::Phase12, noise, &mut frame);
+                        frame
+                    };
+                    let (pairs, alone) = (render(false), render(true));
+                    for (a, b) in pairs.left.iter().chain(&pairs.right).zip(alone.left.iter().chain(&alone.right)) {
+                        let off: Vec<u8> = a.data.iter().zip(&b.data).map(|(p, q)| p.abs_diff(*q)).collect();
+                        assert!(off.iter().all(|&d| d <= 1), "a shot differs by more than a grey level");
+                        assert!(off.iter().filter(|&&d| d > 0).count() <= a.data.len() / 1000);
+                    }
+                    assert_eq!(pairs.depth_left, alone.depth_left);
+                }
+            }
+        }
     }
 
     #[test]
