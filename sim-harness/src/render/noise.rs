@@ -75,12 +75,12 @@ fn sense_band_body(light: &[f32], less: Option<&[f32]>, noise: Option<(u64, u32)
 /// library call `round` becomes on x86-64 without SSE4.1.
 #[inline(always)]
 fn round_to_u8(v: f32) -> u8 {
-    // Without branches, so that a row rounds in vector lanes: NaN stays NaN through the
-    // clamp and converts to 0; within 0..255 truncation is the floor and the fraction is
-    // exact.
-    let c = v.clamp(0.0, 255.0);
-    let i = c as u32;
-    (i + (c - i as f32 >= 0.5) as u32) as u8
+    // Without branches, so that a row rounds in vector lanes: `max` drops a NaN for 0;
+    // within 0..255 truncation is the floor and the fraction is exact.
+    let c = v.max(0.0).min(255.0);
+    // SAFETY: c is finite and within 0..=255, which i32 holds.
+    let i = unsafe { c.to_int_unchecked::<i32>() };
+    (i + (c - i as f32 >= 0.5) as i32) as u8
 }
 
 /// The `blur` x `blur` mean of `image` (edge pixels repeated beyond the border), rounded
