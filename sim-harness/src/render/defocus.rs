@@ -25,7 +25,8 @@ use rayon::prelude::*;
 
 use crate::render::noise::pixel_noise;
 
-/// The blur levels of a stack, σ in pixels; beyond the last, a blur is clamped to it.
+/// The blur levels of a stack, σ in pixels; beyond the last, a blur is clamped to it. Halves
+/// up to 2, then 2^e and 1.5 2^e: [`level_weight`] reads a level from the bits of σ.
 pub const LEVELS: [f32; 13] = [0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0, 32.0];
 
 /// Rows per task of parallel work.
@@ -251,7 +252,13 @@ pub fn level_weight(sigma: f32, top: usize) -> (usize, f32) {
     // of 0 or less read level 0 (max drops a NaN), blurs at or past the top read the top;
     // the level is the last at or below the blur, and at a level's own blur the weight is 0.
     let c = sigma.max(0.0).min(LEVELS[top]);
-    let k = LEVELS[1..].iter().map(|&l| (l <= c) as usize).sum::<usize>();
+    // Below 2 the levels step by a half; from 2 on they are 2^e and 1.5 2^e (k = 2e + 2
+    // and 2e + 3), which the exponent and the first mantissa bit of c tell.
+    let bits = c.to_bits() as i32;
+    let octave = 2 * ((bits >> 23) - 127) + 2 + ((bits >> 22) & 1);
+    // SAFETY: c is finite and within 0..=32 (the last level), which i32 holds.
+    let halves = unsafe { (2.0 * c).to_int_unchecked::<i32>() };
+    let k = if c < 2.0 { halves } else { octave } as usize;
     (k, (c * c - LEVELS[k] * LEVELS[k]) * INV_STEP[k])
 }
 

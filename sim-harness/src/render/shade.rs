@@ -494,8 +494,8 @@ fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
 /// `v` scaled to unit length.
 #[inline(always)]
 fn unit(v: [f64; 3]) -> [f64; 3] {
-    let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    [v[0] / n, v[1] / n, v[2] / n]
+    let inv = 1.0 / (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    [v[0] * inv, v[1] * inv, v[2] * inv]
 }
 
 /// The half-way vector, unnormalised, between the direction from `pos` to `light` and the
