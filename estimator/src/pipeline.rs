@@ -111,6 +111,7 @@ impl Default for PoseEstimate {
 
 /// The stages after reconstruction, with their buffers; apart from the reconstructor so a
 /// frame's cloud can be borrowed from it while these run.
+#[derive(Clone)]
 struct Stages {
     params: EstimatorParams,
     /// Shared with RANSAC and ICP, which were built for it.
@@ -125,6 +126,7 @@ struct Stages {
 }
 
 /// The tray-pose estimator of one rig and model, with every buffer it needs.
+#[derive(Clone)]
 pub struct Estimator {
     reconstructor: Reconstructor,
     reconstruction: Reconstruction,

@@ -30,12 +30,14 @@ pub struct Reconstruction {
     pub timings: ReconstructTimings,
 }
 
+#[derive(Clone)]
 enum Decoder {
     Stereo(Box<Elas>),
     Phase(Box<PhaseDecoder>),
 }
 
 /// Rectification, disparity (one-shot stereo or 12-shot phase) and the cloud, for one rig.
+#[derive(Clone)]
 pub struct Reconstructor {
     method: Method,
     rectification: Rectification,

@@ -95,6 +95,7 @@ impl Partial {
 }
 
 /// Point-to-plane ICP with its lookup grids and buffers, built for one model, which it keeps.
+#[derive(Clone)]
 pub struct Icp {
     model: Arc<Model>,
     iterations: u32,

@@ -47,19 +47,32 @@ impl NearestGrid {
         let mut cells = vec![u32::MAX; n];
         let mut best = vec![f32::INFINITY; n];
         let span = (reach / cell).ceil() as isize;
+        let centre_of = |c: isize, a: usize| origin[a] + (c as f32 + 0.5) * cell;
         for (i, p) in points.iter().enumerate() {
-            let c = [0, 1, 2].map(|a| ((p[a] - origin[a]) / cell).floor() as isize);
+            // Every point lies above the origin, where truncation is the floor.
+            let c = [0, 1, 2].map(|a| ((p[a] - origin[a]) / cell) as isize);
             for dz in -span..=span {
                 let z = c[2] + dz;
                 if z < 0 || z >= dims[2] as isize {
                     continue;
                 }
+                let ez = centre_of(z, 2) - p.z;
                 for dy in -span..=span {
                     let y = c[1] + dy;
                     if y < 0 || y >= dims[1] as isize {
                         continue;
                     }
-                    for dx in -span..=span {
+                    // Only the cells of this row whose centres can lie within reach: the
+                    // sphere's chord, widened by a cell for rounding (the test below decides).
+                    let ey = centre_of(y, 1) - p.y;
+                    let left = reach * reach - ez * ez - ey * ey;
+                    if left < -(cell * cell) {
+                        continue;
+                    }
+                    // Truncation plus two: at least the ceiling plus one, without libm.
+                    let chord = (left.max(0.0).sqrt() / cell) as isize + 2;
+                    let (from, to) = ((-chord).max(-span), chord.min(span));
+                    for dx in from..=to {
                         let x = c[0] + dx;
                         if x < 0 || x >= dims[0] as isize {
                             continue;
@@ -98,6 +111,48 @@ mod tests {
     use crate::testing;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+
+    /// Every cell of the grid `new` lays out, each given the nearest point within reach by
+    /// a search of all points (the earlier on ties).
+    fn cells_by_search(points: &[Point3<f32>], grid: &NearestGrid, reach: f32) -> Vec<u32> {
+        let [nx, ny, nz] = grid.dims;
+        let mut cells = vec![u32::MAX; nx * ny * nz];
+        for z in 0..nz {
+            for y in 0..ny {
+                for x in 0..nx {
+                    let centre = grid.origin + Vector3::new(x as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5) * grid.cell;
+                    let mut best = f32::INFINITY;
+                    for (i, p) in points.iter().enumerate() {
+                        let d2 = (centre - p).norm_squared();
+                        if d2 < best && d2 <= reach * reach {
+                            best = d2;
+                            cells[(z * ny + y) * nx + x] = i as u32;
+                        }
+                    }
+                }
+            }
+        }
+        cells
+    }
+
+    #[test]
+    fn every_cell_holds_the_nearest_point_within_reach() {
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        for (n, sres, max_distance) in [(200, 2.0f32, 6.0f32), (60, 1.5, 3.0), (1, 2.0, 6.0), (120, 3.0, 1.0)] {
+            let points: Vec<Point3<f32>> = (0..n)
+                .map(|_| {
+                    Point3::new(
+                        rng.random_range(-20.0..20.0),
+                        rng.random_range(-15.0..15.0),
+                        rng.random_range(0.0..8.0),
+                    )
+                })
+                .collect();
+            let grid = NearestGrid::new(&points, sres, max_distance);
+            let reach = max_distance + grid.cell * 0.87;
+            assert_eq!(grid.cells, cells_by_search(&points, &grid, reach), "{n} points, {sres} mm cells");
+        }
+    }
 
     #[test]
     fn grid_lookup_is_within_a_cell_diagonal_of_brute_force() {

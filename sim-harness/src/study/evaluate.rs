@@ -17,15 +17,16 @@ use crate::scene::scenario::draw_scenario;
 use crate::seeds::noise_key;
 use crate::Result;
 
-/// What every worker of one placement's evaluation shares: the settings, the model and the
-/// background capture.
+/// What every worker of one placement's evaluation shares: the settings, the background
+/// capture and an estimator set up for the model and the background (its model indexes
+/// built once, copied for each worker).
 pub struct Evaluator {
     cell: Cell,
     placement: Placement,
     method: Method,
     seed: u64,
-    model: Model,
     background: Frame,
+    estimator: Estimator,
 }
 
 impl std::fmt::Debug for Evaluator {
@@ -56,15 +57,16 @@ impl Evaluator {
         let mut sim = Simulator::new(cell, placement, seed)?;
         let mut background = Frame::default();
         sim.render(&background_scene(cell, seed), method, noise_key(seed, 0, true), &mut background);
-        Ok(Evaluator { cell: cell.clone(), placement: *placement, method, seed, model, background })
+        let mut estimator = Estimator::new(cell, sim.rig(), model, method)?;
+        estimator.set_background(&background.left, &background.right)?;
+        Ok(Evaluator { cell: cell.clone(), placement: *placement, method, seed, background, estimator })
     }
 
     /// A worker with its own simulator and estimator (each owns its buffers), the
     /// background already set.
     pub fn worker(&self) -> Result<Worker<'_>> {
         let sim = Simulator::new(&self.cell, &self.placement, self.seed)?;
-        let mut estimator = Estimator::new(&self.cell, sim.rig(), self.model.clone(), self.method)?;
-        estimator.set_background(&self.background.left, &self.background.right)?;
+        let estimator = self.estimator.clone();
         Ok(Worker { sim, estimator, frame: Frame::default(), pose: PoseEstimate::default(), evaluator: self })
     }
 }

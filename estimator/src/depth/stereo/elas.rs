@@ -20,7 +20,7 @@ use crate::error::{Error, ErrorKind, Result};
 use crate::{FloatImage, GrayImage};
 
 /// The ELAS matcher with all its buffers.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct Elas {
     width: usize,
     height: usize,

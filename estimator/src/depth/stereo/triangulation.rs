@@ -22,7 +22,7 @@ use super::dense::DisparityRange;
 use super::support::{SupportGrid, SupportPoint, NONE};
 
 /// The filled support grid and the per-pixel plane priors it gives (NaN where no triangle).
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct Prior {
     width: usize,
     height: usize,
