@@ -372,26 +372,53 @@ fn fill_band_body(screen: &[ScreenTriangle], w: usize, y_begin: usize, y_end: us
             // Pixels a whole pixel inside the span are inside whatever the rounding.
             let (sure_lo, sure_hi) = if on_edge { (1.0, 0.0) } else { (lo + 1.0, hi - 1.0) };
             let row = (y - y_begin) * w;
-            for x in xs..=xe {
-                let fx = x as f64;
-                let sure = fx >= sure_lo && fx <= sure_hi;
-                if !sure {
-                    let inside = st.edges.iter().zip(st.top_left).all(|(&[ex, ey, ga, gb], tl)| {
-                        let e = ga * (fx - ex) + gb * (fy - ey);
-                        e > 0.0 || (e == 0.0 && tl)
-                    });
-                    if !inside {
-                        continue;
-                    }
-                }
-                let iz = (pa * fx + pb * fy + pc) as f32;
+            let depth_test = |x: usize, z: &mut [f32], t: &mut [u32]| {
+                let iz = (pa * x as f64 + pb * fy + pc) as f32;
                 let i = row + x;
                 if iz > z[i] {
                     z[i] = iz;
                     t[i] = st.source;
                 }
+            };
+            let edge_pixel = |x: usize, z: &mut [f32], t: &mut [u32]| {
+                let fx = x as f64;
+                let inside = st.edges.iter().zip(st.top_left).all(|(&[ex, ey, ga, gb], tl)| {
+                    let e = ga * (fx - ex) + gb * (fy - ey);
+                    e > 0.0 || (e == 0.0 && tl)
+                });
+                if inside {
+                    depth_test(x, z, t);
+                }
+            };
+            // The pixels sure to be inside form one run (x >= sure_lo and x <= sure_hi); the
+            // others on either side take the exact edge test.
+            let first_sure = if sure_lo <= xs as f64 { xs } else { (sure_lo.ceil() as usize).min(xe + 1) };
+            let end_sure = if sure_hi < first_sure as f64 { first_sure } else { (sure_hi.floor() as usize + 1).min(xe + 1) };
+            for x in xs..first_sure {
+                edge_pixel(x, z, t);
+            }
+            if end_sure > first_sure {
+                let span = row + first_sure..row + end_sure;
+                depth_run([pa, pb * fy, pc], first_sure, st.source, &mut z[span.clone()], &mut t[span]);
+            }
+            for x in end_sure..=xe {
+                edge_pixel(x, z, t);
             }
         }
+    }
+}
+
+/// The depth test of the pixels `x0..` of one row over `z` and `t`: a pixel takes the
+/// triangle `source` where its inverse depth, `pa x + pb_y + pc` from `[pa, pb_y, pc]`
+/// (summed in that order, as every pixel's), is nearer. Without branches, so the run
+/// fills in vector lanes.
+#[inline(always)]
+fn depth_run([pa, pb_y, pc]: [f64; 3], x0: usize, source: u32, z: &mut [f32], t: &mut [u32]) {
+    for (j, (z, t)) in z.iter_mut().zip(t.iter_mut()).enumerate() {
+        let iz = (pa * (x0 + j) as f64 + pb_y + pc) as f32;
+        let nearer = iz > *z;
+        *z = if nearer { iz } else { *z };
+        *t = if nearer { source } else { *t };
     }
 }
 
