@@ -104,6 +104,17 @@ enum Kernel {
     Avx512Vnni(Avx512Vnni),
 }
 
+impl Kernel {
+    /// Whether the kernel reads the byte blocks (else the f32 ones).
+    fn reads_bytes(self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if let Kernel::Avx512Vnni(_) = self {
+            return true;
+        }
+        false
+    }
+}
+
 /// The k best matches of one query so far, sorted by (distance, model index).
 #[derive(Clone, Copy)]
 struct TopK {
@@ -157,8 +168,14 @@ impl std::fmt::Debug for FeatureMatcher {
 
 impl FeatureMatcher {
     /// A matcher over model `descriptors`, each with its feature's height above the table
-    /// (z in the tray frame), mm.
+    /// (z in the tray frame), mm, searched by the fastest kernel this CPU runs.
     pub fn new(descriptors: &[Descriptor], heights: &[f32]) -> Result<Self> {
+        Self::with_kernel(descriptors, heights, Self::detect())
+    }
+
+    /// [`FeatureMatcher::new`] with `kernel`; only the blocks it reads are laid out (bytes
+    /// for the VNNI kernel, f32 for the others).
+    fn with_kernel(descriptors: &[Descriptor], heights: &[f32], kernel: Kernel) -> Result<Self> {
         if descriptors.len() != heights.len() {
             return Err(Error::new(
                 ErrorKind::Model,
@@ -168,31 +185,35 @@ impl FeatureMatcher {
         if descriptors.len() >= u32::MAX as usize {
             return Err(Error::new(ErrorKind::Model, "matcher: too many model features for u32 indices"));
         }
+        let bytes = kernel.reads_bytes();
         let empty = ModelBlock { dims: [[0.0; LANES]; ECSAD_DIM], norms: [f32::INFINITY; LANES] };
-        let mut blocks = vec![empty; descriptors.len().div_ceil(LANES)];
+        let mut blocks = vec![empty; if bytes { 0 } else { descriptors.len().div_ceil(LANES) }];
         let empty =
             ByteBlock { groups: [[0; 4 * LANES]; BYTE_GROUPS], offsets: [0; LANES], pads: [f32::INFINITY; LANES] };
-        let mut byte_blocks = vec![empty; descriptors.len().div_ceil(LANES)];
+        let mut byte_blocks = vec![empty; if bytes { descriptors.len().div_ceil(LANES) } else { 0 }];
         for (i, d) in descriptors.iter().enumerate() {
-            let q = quantise(d);
-            let (block, lane) = (&mut blocks[i / LANES], i % LANES);
-            for (dim, &v) in q.iter().enumerate() {
-                block.dims[dim][lane] = v;
+            let (q, lane) = (quantise(d), i % LANES);
+            if bytes {
+                let block = &mut byte_blocks[i / LANES];
+                for (dim, &v) in q.iter().enumerate() {
+                    block.groups[dim / 4][4 * lane + dim % 4] = v as u8;
+                }
+                let (norm, sum) = q.iter().fold((0i32, 0i32), |(n, s), &v| (n + (v * v) as i32, s + v as i32));
+                block.offsets[lane] = norm - 256 * sum;
+                block.pads[lane] = 0.0;
+            } else {
+                let block = &mut blocks[i / LANES];
+                for (dim, &v) in q.iter().enumerate() {
+                    block.dims[dim][lane] = v;
+                }
+                block.norms[lane] = q.iter().map(|v| v * v).sum();
             }
-            block.norms[lane] = q.iter().map(|v| v * v).sum();
-            let bytes = &mut byte_blocks[i / LANES];
-            for (dim, &v) in q.iter().enumerate() {
-                bytes.groups[dim / 4][4 * lane + dim % 4] = v as u8;
-            }
-            let (norm, sum) = q.iter().fold((0i32, 0i32), |(n, s), &v| (n + (v * v) as i32, s + v as i32));
-            bytes.offsets[lane] = norm - 256 * sum;
-            bytes.pads[lane] = 0.0;
         }
         Ok(FeatureMatcher {
             blocks,
             byte_blocks,
             heights: heights.to_vec(),
-            kernel: Self::detect(),
+            kernel,
             queries: Vec::new(),
             query_norms: Vec::new(),
         })
@@ -517,11 +538,10 @@ mod tests {
             scene[3] = [PI; ECSAD_DIM];
             scene[4] = std::array::from_fn(|d| if d % 2 == 0 { 0.0 } else { PI });
             let scene_heights: Vec<f32> = (0..n_scene).map(|_| rng.random_range(-10.0..70.0)).collect();
-            let mut matcher = FeatureMatcher::new(&model, &model_heights).unwrap();
             let mut got = Vec::new();
             let want = plain(&model, &model_heights, &scene, &scene_heights, k, band);
             for kernel in supported_kernels() {
-                matcher.kernel = kernel;
+                let mut matcher = FeatureMatcher::with_kernel(&model, &model_heights, kernel).unwrap();
                 matcher.match_into(&scene, &scene_heights, k, band, &mut got).unwrap();
                 assert_eq!(got, want, "kernel {kernel:?}, model {n_model}, scene {n_scene}, k {k}");
             }

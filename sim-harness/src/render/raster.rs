@@ -393,7 +393,8 @@ fn fill_band_body(screen: &[ScreenTriangle], w: usize, y_begin: usize, y_end: us
             // The pixels sure to be inside form one run (x >= sure_lo and x <= sure_hi); the
             // others on either side take the exact edge test.
             let first_sure = if sure_lo <= xs as f64 { xs } else { (sure_lo.ceil() as usize).min(xe + 1) };
-            let end_sure = if sure_hi < first_sure as f64 { first_sure } else { (sure_hi.floor() as usize + 1).min(xe + 1) };
+            let end_sure =
+                if sure_hi < first_sure as f64 { first_sure } else { (sure_hi.floor() as usize + 1).min(xe + 1) };
             for x in xs..first_sure {
                 edge_pixel(x, z, t);
             }

@@ -8,9 +8,11 @@
 //!        + 255 (albedo + gloss(n.h_projector)) projector_gain pattern(projector uv)
 //!          projector_visible max(0, n.l_projector)
 //!
-//! clamped to 0..255 as the sensor saturates; gloss is the material's glossy lobe (see
-//! `Gloss`), h the half-way vector between the light and the camera, so a glossy face
-//! throws a light's highlight where the law of reflection sends it into the camera. With
+//! clamped to 0..255 as the sensor saturates (after the lens's blur, when the camera's
+//! defocus is rendered: then this module hands on the light unclamped); gloss is the
+//! material's glossy lobe (see `Gloss`), h the half-way vector between the light and the
+//! camera, so a glossy face throws a light's highlight where the law of reflection sends
+//! it into the camera. With
 //! the projector's defocus, each pixel also keeps the blur its surface point's distance
 //! from the projector gives the pattern, as a level and weight of the pattern's blur stack,
 //! and reads the pattern at that blur. The lamp is a point light without fall-off (it hangs

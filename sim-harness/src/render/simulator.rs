@@ -5,7 +5,8 @@
 //! Per frame the geometry (scene triangles, the projector's and the lamp's shadow maps,
 //! each camera's G-buffer and pattern-independent shading terms, and with defocus each
 //! pixel's blur) is computed once; each shot then costs one pass of pattern sampling, the
-//! camera's defocus and the noise. Every buffer is allocated
+//! camera's defocus and the noise. A defocused camera's fringe shots come in complementary
+//! pairs, so it samples and blurs 7 images for its 12 shots (see `fringes_defocused`). Every buffer is allocated
 //! in `Simulator::new` or on the first frame, and reused after.
 
 use camplace_config::{Cell, Effect, Focus, Placement};
