@@ -75,9 +75,10 @@ fn sense_band_body(light: &[f32], less: Option<&[f32]>, noise: Option<(u64, u32)
 /// library call `round` becomes on x86-64 without SSE4.1.
 #[inline(always)]
 fn round_to_u8(v: f32) -> u8 {
-    // Without branches, so that a row rounds in vector lanes: `max` drops a NaN for 0;
-    // within 0..255 truncation is the floor and the fraction is exact.
-    let c = v.max(0.0).min(255.0);
+    // Without branches, so that a row rounds in vector lanes (the choice is a select): a
+    // NaN fails the comparison and reads 0; within 0..255 truncation is the floor and the
+    // fraction is exact.
+    let c = if v >= 0.0 { v.min(255.0) } else { 0.0 };
     // SAFETY: c is finite and within 0..=255, which i32 holds.
     let i = unsafe { c.to_int_unchecked::<i32>() };
     (i + (c - i as f32 >= 0.5) as i32) as u8
