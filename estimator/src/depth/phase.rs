@@ -276,24 +276,42 @@ const ROUNDING: f32 = 12_582_912.0;
 /// Decodes the absolute phase of the rows starting at `y0` into `rows`; returns the sum of
 /// the signs of horizontal phase steps between valid neighbours (which way phase runs).
 fn decode_band(shots: &[GrayImage], periods: &[f32], min_sq4: i32, y0: usize, rows: &mut [f32]) -> i64 {
-    let w = shots[0].width;
     let mut slope = 0i64;
+    decode_rows(shots, periods, min_sq4, y0, rows, &mut slope);
+    slope
+}
+
+crate::multiversion! {
+    /// [`decode_band`], its slope added to `slope`, in the widest vector lanes this CPU has.
+    fn decode_rows(
+        shots: &[GrayImage],
+        periods: &[f32],
+        min_sq4: i32,
+        y0: usize,
+        rows: &mut [f32],
+        slope: &mut i64,
+    ) => decode_rows_body
+}
+
+#[inline(always)]
+fn decode_rows_body(shots: &[GrayImage], periods: &[f32], min_sq4: i32, y0: usize, rows: &mut [f32], slope: &mut i64) {
+    let w = shots[0].width;
     for (r, out) in rows.chunks_mut(w).enumerate() {
         let y = y0 + r;
         decode_row(shots, periods, min_sq4, y * w, out);
         for pair in out.windows(2) {
             let step = pair[1] - pair[0];
             // NaN steps compare false on both sides and count nothing.
-            slope += (step > 0.0) as i64 - (step < 0.0) as i64;
+            *slope += (step > 0.0) as i64 - (step < 0.0) as i64;
         }
     }
-    slope
 }
 
 /// Absolute phase (fraction of the projector width) of the row starting at pixel `start`,
 /// NaN where masked. One pass per frequency over the whole row, with selects instead of
 /// branches, so that the compiler vectorises it; a masked pixel is NaN from the first
 /// frequency that masks it, and NaN survives the later passes.
+#[inline(always)]
 fn decode_row(shots: &[GrayImage], periods: &[f32], min_sq4: i32, start: usize, out: &mut [f32]) {
     let w = out.len();
     let min_sq4 = min_sq4 as f32;
@@ -328,7 +346,7 @@ fn decode_row(shots: &[GrayImage], periods: &[f32], min_sq4: i32, start: usize, 
 
 /// atan2 within about 1e-6 rad and no branches the compiler cannot turn into selects;
 /// the phase noise of an 8-bit camera is orders of magnitude larger.
-#[inline]
+#[inline(always)]
 pub(crate) fn atan2_fast(y: f32, x: f32) -> f32 {
     let ax = x.abs();
     let ay = y.abs();
