@@ -23,7 +23,7 @@ use std::sync::LazyLock;
 
 use rayon::prelude::*;
 
-use crate::render::noise::pixel_noise;
+use crate::render::noise::read_out;
 
 /// The blur levels of a stack, σ in pixels; beyond the last, a blur is clamped to it. Halves
 /// up to 2, then 2^e and 1.5 2^e: [`level_weight`] reads a level from the bits of σ.
@@ -404,14 +404,8 @@ fn mix_band_body(mix: &Mix<'_>, y0: usize, lv: &[(u32, f32)], out: &mut [f32]) {
                 *o = if w == 0.0 { a } else { a + w * (read(k as usize + 1, *o) - a) };
             }
         }
-        let Some(noise) = sense else { continue };
-        for o in o.iter_mut() {
-            *o = o.clamp(0.0, 255.0);
-        }
-        if let Some((key, amplitude)) = noise.filter(|n| n.1 > 0) {
-            for (x, o) in o.iter_mut().enumerate() {
-                *o += pixel_noise(key, (start + x) as u64, amplitude) as f32;
-            }
+        if let Some(noise) = sense {
+            read_out(o, start as u64, noise);
         }
     }
 }

@@ -55,18 +55,25 @@ fn sense_band_body(light: &[f32], less: Option<&[f32]>, noise: Option<(u64, u32)
     match less {
         Some(less) => {
             for ((o, &a), &b) in out.iter_mut().zip(light).zip(less) {
-                *o = (a - b).clamp(0.0, 255.0);
+                *o = a - b;
             }
         }
-        None => {
-            for (o, &a) in out.iter_mut().zip(light) {
-                *o = a.clamp(0.0, 255.0);
-            }
-        }
+        None => out.copy_from_slice(light),
+    }
+    read_out(out, first, noise);
+}
+
+/// The sensor's reading of a run of light, in place: saturated to 0..255, plus the noise
+/// of image key `noise.0` at amplitude `noise.1` if given; `first` is the run's first
+/// pixel in the image.
+#[inline(always)]
+pub(crate) fn read_out(values: &mut [f32], first: u64, noise: Option<(u64, u32)>) {
+    for v in values.iter_mut() {
+        *v = v.clamp(0.0, 255.0);
     }
     if let Some((key, amplitude)) = noise.filter(|n| n.1 > 0) {
-        for (x, o) in out.iter_mut().enumerate() {
-            *o += pixel_noise(key, first + x as u64, amplitude) as f32;
+        for (x, v) in values.iter_mut().enumerate() {
+            *v += pixel_noise(key, first + x as u64, amplitude) as f32;
         }
     }
 }

@@ -372,14 +372,7 @@ fn fill_band_body(screen: &[ScreenTriangle], w: usize, y_begin: usize, y_end: us
             // Pixels a whole pixel inside the span are inside whatever the rounding.
             let (sure_lo, sure_hi) = if on_edge { (1.0, 0.0) } else { (lo + 1.0, hi - 1.0) };
             let row = (y - y_begin) * w;
-            let depth_test = |x: usize, z: &mut [f32], t: &mut [u32]| {
-                let iz = (pa * x as f64 + pb * fy + pc) as f32;
-                let i = row + x;
-                if iz > z[i] {
-                    z[i] = iz;
-                    t[i] = st.source;
-                }
-            };
+            let plane = [pa, pb * fy, pc];
             let edge_pixel = |x: usize, z: &mut [f32], t: &mut [u32]| {
                 let fx = x as f64;
                 let inside = st.edges.iter().zip(st.top_left).all(|(&[ex, ey, ga, gb], tl)| {
@@ -387,7 +380,7 @@ fn fill_band_body(screen: &[ScreenTriangle], w: usize, y_begin: usize, y_end: us
                     e > 0.0 || (e == 0.0 && tl)
                 });
                 if inside {
-                    depth_test(x, z, t);
+                    depth_run(plane, x, st.source, &mut z[row + x..=row + x], &mut t[row + x..=row + x]);
                 }
             };
             // The pixels sure to be inside form one run (x >= sure_lo and x <= sure_hi); the
@@ -400,7 +393,7 @@ fn fill_band_body(screen: &[ScreenTriangle], w: usize, y_begin: usize, y_end: us
             }
             if end_sure > first_sure {
                 let span = row + first_sure..row + end_sure;
-                depth_run([pa, pb * fy, pc], first_sure, st.source, &mut z[span.clone()], &mut t[span]);
+                depth_run(plane, first_sure, st.source, &mut z[span.clone()], &mut t[span]);
             }
             for x in end_sure..=xe {
                 edge_pixel(x, z, t);

@@ -26,7 +26,7 @@ use nalgebra::{Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 
 use crate::render::defocus::{level_weight, ThinLens};
-use crate::render::noise::pixel_noise;
+use crate::render::noise::read_out;
 use crate::render::pattern::ProjectorImage;
 use crate::render::raster::{MapPixel, View, ZBuffer, NO_TRIANGLE};
 use crate::scene::{Gloss, SceneTriangle, ID_TABLE};
@@ -243,9 +243,9 @@ fn shade_band_body(pattern: &ProjectorImage, exposure: Exposure, first: u64, ter
     let n = out.len();
     let BandTerms { base, proj, uv, blur } = terms;
     let (base, proj, uv) = (&base[..n], &proj[..n], &uv[..n]);
-    let (scale, noise) = match exposure {
-        Exposure::Light(scale) => (scale, None),
-        Exposure::Sensed(noise) => (1.0, noise),
+    let scale = match exposure {
+        Exposure::Light(scale) => scale,
+        Exposure::Sensed(_) => 1.0,
     };
     if blur.len() == n {
         for x in 0..n {
@@ -266,15 +266,8 @@ fn shade_band_body(pattern: &ProjectorImage, exposure: Exposure, first: u64, ter
             out[x] = g;
         }
     }
-    if let Exposure::Sensed(_) = exposure {
-        for o in out.iter_mut() {
-            *o = o.clamp(0.0, 255.0);
-        }
-    }
-    if let Some((key, amplitude)) = noise.filter(|n| n.1 > 0) {
-        for (x, o) in out.iter_mut().enumerate() {
-            *o += pixel_noise(key, first + x as u64, amplitude) as f32;
-        }
+    if let Exposure::Sensed(noise) = exposure {
+        read_out(out, first, noise);
     }
 }
 
