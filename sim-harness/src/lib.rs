@@ -17,6 +17,7 @@ mod scene;
 mod search;
 mod seeds;
 mod study;
+mod workers;
 
 pub use error::{Error, Result};
 pub use model_builder::{build_model, model_origin, model_points};

@@ -13,11 +13,11 @@ use camplace_estimator::{
 };
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use crate::render::{Frame, Simulator};
 use crate::scene::SceneSpec;
 use crate::seeds::noise_key;
+use crate::workers::each_index;
 use crate::{Error, Result};
 
 /// Turns of the tray about z, 360° / VIEWPOINTS apart.
@@ -97,79 +97,31 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
     // interpolated across gaps; only what lies on the tray and its items belongs to the model.
     let (lo, hi) = tray_bounds(probe.objects(), slots, CROP_MARGIN_MM);
     // One worker per thread, each with its own sensor, reconstructor and feature buffers
-    // (built once, not per split of the work), pulling capture indices in turn; a
-    // capture's result does not depend on which worker made it.
-    let count = VIEWPOINTS * states;
-    let done: Vec<std::sync::Mutex<Option<Result<Capture>>>> = (0..count).map(|_| Default::default()).collect();
-    let next = AtomicUsize::new(0);
-    let failed = AtomicBool::new(false);
-    let work = || -> Result<()> {
-        let mut sim = Simulator::new(cell, placement, seed)?;
-        let mut rec = Reconstructor::new(cell, probe.rig(), method)?;
-        let mut features = FeatureExtractor::new(params, 1 << 16)?;
-        let (mut frame, mut reconstruction) = (Frame::default(), Reconstruction::default());
-        while !failed.load(Ordering::Relaxed) {
-            let index = next.fetch_add(1, Ordering::Relaxed);
-            if index >= count {
-                break;
-            }
-            let (v, state) = (index / states, index % states);
-            let mut filled: Vec<usize> = removal[v][state..].to_vec();
-            filled.sort_unstable();
-            let scene = SceneSpec { t_world_tray: poses[v], filled, ..base.clone() };
-            let capture = (|| {
-                sim.render(&scene, method, noise_key(seed, MODEL_NOISE_OFFSET + index as u64, false), &mut frame);
-                rec.process(&frame.left, &frame.right, &mut reconstruction)?;
-                let to_tray = poses[v].inverse().cast::<f32>();
-                let raw: Vec<Point3<f32>> = reconstruction
-                    .cloud
-                    .points
-                    .iter()
-                    .map(|p| to_tray * p)
-                    .filter(|q| (0..3).all(|a| q[a] >= lo[a] && q[a] <= hi[a]))
-                    .collect();
-                let eye = (poses[v].inverse() * sensor_world).cast::<f32>();
-                describe(&mut features, &raw, &eye)
-            })();
-            if capture.is_err() {
-                failed.store(true, Ordering::Relaxed);
-            }
-            *done[index].lock().expect("a capture slot") = Some(capture);
-        }
-        Ok(())
+    // (built once, not per capture), taking captures in turn.
+    let setup = || -> Result<_> {
+        let sim = Simulator::new(cell, placement, seed)?;
+        let rec = Reconstructor::new(cell, probe.rig(), method)?;
+        let features = FeatureExtractor::new(params, 1 << 16)?;
+        Ok((sim, rec, features, Frame::default(), Reconstruction::default()))
     };
-    let threads = rayon::current_num_threads().clamp(1, count);
-    let setup_errors: Vec<Error> = {
-        let errors = std::sync::Mutex::new(Vec::new());
-        rayon::scope(|s| {
-            for _ in 0..threads {
-                s.spawn(|_| {
-                    if let Err(e) = work() {
-                        failed.store(true, Ordering::Relaxed);
-                        errors.lock().expect("an error list").push(e);
-                    }
-                });
-            }
-        });
-        errors.into_inner().expect("an error list")
-    };
-    if let Some(e) = setup_errors.into_iter().next() {
-        return Err(e);
-    }
-    // The error of the first failed capture in index order, else every capture.
-    let slots: Vec<Option<Result<Capture>>> =
-        done.into_iter().map(|slot| slot.into_inner().expect("a capture slot")).collect();
-    let mut captures = Vec::with_capacity(count);
-    let mut missing = false;
-    for slot in slots {
-        match slot {
-            Some(capture) => captures.push(capture?),
-            None => missing = true,
-        }
-    }
-    if missing {
-        return Err(Error::Other("model: a capture was not made".to_string()));
-    }
+    let captures = each_index(VIEWPOINTS * states, setup, |(sim, rec, features, frame, reconstruction), index| {
+        let (v, state) = (index / states, index % states);
+        let mut filled: Vec<usize> = removal[v][state..].to_vec();
+        filled.sort_unstable();
+        let scene = SceneSpec { t_world_tray: poses[v], filled, ..base.clone() };
+        sim.render(&scene, method, noise_key(seed, MODEL_NOISE_OFFSET + index as u64, false), frame);
+        rec.process(&frame.left, &frame.right, reconstruction)?;
+        let to_tray = poses[v].inverse().cast::<f32>();
+        let raw: Vec<Point3<f32>> = reconstruction
+            .cloud
+            .points
+            .iter()
+            .map(|p| to_tray * p)
+            .filter(|q| (0..3).all(|a| q[a] >= lo[a] && q[a] <= hi[a]))
+            .collect();
+        let eye = (poses[v].inverse() * sensor_world).cast::<f32>();
+        describe(features, &raw, &eye)
+    })?;
 
     let mut model = Model {
         surface_resolution: params.surface_resolution as f32,

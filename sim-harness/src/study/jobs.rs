@@ -4,8 +4,6 @@
 //! once. Which thread ran a scene never changes its result.
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::Mutex;
 
 use camplace_config::write_atomic;
 use camplace_config::{Cell, Placement};
@@ -17,6 +15,7 @@ use super::results::{ResultLine, ResultsStore, SceneKey};
 use super::shard::Shard;
 use crate::model_builder::{build_model, model_origin};
 use crate::render::Method;
+use crate::workers::each_index;
 use crate::{Error, Result};
 
 /// Scenes of one placement to run.
@@ -114,18 +113,11 @@ impl<'a> JobEvaluator<'a> {
         let model = self.model(&job.placement, job.seed)?;
         let evaluator = Evaluator::with_model(self.cell, &job.placement, self.method, job.seed, model)?;
         bar.set_message(job.placement.to_string());
-        let next = AtomicUsize::new(0);
-        let failed = AtomicBool::new(false);
-        let first_error: Mutex<Option<Error>> = Mutex::new(None);
-        let threads = rayon::current_num_threads().min(todo.len()).max(1);
-        let work = || -> Result<()> {
-            let mut worker = evaluator.worker()?;
-            loop {
-                if failed.load(Ordering::Relaxed) {
-                    return Ok(());
-                }
-                let n = next.fetch_add(1, Ordering::Relaxed);
-                let Some(&index) = todo.get(n) else { return Ok(()) };
+        each_index(
+            todo.len(),
+            || evaluator.worker(),
+            |worker, n| {
+                let index = todo[n];
                 let record = worker.scene(index)?;
                 self.store.add(ResultLine {
                     placement: job.placement.to_string(),
@@ -135,22 +127,10 @@ impl<'a> JobEvaluator<'a> {
                     record,
                 })?;
                 bar.inc(1);
-            }
-        };
-        rayon::scope(|s| {
-            for _ in 0..threads {
-                s.spawn(|_| {
-                    if let Err(e) = work() {
-                        failed.store(true, Ordering::Relaxed);
-                        first_error.lock().expect("error slot").get_or_insert(e);
-                    }
-                });
-            }
-        });
-        match first_error.into_inner().expect("error slot") {
-            Some(e) => Err(e),
-            None => Ok(()),
-        }
+                Ok(())
+            },
+        )?;
+        Ok(())
     }
 
     /// The model of `placement`: from the cache when it holds one built from this cell,
