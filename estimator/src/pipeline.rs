@@ -39,9 +39,10 @@ pub struct StageTimings {
     pub normals_ms: f64,
     /// Key points and ECSAD descriptors.
     pub features_ms: f64,
-    /// k-NN descriptor matching with the height filter.
+    /// k-NN descriptor matching with the height filter, and RANSAC's scene index, built
+    /// alongside it.
     pub matching_ms: f64,
-    /// Prerejective RANSAC.
+    /// Prerejective RANSAC (its sampling, scoring and consensus re-fit).
     pub ransac_ms: f64,
     /// Point-to-plane ICP.
     pub icp_ms: f64,
@@ -294,20 +295,27 @@ impl Stages {
         // world z and tray-frame z are both heights above the table.
         self.heights.extend(self.features.keypoint_points().iter().map(|q| q.z));
 
+        // RANSAC's scene index needs only the cloud: it is built on one core while the
+        // matcher starts on the other (and takes both once it is done).
         let t = Instant::now();
-        self.matcher.match_into(
-            self.features.descriptors(),
-            &self.heights,
-            p.k as usize,
-            p.height_band as f32,
-            &mut self.correspondences,
-        )?;
+        let (matched, ()) = rayon::join(
+            || {
+                self.matcher.match_into(
+                    self.features.descriptors(),
+                    &self.heights,
+                    p.k as usize,
+                    p.height_band as f32,
+                    &mut self.correspondences,
+                )
+            },
+            || self.ransac.index_scene(self.features.cloud()),
+        );
+        matched?;
         out.timings.matching_ms = ms(t);
         out.matches = self.correspondences.len() as u32;
 
         let t = Instant::now();
-        out.ransac = self.ransac.estimate(
-            self.features.cloud(),
+        out.ransac = self.ransac.estimate_indexed(
             self.features.keypoint_points(),
             &self.correspondences,
             &self.sensor_position,

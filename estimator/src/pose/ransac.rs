@@ -70,8 +70,8 @@ const STREAMS: usize = 8;
 /// against the tens of thousands of samples a scene needs (so little is drawn past the
 /// stopping rule's count).
 const STREAM_DRAWS: usize = 512;
-/// View points per part of the consensus fit.
-const CONSENSUS_CHUNK: usize = 4096;
+/// Sample points per part of the consensus fit (8 parts of a full sample).
+const CONSENSUS_CHUNK: usize = 1024;
 
 /// The outcome of [`Ransac::estimate`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -176,19 +176,39 @@ impl Ransac {
             matched: Vec::with_capacity(1 << 13),
             ranks: RankWeights::new(),
             streams: (0..STREAMS).map(|_| Vec::with_capacity(STREAM_DRAWS)).collect(),
-            consensus_parts: Vec::with_capacity(max_view.div_ceil(CONSENSUS_CHUNK)),
+            consensus_parts: Vec::with_capacity(max_view.min(SCORE_SAMPLE).div_ceil(CONSENSUS_CHUNK)),
         })
     }
 
     /// Finds the tray's pose from matches of `scene_keypoints` (indexed by
     /// `Correspondence::scene`) to the model's features, scoring against the scene cloud
-    /// `scene_points` (world frame). The result's `found` is false when no hypothesis passes
-    /// the checks with `min_inlier_share` of its view's points as inliers; it then holds the
-    /// best hypothesis seen, if any, for diagnosis only.
-    /// The same inputs give the same result: sampling restarts from `seed` on every call.
+    /// `scene_points` (world frame): [`Ransac::index_scene`], then
+    /// [`Ransac::estimate_indexed`].
     pub fn estimate(
         &mut self,
         scene_points: &[Point3<f32>],
+        scene_keypoints: &[Point3<f32>],
+        correspondences: &[Correspondence],
+        sensor_position_world: &Point3<f32>,
+    ) -> Result<RansacResult> {
+        self.index_scene(scene_points);
+        self.estimate_indexed(scene_keypoints, correspondences, sensor_position_world)
+    }
+
+    /// Indexes the scene cloud (world frame) hypotheses are scored against. It needs only the
+    /// cloud, so it can run while the matches are still being found.
+    pub fn index_scene(&mut self, scene_points: &[Point3<f32>]) {
+        self.grid.rebuild(scene_points);
+    }
+
+    /// Finds the tray's pose from matches of `scene_keypoints` (indexed by
+    /// `Correspondence::scene`) to the model's features, scoring against the scene cloud of
+    /// the last [`Ransac::index_scene`]. The result's `found` is false when no hypothesis
+    /// passes the checks with `min_inlier_share` of its view's points as inliers; it then
+    /// holds the best hypothesis seen, if any, for diagnosis only.
+    /// The same inputs give the same result: sampling restarts from `seed` on every call.
+    pub fn estimate_indexed(
+        &mut self,
         scene_keypoints: &[Point3<f32>],
         correspondences: &[Correspondence],
         sensor_position_world: &Point3<f32>,
@@ -218,25 +238,28 @@ impl Ransac {
                 format!("ransac: expected at most {MAX_K} matches per key point, key point {k} has more"),
             ));
         }
-        if self.matched.len() < self.sample as usize || scene_points.is_empty() {
+        if self.matched.len() < self.sample as usize || self.grid.is_empty() {
             return Ok(RansacResult::default());
         }
-        self.grid.rebuild(scene_points);
 
         let (best, iterations) = self.search(scene_keypoints, model, sensor_position_world);
         let Some((mut pose, mut view)) = best else {
             return Ok(RansacResult { iterations, ..RansacResult::default() });
         };
-        // One consensus re-fit (a point-to-point step on the inliers, kept if it explains no
-        // fewer points); ICP does the fine work.
-        let (refit, mut best_inliers) = self.consensus(&pose, view);
+        // One consensus re-fit (a point-to-point step on the inliers of the scoring sample,
+        // kept if it explains no smaller a share of its view's sample); ICP does the fine
+        // work. The pose kept is then counted on its whole view.
+        let (refit, sample_inliers) = self.consensus(&pose, view);
         if let Some(refit) = refit.filter(|r| self.on_table(r)) {
             let refit_view = model.closest_view(&refit, sensor_position_world);
-            let inliers = self.count(&refit, refit_view);
-            if inliers >= best_inliers {
-                (pose, view, best_inliers) = (refit, refit_view, inliers);
+            let refit_inliers = self.score(&refit, refit_view, 0).unwrap_or(0);
+            // Shares of two samples compared exactly: a / n >= b / m as a m >= b n.
+            let share_of = |inliers: u32, view: usize| u64::from(inliers) * self.sample_len(view) as u64;
+            if share_of(refit_inliers, view) >= share_of(sample_inliers, refit_view) {
+                (pose, view) = (refit, refit_view);
             }
         }
+        let best_inliers = self.count(&pose, view);
         let found = best_inliers >= self.required(view);
         Ok(RansacResult { found, t_world_tray: pose, inliers: best_inliers, iterations, view })
     }
@@ -527,7 +550,12 @@ impl Ransac {
 
     /// The fewest inliers among `view`'s scoring sample a hypothesis needs to be kept.
     fn required_in_sample(&self, view: usize) -> u32 {
-        (self.min_inlier_share * self.views[view].len().min(SCORE_SAMPLE) as f32).ceil() as u32
+        (self.min_inlier_share * self.sample_len(view) as f32).ceil() as u32
+    }
+
+    /// Points in `view`'s scoring sample: its first [`SCORE_SAMPLE`].
+    fn sample_len(&self, view: usize) -> usize {
+        self.views[view].len().min(SCORE_SAMPLE)
     }
 
     /// The fewest inliers a pose scored on all of `view` needs to be returned.
@@ -545,7 +573,7 @@ impl Ransac {
     /// soon as the points scored so far show it will not reach `to_beat`.
     fn score(&self, pose: &Isometry3<f64>, view: usize, to_beat: u32) -> Option<u32> {
         let (r, t) = split(pose);
-        let points = &self.views[view][..self.views[view].len().min(SCORE_SAMPLE)];
+        let points = &self.views[view][..self.sample_len(view)];
         let total = points.len();
         let r2 = self.inlier_distance * self.inlier_distance;
         let mut inliers = 0u32;
@@ -581,13 +609,14 @@ impl Ransac {
             .sum()
     }
 
-    /// The pose fitted to the inliers of `pose` on `view` (each paired with its nearest scene
-    /// point), and their count, which is [`Ransac::count`]'s. The view is fitted in fixed
-    /// chunks, summed in order, so the fit is the same whatever the number of threads.
+    /// The pose fitted to the inliers of `pose` among the scoring sample of `view` (each
+    /// paired with its nearest scene point), and their count, which is [`Ransac::score`]'s
+    /// with nothing to beat. The sample is fitted in fixed chunks, summed in order, so the
+    /// fit is the same whatever the number of threads.
     fn consensus(&mut self, pose: &Isometry3<f64>, view: usize) -> (Option<Isometry3<f64>>, u32) {
         let (r, t) = split(pose);
         let r2 = self.inlier_distance * self.inlier_distance;
-        let points = &self.views[view];
+        let points = &self.views[view][..self.sample_len(view)];
         let origin = points[0];
         let target_origin = Point3::from(r * origin.coords + t);
         let chunks = points.len().div_ceil(CONSENSUS_CHUNK);

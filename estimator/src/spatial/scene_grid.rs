@@ -50,6 +50,11 @@ impl SceneGrid {
         (h & self.mask) as usize
     }
 
+    /// Whether the grid holds no scene point (as built, or after an empty scene).
+    pub(crate) fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
     pub(crate) fn rebuild(&mut self, scene: &[Point3<f32>]) {
         if 2 * scene.len() > self.starts.len() - 1 {
             let buckets = (2 * scene.len()).next_power_of_two();
