@@ -109,8 +109,10 @@ impl SceneGrid {
 
     /// Whether a scene point lies within `sqrt(r2)` of `q`; `r2` at most (half a cell)².
     pub(crate) fn any_within(&self, q: &Point3<f32>, r2: f32) -> bool {
-        if !self.near.may_reach(q) {
-            return false;
+        match self.near.classify(q) {
+            Reach::None => return false,
+            Reach::Surely if r2 >= self.near.inner_reach2 => return true,
+            _ => {}
         }
         for b in self.neighbour_buckets(q) {
             let (lo, hi) = (self.starts[b] as usize, self.starts[b + 1] as usize);
@@ -124,7 +126,7 @@ impl SceneGrid {
     /// The nearest scene point within `sqrt(r2)` of `q` (the last of equally near ones in
     /// visiting order); `r2` at most (half a cell)².
     pub(crate) fn nearest_within(&self, q: &Point3<f32>, r2: f32) -> Option<Point3<f32>> {
-        if !self.near.may_reach(q) {
+        if self.near.classify(q) == Reach::None {
             return None;
         }
         let mut best = (r2, None);
@@ -175,9 +177,32 @@ struct NearMask {
     dims: [usize; 3],
     words: Vec<u64>,
     spare: Vec<u64>,
+    /// The inner mask, laid out as `words`: a voxel's bit is set when the whole voxel lies
+    /// within [`REACH_VOXELS`] voxels (Euclidean) of one scene point, with a margin for f32
+    /// rounding, so a query there has a point within reach without a search.
+    inner: Vec<u64>,
+    /// The squared reach the inner mask answers for, mm²: a query with a smaller one is
+    /// searched.
+    inner_reach2: f32,
     /// Whether the mask holds this frame's scene (false: every query goes to the search).
     active: bool,
 }
+
+/// What [`NearMask`] says of a query.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Reach {
+    /// No scene point within reach.
+    None,
+    /// A scene point within reach, for certain.
+    Surely,
+    /// The search must tell.
+    Maybe,
+}
+
+/// Relative f32 rounding the inner mask allows for, in the voxel a query falls in and in
+/// the distance the search would compute: a few units in the last place of the largest
+/// coordinate involved.
+const INNER_ROUNDING: f32 = 4.0 * f32::EPSILON;
 
 impl NearMask {
     fn new(voxel: f32) -> Self {
@@ -189,6 +214,8 @@ impl NearMask {
             // the words a box uses are ever touched.
             words: Vec::with_capacity(MAX_MASK_WORDS),
             spare: Vec::with_capacity(MAX_MASK_WORDS),
+            inner: Vec::with_capacity(MAX_MASK_WORDS),
+            inner_reach2: (REACH_VOXELS as f32 * voxel).powi(2),
             active: false,
         }
     }
@@ -244,10 +271,52 @@ impl NearMask {
                 }
             }
         }
+        self.fill_inner(scene);
         self.dilate_x();
         self.dilate_rows(1);
         self.dilate_rows(extent[1]);
         self.active = true;
+    }
+
+    /// Sets the inner mask's bit of every voxel that lies wholly within reach of a scene
+    /// point: the point's own voxel and its 26 neighbours are the only candidates (any
+    /// other is two voxels away along an axis already).
+    fn fill_inner(&mut self, scene: &[Point3<f32>]) {
+        let [row, ny, _] = self.dims;
+        self.inner.clear();
+        self.inner.resize(self.words.len(), 0);
+        let voxel = 1.0 / self.inv_voxel;
+        let reach = REACH_VOXELS as f32 * voxel;
+        for p in scene.iter().filter(|p| is_finite(p)) {
+            let c = self.voxel(p);
+            // Slack for the rounding of voxel bounds and distances at this magnitude.
+            let slack = INNER_ROUNDING * (p.coords.amax() + 4.0 * voxel) * 4.0;
+            let limit = reach - slack;
+            if limit <= 0.0 {
+                continue;
+            }
+            let limit2 = limit * limit;
+            // Per axis and offset -1, 0, 1: the squared distance to the voxel's far side.
+            let far: [[f32; 3]; 3] = std::array::from_fn(|a| {
+                std::array::from_fn(|k| {
+                    let lo = (c[a] + k as i32 - 1) as f32 * voxel;
+                    let (d0, d1) = (p[a] - lo, p[a] - (lo + voxel));
+                    (d0 * d0).max(d1 * d1)
+                })
+            });
+            for (kz, fz) in far[2].iter().enumerate() {
+                for (ky, fy) in far[1].iter().enumerate() {
+                    for (kx, fx) in far[0].iter().enumerate() {
+                        if fx + fy + fz > limit2 {
+                            continue;
+                        }
+                        let v = [c[0] + kx as i32 - 1, c[1] + ky as i32 - 1, c[2] + kz as i32 - 1];
+                        let [x, y, z] = [0, 1, 2].map(|a| (v[a] - self.origin[a]) as usize);
+                        self.inner[(z * ny + y) * row + x / 64] |= 1 << (x % 64);
+                    }
+                }
+            }
+        }
     }
 
     /// Sets every bit within [`REACH_VOXELS`] of a set bit along its row.
@@ -303,11 +372,11 @@ impl NearMask {
         std::mem::swap(&mut self.words, &mut self.spare);
     }
 
-    /// False only when no scene point is within the reach of `q`.
+    /// Whether a scene point lies within the reach of `q`: none, surely one, or maybe.
     #[inline]
-    fn may_reach(&self, q: &Point3<f32>) -> bool {
+    fn classify(&self, q: &Point3<f32>) -> Reach {
         if !self.active {
-            return true;
+            return Reach::Maybe;
         }
         let v = self.voxel(q);
         let [row, ny, nz] = self.dims;
@@ -315,9 +384,16 @@ impl NearMask {
         let y = v[1].wrapping_sub(self.origin[1]) as u32 as usize;
         let z = v[2].wrapping_sub(self.origin[2]) as u32 as usize;
         if x >= 64 * row || y >= ny || z >= nz {
-            return false;
+            return Reach::None;
         }
-        self.words[(z * ny + y) * row + x / 64] >> (x % 64) & 1 != 0
+        let (word, bit) = ((z * ny + y) * row + x / 64, x % 64);
+        if self.words[word] >> bit & 1 == 0 {
+            Reach::None
+        } else if self.inner[word] >> bit & 1 != 0 {
+            Reach::Surely
+        } else {
+            Reach::Maybe
+        }
     }
 }
 
@@ -358,6 +434,40 @@ mod tests {
                 let got = grid.nearest_within(&q, 9.0).map(|p| (p - q).norm_squared());
                 assert_eq!(got, (nearest <= 9.0).then_some(nearest));
             }
+        }
+    }
+
+    /// Queries near a surface of points, as a right pose's are: the inner mask answers
+    /// most of them without a search, and every one it answers has a point within reach.
+    #[test]
+    fn the_inner_mask_answers_near_queries_and_only_right() {
+        let mut rng = ChaCha8Rng::seed_from_u64(31);
+        for (cell, offset) in [(6.0f32, 0.0f32), (6.0, 1234.5), (8.0, -700.25)] {
+            let reach2 = (cell / 2.0) * (cell / 2.0);
+            let scene: Vec<Point3<f32>> = (0..4000)
+                .map(|_| {
+                    let (x, y) = (rng.random_range(-60.0..60.0f32), rng.random_range(-60.0..60.0f32));
+                    Point3::new(x + offset, y - offset, 0.1 * x + rng.random_range(-0.3..0.3) + offset)
+                })
+                .collect();
+            let mut grid = SceneGrid::new(cell, 16);
+            grid.rebuild(&scene);
+            let mut surely = 0;
+            for _ in 0..3000 {
+                let p = scene[rng.random_range(0..scene.len())];
+                let q = p + nalgebra::Vector3::new(
+                    rng.random_range(-1.5..1.5),
+                    rng.random_range(-1.5..1.5),
+                    rng.random_range(-1.5..1.5),
+                );
+                let nearest = scene.iter().map(|s| (s - q).norm_squared()).fold(f32::INFINITY, f32::min);
+                if grid.near.classify(&q) == Reach::Surely {
+                    surely += 1;
+                    assert!(nearest <= reach2, "cell {cell}: {q} has no point within reach");
+                }
+                assert_eq!(grid.any_within(&q, reach2), nearest <= reach2);
+            }
+            assert!(surely > 1500, "cell {cell}: only {surely} of 3000 answered by the inner mask");
         }
     }
 
