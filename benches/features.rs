@@ -94,7 +94,7 @@ fn describe(raw: &[Point3<f32>], all_points: bool) -> Frame {
     let mut cloud = Vec::new();
     Downsampler::new().downsample(raw, SURFACE_RESOLUTION, &mut cloud).unwrap();
     let mut grid = Neighbours::new();
-    grid.build(&cloud, NORMAL_RADIUS).unwrap();
+    grid.build(&cloud, 2.0 * NORMAL_RADIUS).unwrap();
     let mut normals = Vec::new();
     NormalEstimator::new(NORMAL_RADIUS, 6).unwrap().compute(&cloud, &grid, &viewpoint, &mut normals);
     let mut keypoints = Vec::new();
@@ -138,7 +138,7 @@ pub fn benches(c: &mut Criterion) {
     let estimator = NormalEstimator::new(NORMAL_RADIUS, 6).unwrap();
     group.bench_function("normals", |b| {
         b.iter(|| {
-            grid.build(black_box(&scene.cloud), NORMAL_RADIUS).unwrap();
+            grid.build(black_box(&scene.cloud), 2.0 * NORMAL_RADIUS).unwrap();
             estimator.compute(&scene.cloud, &grid, &viewpoint, &mut normals)
         })
     });

@@ -144,7 +144,7 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
             Downsampler::new().downsample(&merged, sres, &mut points)?;
             let eye = (pose.inverse() * sensor_world).cast::<f32>();
             let mut grid = Neighbours::new();
-            grid.build(&points, params.normal_radius as f32)?;
+            grid.build(&points, 2.0 * params.normal_radius as f32)?;
             let mut normals = Vec::new();
             normal_estimator.compute(&points, &grid, &eye, &mut normals);
             // ICP planes need a normal: points where none could be fitted are left out.

@@ -97,7 +97,7 @@ impl FeatureExtractor {
         timings.downsample_ms = ms(t);
 
         let t = Instant::now();
-        self.neighbours.build(&self.cloud, self.normal_radius)?;
+        self.neighbours.build(&self.cloud, 2.0 * self.normal_radius)?;
         self.normal_estimator.compute(&self.cloud, &self.neighbours, eye, &mut self.normals);
         timings.normals_ms = ms(t);
 

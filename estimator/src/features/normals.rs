@@ -47,7 +47,7 @@ impl NormalEstimator {
 
     /// Replaces `normals` with one unit normal per point of `cloud` facing `viewpoint`, or
     /// zero where none can be fitted; returns how many were fitted. `neighbours` must have
-    /// been built on `cloud` (a cell near `radius` is fastest).
+    /// been built on `cloud` (cells of twice `radius` are fastest: a query reads 8 of them).
     pub fn compute(
         &self,
         cloud: &[Point3<f32>],
