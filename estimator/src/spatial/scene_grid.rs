@@ -260,6 +260,8 @@ impl NearMask {
         self.dims = [row, extent[1], extent[2]];
         self.words.clear();
         self.words.resize(len, 0);
+        self.inner.clear();
+        self.inner.resize(len, 0);
         for p in scene.iter().filter(|p| is_finite(p)) {
             let [sx, sy, sz] = self.voxel_span(p).map(|[first, last]| first..=last);
             for z in sz {
@@ -270,50 +272,46 @@ impl NearMask {
                     }
                 }
             }
+            self.mark_inner(p);
         }
-        self.fill_inner(scene);
         self.dilate_x();
         self.dilate_rows(1);
         self.dilate_rows(extent[1]);
         self.active = true;
     }
 
-    /// Sets the inner mask's bit of every voxel that lies wholly within reach of a scene
-    /// point: the point's own voxel and its 26 neighbours are the only candidates (any
+    /// Sets the inner mask's bit of every voxel that lies wholly within reach of the finite
+    /// scene point `p`: its own voxel and its 26 neighbours are the only candidates (any
     /// other is two voxels away along an axis already).
-    fn fill_inner(&mut self, scene: &[Point3<f32>]) {
+    fn mark_inner(&mut self, p: &Point3<f32>) {
         let [row, ny, _] = self.dims;
-        self.inner.clear();
-        self.inner.resize(self.words.len(), 0);
         let voxel = 1.0 / self.inv_voxel;
         let reach = REACH_VOXELS as f32 * voxel;
-        for p in scene.iter().filter(|p| is_finite(p)) {
-            let c = self.voxel(p);
-            // Slack for the rounding of voxel bounds and distances at this magnitude.
-            let slack = INNER_ROUNDING * (p.coords.amax() + 4.0 * voxel) * 4.0;
-            let limit = reach - slack;
-            if limit <= 0.0 {
-                continue;
-            }
-            let limit2 = limit * limit;
-            // Per axis and offset -1, 0, 1: the squared distance to the voxel's far side.
-            let far: [[f32; 3]; 3] = std::array::from_fn(|a| {
-                std::array::from_fn(|k| {
-                    let lo = (c[a] + k as i32 - 1) as f32 * voxel;
-                    let (d0, d1) = (p[a] - lo, p[a] - (lo + voxel));
-                    (d0 * d0).max(d1 * d1)
-                })
-            });
-            for (kz, fz) in far[2].iter().enumerate() {
-                for (ky, fy) in far[1].iter().enumerate() {
-                    for (kx, fx) in far[0].iter().enumerate() {
-                        if fx + fy + fz > limit2 {
-                            continue;
-                        }
-                        let v = [c[0] + kx as i32 - 1, c[1] + ky as i32 - 1, c[2] + kz as i32 - 1];
-                        let [x, y, z] = [0, 1, 2].map(|a| (v[a] - self.origin[a]) as usize);
-                        self.inner[(z * ny + y) * row + x / 64] |= 1 << (x % 64);
+        let c = self.voxel(p);
+        // Slack for the rounding of voxel bounds and distances at this magnitude.
+        let slack = INNER_ROUNDING * (p.coords.amax() + 4.0 * voxel) * 4.0;
+        let limit = reach - slack;
+        if limit <= 0.0 {
+            return;
+        }
+        let limit2 = limit * limit;
+        // Per axis and offset -1, 0, 1: the squared distance to the voxel's far side.
+        let far: [[f32; 3]; 3] = std::array::from_fn(|a| {
+            std::array::from_fn(|k| {
+                let lo = (c[a] + k as i32 - 1) as f32 * voxel;
+                let (d0, d1) = (p[a] - lo, p[a] - (lo + voxel));
+                (d0 * d0).max(d1 * d1)
+            })
+        });
+        for (kz, fz) in far[2].iter().enumerate() {
+            for (ky, fy) in far[1].iter().enumerate() {
+                for (kx, fx) in far[0].iter().enumerate() {
+                    if fx + fy + fz > limit2 {
+                        continue;
                     }
+                    let v = [c[0] + kx as i32 - 1, c[1] + ky as i32 - 1, c[2] + kz as i32 - 1];
+                    let [x, y, z] = [0, 1, 2].map(|a| (v[a] - self.origin[a]) as usize);
+                    self.inner[(z * ny + y) * row + x / 64] |= 1 << (x % 64);
                 }
             }
         }
