@@ -1,5 +1,7 @@
-//! Benches of the one-shot stereo stage at the default placement: rectifying a raw 640x480
-//! pair, and ELAS on the rectified pair (a ~110 px search range), buffers reused.
+//! Benches of the one-shot stereo stage at the default placement: setting up the
+//! rectification (its remap tables; a study does it once per scenario's miscalibrated rig),
+//! rectifying a raw 640x480 pair, and ELAS on the rectified pair (a ~110 px search range),
+//! buffers reused.
 
 use camplace_config::Cell;
 use camplace_config::{FloatImage, GrayImage};
@@ -74,6 +76,9 @@ fn stereo(c: &mut Criterion) {
     elas.compute(&left, &right, range, &mut disparity).expect("the pair matches");
 
     let mut group = c.benchmark_group("stereo");
+    group.bench_function("rectification_new", |b| {
+        b.iter(|| Rectification::new(black_box(&rig), &cell.work_volume).expect("the default placement rectifies"))
+    });
     group.bench_function("rectify_pair", |b| {
         b.iter(|| {
             rect.rectify_left(black_box(&raw_left), &mut left);
