@@ -189,8 +189,9 @@ impl Estimator {
     /// in); the background must be set again, since it is reconstructed through the rig.
     /// Buffers sized by the rectified image are made again when its size changes.
     pub fn set_rig(&mut self, cell: &Cell, rig: &Rig) -> Result<()> {
-        let reconstructor = Reconstructor::new(cell, rig, self.reconstructor.method())?;
-        let (old, new) = (&self.reconstructor.rectification().camera, &reconstructor.rectification().camera);
+        let old = self.reconstructor.rectification().camera.clone();
+        self.reconstructor.set_rig(cell, rig)?;
+        let new = &self.reconstructor.rectification().camera;
         if (old.width, old.height) != (new.width, new.height) {
             let (w, h) = (new.width, new.height);
             self.reconstruction = Reconstruction {
@@ -204,7 +205,6 @@ impl Estimator {
             self.stages.correspondences = Vec::with_capacity(keypoints * self.stages.params.k as usize);
         }
         self.stages.sensor_position = Point3::from(new.t_world_rectified.translation.vector.cast::<f32>());
-        self.reconstructor = reconstructor;
         Ok(())
     }
 

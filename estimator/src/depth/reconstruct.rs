@@ -50,6 +50,39 @@ pub struct Reconstructor {
     rect_left: Vec<GrayImage>,
     rect_right: Vec<GrayImage>,
     scratch: FloatImage,
+    /// What the decoder was built from: its settings, the canvas and the disparity span.
+    decoder_for: DecoderFor,
+}
+
+/// The settings, canvas size and disparity span a decoder's buffers were sized for.
+#[derive(Clone, PartialEq)]
+struct DecoderFor {
+    stereo: camplace_config::StereoParams,
+    phase: camplace_config::PhaseParams,
+    fringe_periods: Vec<f64>,
+    canvas: (usize, usize),
+    span: usize,
+}
+
+impl DecoderFor {
+    fn new(cell: &Cell, rectification: &Rectification) -> DecoderFor {
+        let (lo, hi) = rectification.disparity_range();
+        DecoderFor {
+            stereo: cell.stereo.clone(),
+            phase: cell.phase.clone(),
+            fringe_periods: cell.sensor.fringe_periods.clone(),
+            canvas: (rectification.camera.width, rectification.camera.height),
+            span: (hi - lo).ceil().max(1.0) as usize + 1,
+        }
+    }
+
+    fn decoder(&self, method: Method) -> Result<Decoder> {
+        let (w, h) = self.canvas;
+        Ok(match method {
+            Method::OneShot => Decoder::Stereo(Box::new(Elas::new(&self.stereo, w, h, self.span))),
+            Method::Phase12 => Decoder::Phase(Box::new(PhaseDecoder::new(&self.phase, &self.fringe_periods, w, h)?)),
+        })
+    }
 }
 
 impl Reconstructor {
@@ -58,16 +91,8 @@ impl Reconstructor {
         let rectification = Rectification::new(rig, &cell.work_volume)?;
         let cam = &rectification.camera;
         let (w, h) = (cam.width, cam.height);
-        let (lo, hi) = rectification.disparity_range();
-        let decoder = match method {
-            Method::OneShot => {
-                let span = (hi - lo).ceil().max(1.0) as usize + 1;
-                Decoder::Stereo(Box::new(Elas::new(&cell.stereo, w, h, span)))
-            }
-            Method::Phase12 => {
-                Decoder::Phase(Box::new(PhaseDecoder::new(&cell.phase, &cell.sensor.fringe_periods, w, h)?))
-            }
-        };
+        let decoder_for = DecoderFor::new(cell, &rectification);
+        let decoder = decoder_for.decoder(method)?;
         let shots = method.shots(cell.sensor.fringe_periods.len());
         Ok(Reconstructor {
             method,
@@ -81,7 +106,30 @@ impl Reconstructor {
             rect_right: vec![GrayImage::new(w, h, 0); shots],
             scratch: FloatImage::new(w, h, f32::INFINITY),
             rectification,
+            decoder_for,
         })
+    }
+
+    /// Moves the workspace to `rig` (the same cameras calibrated anew): a new rectification
+    /// and cloud builder, with the decoder's and the images' buffers kept when the settings,
+    /// the canvas and the disparity span are unchanged (they hold nothing from one frame to
+    /// the next), else everything as [`Reconstructor::new`] builds it. The background is
+    /// dropped: it must be captured again through the new rig.
+    pub fn set_rig(&mut self, cell: &Cell, rig: &Rig) -> Result<()> {
+        let rectification = Rectification::new(rig, &cell.work_volume)?;
+        let decoder_for = DecoderFor::new(cell, &rectification);
+        let shots = self.method.shots(cell.sensor.fringe_periods.len());
+        if decoder_for != self.decoder_for || shots != self.rect_left.len() {
+            *self = Reconstructor::new(cell, rig, self.method)?;
+            return Ok(());
+        }
+        self.builder = CloudBuilder::new(&rectification.camera, &cell.work_volume, &cell.reconstruction);
+        self.background = None;
+        self.reconstruction = cell.reconstruction.clone();
+        self.raw_left = (rig.left.width, rig.left.height);
+        self.raw_right = (rig.right.width, rig.right.height);
+        self.rectification = rectification;
+        Ok(())
     }
 
     /// The rectification (the shared rectified camera and the disparity search range).

@@ -110,3 +110,41 @@ impl Worker<'_> {
         Ok(record)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A worker moves its estimator to each scenario's miscalibrated rig, keeping its
+    /// buffers; an estimator built for that rig from nothing must give the very same pose.
+    #[test]
+    fn a_re_rigged_worker_matches_an_estimator_built_for_the_believed_rig() {
+        let cell = Cell::default();
+        let placement = cell.placement.with_overrides("r=605,alpha=32,baseline=81,vergence=3.5").unwrap();
+        let (method, seed) = (Method::OneShot, 3);
+        let evaluator = Evaluator::new(&cell, &placement, method, seed).unwrap();
+        let mut worker = evaluator.worker().unwrap();
+        let mut sim = Simulator::new(&cell, &placement, seed).unwrap();
+        let mut frame = Frame::default();
+        let mut found = 0;
+        for index in 0..3 {
+            worker.scene(index).unwrap();
+            let error = draw_rig_error(&cell, seed, index).expect("the default cell draws rig errors");
+            let model = worker.estimator.model().clone();
+            let mut fresh = Estimator::new(&cell, &error.apply(sim.rig()), model, method).unwrap();
+            fresh.set_background(&evaluator.background.left, &evaluator.background.right).unwrap();
+            let scenario = draw_scenario(&cell, seed, index);
+            sim.render(&scenario.scene(), method, noise_key(seed, index, false), &mut frame);
+            let pose = fresh.process(&frame.left, &frame.right).unwrap();
+            let got = &worker.pose;
+            assert_eq!(got.t_world_tray, pose.t_world_tray, "scene {index}");
+            assert_eq!(
+                (got.found, got.inliers, got.scene_points, got.keypoints, got.matches, got.ransac.iterations),
+                (pose.found, pose.inliers, pose.scene_points, pose.keypoints, pose.matches, pose.ransac.iterations),
+                "scene {index}"
+            );
+            found += usize::from(pose.found);
+        }
+        assert!(found > 0, "no scene gave a pose to compare");
+    }
+}

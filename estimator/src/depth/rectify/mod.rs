@@ -754,7 +754,9 @@ mod tests {
             let (l, r) = (&rect.left, &rect.right);
             assert!(rect.map_left == remap_table_by_pixel(&rect.camera, l, &rect.r_left_rect));
             assert!(rect.map_right == remap_table_by_pixel(&rect.camera, r, &rect.r_right_rect));
-            assert!(rect.map_left.iter().any(|e| e.index == OUTSIDE) && rect.map_left.iter().any(|e| e.index != OUTSIDE));
+            assert!(
+                rect.map_left.iter().any(|e| e.index == OUTSIDE) && rect.map_left.iter().any(|e| e.index != OUTSIDE)
+            );
         }
         let rect = Rectification::new(&rig(81.0, 3.5, 600.0), &work_volume()).unwrap();
         let r_behind = behind_rig.right.t_world_camera.rotation.to_rotation_matrix().inverse()
@@ -763,7 +765,9 @@ mod tests {
         assert!(table == remap_table_by_pixel(&rect.camera, &behind_rig.right, &r_behind));
         let behind = (0..rect.camera.height)
             .flat_map(|y| (0..rect.camera.width).map(move |x| (x, y)))
-            .filter(|&(x, y)| raw_of_rectified(&rect.camera, &behind_rig.right, &r_behind, x as f64, y as f64).is_none())
+            .filter(|&(x, y)| {
+                raw_of_rectified(&rect.camera, &behind_rig.right, &r_behind, x as f64, y as f64).is_none()
+            })
             .count();
         assert!(behind > 0, "expected part of the canvas behind the turned camera");
     }
