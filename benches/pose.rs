@@ -1,5 +1,6 @@
 //! Benches of the pose stages (RANSAC and ICP) on a synthetic tray scene: about 10k scene
-//! points and 2k key points with 25 matches each, nearly all wrong.
+//! points and 2k key points with 25 matches each, nearly all wrong; and ICP's set-up, whose
+//! nearest-point grids are built once per model (per placement in a study).
 
 use camplace_config::Cell;
 use camplace_estimator::testing::{self, Scene, SceneSpec};
@@ -38,6 +39,9 @@ fn pose(c: &mut Criterion) {
                 .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position)
                 .expect("valid inputs")
         })
+    });
+    c.bench_function("pose/icp_new", |b| {
+        b.iter(|| Icp::new(&params, std::hint::black_box(model.clone())).expect("the synthetic model is usable"))
     });
     let mut fine = IcpResult::default();
     c.bench_function("pose/icp", |b| {

@@ -46,48 +46,8 @@ impl NearestGrid {
         let n = dims.iter().product::<usize>();
         let mut cells = vec![u32::MAX; n];
         let mut best = vec![f32::INFINITY; n];
-        let span = (reach / cell).ceil() as isize;
-        let centre_of = |c: isize, a: usize| origin[a] + (c as f32 + 0.5) * cell;
-        for (i, p) in points.iter().enumerate() {
-            // Every point lies above the origin, where truncation is the floor.
-            let c = [0, 1, 2].map(|a| ((p[a] - origin[a]) / cell) as isize);
-            for dz in -span..=span {
-                let z = c[2] + dz;
-                if z < 0 || z >= dims[2] as isize {
-                    continue;
-                }
-                let ez = centre_of(z, 2) - p.z;
-                for dy in -span..=span {
-                    let y = c[1] + dy;
-                    if y < 0 || y >= dims[1] as isize {
-                        continue;
-                    }
-                    // Only the cells of this row whose centres can lie within reach: the
-                    // sphere's chord, widened by a cell for rounding (the test below decides).
-                    let ey = centre_of(y, 1) - p.y;
-                    let left = reach * reach - ez * ez - ey * ey;
-                    if left < -(cell * cell) {
-                        continue;
-                    }
-                    // Truncation plus two: at least the ceiling plus one, without libm.
-                    let chord = (left.max(0.0).sqrt() / cell) as isize + 2;
-                    let (from, to) = ((-chord).max(-span), chord.min(span));
-                    for dx in from..=to {
-                        let x = c[0] + dx;
-                        if x < 0 || x >= dims[0] as isize {
-                            continue;
-                        }
-                        let centre = origin + Vector3::new(x as f32 + 0.5, y as f32 + 0.5, z as f32 + 0.5) * cell;
-                        let d2 = (centre - p).norm_squared();
-                        let k = (z as usize * dims[1] + y as usize) * dims[0] + x as usize;
-                        if d2 < best[k] && d2 <= reach * reach {
-                            best[k] = d2;
-                            cells[k] = i as u32;
-                        }
-                    }
-                }
-            }
-        }
+        let splat = Splat { origin, cell, dims, reach };
+        splat_points(&splat, points, &mut best, &mut cells);
         NearestGrid { origin, cell, dims, cells }
     }
 
@@ -102,6 +62,71 @@ impl NearestGrid {
         }
         let item = self.cells[k];
         (item != u32::MAX).then_some(item)
+    }
+}
+
+/// The grid's layout, as [`splat_points`] walks it.
+struct Splat {
+    origin: Point3<f32>,
+    cell: f32,
+    dims: [usize; 3],
+    reach: f32,
+}
+
+multiversion! {
+    /// Offers each point to every cell whose centre lies within `reach` of it: a cell keeps
+    /// the nearest (the earlier on ties) in `cells`, its squared distance in `best`.
+    fn splat_points(g: &Splat, points: &[Point3<f32>], best: &mut [f32], cells: &mut [u32]) => splat_points_with
+}
+
+#[inline(always)]
+fn splat_points_with(g: &Splat, points: &[Point3<f32>], best: &mut [f32], cells: &mut [u32]) {
+    let Splat { origin, cell, dims, reach } = *g;
+    let reach2 = reach * reach;
+    let span = (reach / cell).ceil() as isize;
+    let centre_of = |c: isize, a: usize| origin[a] + (c as f32 + 0.5) * cell;
+    for (i, p) in points.iter().enumerate() {
+        // Every point lies above the origin, where truncation is the floor.
+        let c = [0, 1, 2].map(|a| ((p[a] - origin[a]) / cell) as isize);
+        for dz in -span..=span {
+            let z = c[2] + dz;
+            if z < 0 || z >= dims[2] as isize {
+                continue;
+            }
+            let ez = centre_of(z, 2) - p.z;
+            for dy in -span..=span {
+                let y = c[1] + dy;
+                if y < 0 || y >= dims[1] as isize {
+                    continue;
+                }
+                // Only the cells of this row whose centres can lie within reach: the
+                // sphere's chord, widened by a cell for rounding (the test below decides).
+                let ey = centre_of(y, 1) - p.y;
+                let left = reach2 - ez * ez - ey * ey;
+                if left < -(cell * cell) {
+                    continue;
+                }
+                // Truncation plus two: at least the ceiling plus one, without libm.
+                let chord = (left.max(0.0).sqrt() / cell) as isize + 2;
+                let (from, to) = ((-chord).max(-span), chord.min(span));
+                let (x_lo, x_hi) = ((c[0] + from).max(0), (c[0] + to).min(dims[0] as isize - 1));
+                if x_lo > x_hi {
+                    continue;
+                }
+                let row = (z as usize * dims[1] + y as usize) * dims[0];
+                let (x_lo, x_hi) = (x_lo as usize, x_hi as usize);
+                let (ey2, ez2) = (ey * ey, ez * ez);
+                let run = row + x_lo..row + x_hi + 1;
+                for (k, (b, slot)) in best[run.clone()].iter_mut().zip(&mut cells[run]).enumerate() {
+                    // (centre - p).norm_squared(), summed in nalgebra's order.
+                    let ex = origin.x + ((x_lo + k) as f32 + 0.5) * cell - p.x;
+                    let d2 = ex * ex + ey2 + ez2;
+                    let nearer = d2 < *b && d2 <= reach2;
+                    *b = if nearer { d2 } else { *b };
+                    *slot = if nearer { i as u32 } else { *slot };
+                }
+            }
+        }
     }
 }
 
