@@ -577,12 +577,12 @@ impl Ransac {
         let total = points.len();
         let r2 = self.inlier_distance * self.inlier_distance;
         let mut inliers = 0u32;
+        let mut moved = [Point3::origin(); SCORE_BLOCK];
         for (b, block) in points.chunks(SCORE_BLOCK).enumerate() {
-            for p in block {
-                if self.grid.any_within(&(r * p + t), r2) {
-                    inliers += 1;
-                }
+            for (m, p) in moved.iter_mut().zip(block) {
+                *m = r * p + t;
             }
+            inliers += self.grid.count_within(&moved[..block.len()], r2);
             let scored = (b * SCORE_BLOCK + block.len()) as u32;
             let left = total as u32 - scored;
             if inliers + left <= to_beat && to_beat > 0 {

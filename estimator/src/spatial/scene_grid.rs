@@ -114,6 +114,32 @@ impl SceneGrid {
             Reach::Surely if r2 >= self.near.inner_reach2 => return true,
             _ => {}
         }
+        self.search_within(q, r2)
+    }
+
+    /// How many of `queries` have a scene point within `sqrt(r2)`: [`SceneGrid::any_within`]
+    /// of each, counted, with the mask words of all of them read before any is decided,
+    /// so their cache misses overlap instead of queueing one behind the other's branch.
+    /// `r2` at most (half a cell)².
+    pub(crate) fn count_within(&self, queries: &[Point3<f32>], r2: f32) -> u32 {
+        let mut count = 0;
+        for block in queries.chunks(MASK_BATCH) {
+            let mut reach = [Reach::Maybe; MASK_BATCH];
+            self.near.classify_batch(block, &mut reach[..block.len()]);
+            for (q, &reach) in block.iter().zip(&reach) {
+                let within = match reach {
+                    Reach::None => false,
+                    Reach::Surely if r2 >= self.near.inner_reach2 => true,
+                    _ => self.search_within(q, r2),
+                };
+                count += u32::from(within);
+            }
+        }
+        count
+    }
+
+    /// The search behind [`SceneGrid::any_within`]: the 8 cells around `q`.
+    fn search_within(&self, q: &Point3<f32>, r2: f32) -> bool {
         for b in self.neighbour_buckets(q) {
             let (lo, hi) = (self.starts[b] as usize, self.starts[b + 1] as usize);
             if self.points[lo..hi].iter().any(|p| (p - q).norm_squared() <= r2) {
@@ -142,6 +168,9 @@ impl SceneGrid {
         best.1
     }
 }
+
+/// Queries [`SceneGrid::count_within`] classifies together.
+const MASK_BATCH: usize = 32;
 
 /// Voxels a point reaches along each axis in [`NearMask`]: the reach is two voxels.
 const REACH_VOXELS: i32 = 2;
@@ -177,10 +206,11 @@ struct NearMask {
     dims: [usize; 3],
     words: Vec<u64>,
     spare: Vec<u64>,
-    /// The inner mask, laid out as `words`: a voxel's bit is set when the whole voxel lies
-    /// within [`REACH_VOXELS`] voxels (Euclidean) of one scene point, with a margin for f32
-    /// rounding, so a query there has a point within reach without a search.
-    inner: Vec<u64>,
+    /// Both masks word by word, `[near, inner]`, so one cache line answers a query: the
+    /// near mask is `words` once dilated; the inner mask's bit is set when the whole voxel
+    /// lies within [`REACH_VOXELS`] voxels (Euclidean) of one scene point, with a margin for
+    /// f32 rounding, so a query there has a point within reach without a search.
+    masks: Vec<[u64; 2]>,
     /// The squared reach the inner mask answers for, mm²: a query with a smaller one is
     /// searched.
     inner_reach2: f32,
@@ -214,7 +244,7 @@ impl NearMask {
             // the words a box uses are ever touched.
             words: Vec::with_capacity(MAX_MASK_WORDS),
             spare: Vec::with_capacity(MAX_MASK_WORDS),
-            inner: Vec::with_capacity(MAX_MASK_WORDS),
+            masks: Vec::with_capacity(MAX_MASK_WORDS),
             inner_reach2: (REACH_VOXELS as f32 * voxel).powi(2),
             active: false,
         }
@@ -260,8 +290,8 @@ impl NearMask {
         self.dims = [row, extent[1], extent[2]];
         self.words.clear();
         self.words.resize(len, 0);
-        self.inner.clear();
-        self.inner.resize(len, 0);
+        self.masks.clear();
+        self.masks.resize(len, [0; 2]);
         for p in scene.iter().filter(|p| is_finite(p)) {
             let [sx, sy, sz] = self.voxel_span(p).map(|[first, last]| first..=last);
             for z in sz {
@@ -277,6 +307,9 @@ impl NearMask {
         self.dilate_x();
         self.dilate_rows(1);
         self.dilate_rows(extent[1]);
+        for (pair, &near) in self.masks.iter_mut().zip(&self.words) {
+            pair[0] = near;
+        }
         self.active = true;
     }
 
@@ -311,7 +344,7 @@ impl NearMask {
                     }
                     let v = [c[0] + kx as i32 - 1, c[1] + ky as i32 - 1, c[2] + kz as i32 - 1];
                     let [x, y, z] = [0, 1, 2].map(|a| (v[a] - self.origin[a]) as usize);
-                    self.inner[(z * ny + y) * row + x / 64] |= 1 << (x % 64);
+                    self.masks[(z * ny + y) * row + x / 64][1] |= 1 << (x % 64);
                 }
             }
         }
@@ -376,18 +409,52 @@ impl NearMask {
         if !self.active {
             return Reach::Maybe;
         }
+        match self.word_of(q) {
+            None => Reach::None,
+            Some((word, bit)) => Self::reach(self.masks[word], bit),
+        }
+    }
+
+    /// [`NearMask::classify`] of each query into `out`: first every query's word (so the
+    /// loads are independent of each other), then the answers.
+    #[inline]
+    fn classify_batch(&self, queries: &[Point3<f32>], out: &mut [Reach]) {
+        if !self.active {
+            out.fill(Reach::Maybe);
+            return;
+        }
+        let mut masks = [[0u64; 2]; MASK_BATCH];
+        let mut bits = [0u32; MASK_BATCH];
+        for (k, q) in queries.iter().enumerate() {
+            // A query outside the box reads clear stand-in words: no point within reach.
+            let (word, bit) = self.word_of(q).map_or((None, 0), |(w, b)| (Some(w), b));
+            masks[k] = word.map_or([0; 2], |w| self.masks[w]);
+            bits[k] = bit;
+        }
+        for (k, o) in out.iter_mut().enumerate() {
+            *o = Self::reach(masks[k], bits[k]);
+        }
+    }
+
+    /// The word and bit of `q`'s voxel, `None` outside the box.
+    #[inline]
+    fn word_of(&self, q: &Point3<f32>) -> Option<(usize, u32)> {
         let v = self.voxel(q);
         let [row, ny, nz] = self.dims;
         let x = v[0].wrapping_sub(self.origin[0]) as u32 as usize;
         let y = v[1].wrapping_sub(self.origin[1]) as u32 as usize;
         let z = v[2].wrapping_sub(self.origin[2]) as u32 as usize;
         if x >= 64 * row || y >= ny || z >= nz {
-            return Reach::None;
+            return None;
         }
-        let (word, bit) = ((z * ny + y) * row + x / 64, x % 64);
-        if self.words[word] >> bit & 1 == 0 {
+        Some(((z * ny + y) * row + x / 64, (x % 64) as u32))
+    }
+
+    #[inline]
+    fn reach([near, inner]: [u64; 2], bit: u32) -> Reach {
+        if near >> bit & 1 == 0 {
             Reach::None
-        } else if self.inner[word] >> bit & 1 != 0 {
+        } else if inner >> bit & 1 != 0 {
             Reach::Surely
         } else {
             Reach::Maybe
@@ -421,6 +488,8 @@ mod tests {
                 })
                 .collect();
             grid.rebuild(&scene);
+            let mut queries = Vec::new();
+            let mut within = 0;
             for _ in 0..2000 {
                 let q = Point3::new(
                     rng.random_range(-90.0..90.0),
@@ -431,6 +500,14 @@ mod tests {
                 assert_eq!(grid.any_within(&q, 9.0), nearest <= 9.0);
                 let got = grid.nearest_within(&q, 9.0).map(|p| (p - q).norm_squared());
                 assert_eq!(got, (nearest <= 9.0).then_some(nearest));
+                queries.push(q);
+                within += u32::from(nearest <= 9.0);
+            }
+            // The batched count, over runs of every length (a batch and its remainder).
+            assert_eq!(grid.count_within(&queries, 9.0), within, "round {round}");
+            for len in [0, 1, 31, 32, 33, 95] {
+                let brute = queries[..len].iter().filter(|q| grid.any_within(q, 9.0)).count() as u32;
+                assert_eq!(grid.count_within(&queries[..len], 9.0), brute, "round {round}, {len} queries");
             }
         }
     }
@@ -464,6 +541,7 @@ mod tests {
                     assert!(nearest <= reach2, "cell {cell}: {q} has no point within reach");
                 }
                 assert_eq!(grid.any_within(&q, reach2), nearest <= reach2);
+                assert_eq!(grid.count_within(&[q], reach2), u32::from(nearest <= reach2));
             }
             assert!(surely > 1500, "cell {cell}: only {surely} of 3000 answered by the inner mask");
         }
