@@ -99,7 +99,7 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
     // One worker per thread, each with its own sensor, reconstructor and feature buffers
     // (built once, not per capture), taking captures in turn.
     let setup = || -> Result<_> {
-        let sim = Simulator::new(cell, placement, seed)?;
+        let sim = probe.clone();
         let rec = Reconstructor::new(cell, probe.rig(), method)?;
         let features = FeatureExtractor::new(params, 1 << 16)?;
         Ok((sim, rec, features, Frame::default(), Reconstruction::default()))

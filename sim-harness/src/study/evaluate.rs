@@ -27,6 +27,9 @@ pub struct Evaluator {
     seed: u64,
     background: Frame,
     estimator: Estimator,
+    /// The simulator of the placement, each worker's copied from it (its projector
+    /// patterns are dear to prepare; a render depends on nothing a render before left).
+    sim: Simulator,
 }
 
 impl std::fmt::Debug for Evaluator {
@@ -59,13 +62,13 @@ impl Evaluator {
         sim.render(&background_scene(cell, seed), method, noise_key(seed, 0, true), &mut background);
         let mut estimator = Estimator::new(cell, sim.rig(), model, method)?;
         estimator.set_background(&background.left, &background.right)?;
-        Ok(Evaluator { cell: cell.clone(), placement: *placement, method, seed, background, estimator })
+        Ok(Evaluator { cell: cell.clone(), placement: *placement, method, seed, background, estimator, sim })
     }
 
     /// A worker with its own simulator and estimator (each owns its buffers), the
     /// background already set.
     pub fn worker(&self) -> Result<Worker<'_>> {
-        let sim = Simulator::new(&self.cell, &self.placement, self.seed)?;
+        let sim = self.sim.clone();
         let estimator = self.estimator.clone();
         Ok(Worker { sim, estimator, frame: Frame::default(), pose: PoseEstimate::default(), evaluator: self })
     }
