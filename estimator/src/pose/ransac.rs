@@ -44,6 +44,9 @@ use crate::spatial::SceneGrid;
 use crate::Correspondence;
 use crate::Model;
 
+/// The lowest share of a view's scoring sample a bar may stand for when a score against it
+/// stands in for the score against a higher bar (see `Ransac::monotone_bar`).
+const MONOTONE_RATE: f64 = 0.1;
 /// Points scored between two early-exit checks.
 const SCORE_BLOCK: usize = 32;
 /// Hypotheses are compared on this many points of the view (a random sample: the view is
@@ -308,9 +311,14 @@ impl Ransac {
                         break 'rounds;
                     }
                     // Scored in parallel against the round's starting best, which is exact
-                    // until a hypothesis of this round beats it; after that, scored again.
+                    // until a hypothesis of this round beats it. After that the score against
+                    // the lower bar still decides when it dropped the hypothesis (where the
+                    // bar's test is monotone) or counted no more than the best; only a
+                    // hypothesis that might win is scored again.
                     let scored = match h.scored {
                         Some(scored) if best_inliers == round_best => scored,
+                        Some(None) if self.monotone_bar(h.view) => None,
+                        Some(Some(inliers)) if inliers <= best_inliers => None,
                         _ => self.score(&h.pose, h.view, self.to_beat(best_inliers, h.view)),
                     };
                     if let Some(inliers) = scored {
@@ -546,6 +554,19 @@ impl Ransac {
     /// one short of the fewest it needs to be kept (reaching the minimum exactly is enough).
     fn to_beat(&self, best_inliers: u32, view: usize) -> u32 {
         best_inliers.max(self.required_in_sample(view).saturating_sub(1))
+    }
+
+    /// Whether [`Ransac::score`] against the lowest bar of `view` tells its outcome against
+    /// any higher bar: a hypothesis dropped against a bar is dropped against every higher
+    /// one. Both early exits are then monotone in the bar: the count left to reach it
+    /// trivially, and the 3-sigma test because `rate n - 3 sqrt(n rate (1 - rate))` rises
+    /// with the rate for rates of at least [`MONOTONE_RATE`] at every count n it checks at
+    /// (at least [`SCORE_BLOCK`] points): its slope in the rate is n - 3 sqrt(n) (1 - 2 rate)
+    /// / (2 sqrt(rate (1 - rate))), at least 9 there, so the steps between whole bars stay
+    /// far above f32 rounding.
+    fn monotone_bar(&self, view: usize) -> bool {
+        let len = self.sample_len(view);
+        len >= SCORE_BLOCK && self.to_beat(0, view) as f64 >= MONOTONE_RATE * len as f64
     }
 
     /// The fewest inliers among `view`'s scoring sample a hypothesis needs to be kept.
@@ -880,8 +901,13 @@ mod tests {
         let cases = (0..3)
             .flat_map(|seed| [(seed, 2, 100_000, 0.3), (seed, 3, 100_000, 0.3)])
             .chain((3..9).flat_map(|seed| [(seed, 2, 4_500, 0.1), (seed, 3, 5_000 + 300 * seed as u32, 0.15)]));
-        for (seed, sample, iterations, correct_share) in cases {
+        for (n, (seed, sample, iterations, correct_share)) in cases.enumerate() {
             let mut p = params();
+            // Every third case with a minimum share too low for the bar's test to be
+            // monotone, where hypotheses a better one overtook are scored again.
+            if n % 3 == 2 {
+                p.min_inlier_share = 0.05;
+            }
             p.ransac_sample = sample;
             p.ransac_iterations = iterations;
             p.seed = 11 + seed;
