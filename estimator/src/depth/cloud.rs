@@ -91,13 +91,16 @@ impl CloudBuilder {
         cloud.pixels.clear();
         cloud.depth.reset(disparity.width, disparity.height, f32::INFINITY);
         let w = disparity.width;
-        for (i, &d) in disparity.data.iter().enumerate() {
+        // Row by row: a pixel's coordinates without a division.
+        let pixels = disparity.data.chunks_exact(w.max(1)).enumerate().flat_map(|(y, row)| {
+            row.iter().enumerate().map(move |(x, &d)| (x, y, d))
+        });
+        for (i, (x, y, d)) in pixels.enumerate() {
             // NaN and +inf fail `d < INFINITY`; zero and negative disparities lie at or
             // beyond infinity.
             if !(d > 0.0 && d < f32::INFINITY) {
                 continue;
             }
-            let (x, y) = (i % w, i / w);
             let z = self.focal_baseline / d;
             if let Some(bg) = background {
                 if bg.is_background(x, y, z, self.background_margin) {

@@ -393,16 +393,52 @@ fn assemble_block(du_rows: &[&[u8]; 9], dv_rows: &[&[u8]; 9], x: usize, out: &mu
         // read starts at offset 0 ..= 8 of a 24-byte window.
         unsafe { _mm_loadu_si128(win.as_ptr().add((dx + 4) as usize).cast()) }
     };
-    let mut store = |half: usize, rows: [__m128i; 16]| {
-        for (d, v) in out.iter_mut().zip(rows) {
+    let mut store = |half: usize, rows: &[__m128i; 16]| {
+        for (i, d) in out.iter_mut().enumerate() {
             // SAFETY: an unaligned 16-byte write at offset 0 or 16 of a 32-byte descriptor.
-            unsafe { _mm_storeu_si128(d.as_mut_ptr().add(16 * half).cast(), v) };
+            unsafe { _mm_storeu_si128(d.as_mut_ptr().add(16 * half).cast(), rows[i]) };
         }
     };
-    // The halves spelt out rather than looped over, so that every sample's row and column
-    // is a constant.
-    store(0, transpose16(std::array::from_fn(load)));
-    store(1, transpose16(std::array::from_fn(|i| load(16 + i))));
+    // The halves and their samples spelt out rather than looped over, so that every
+    // sample's row and column is a constant and the registers are never copied as arrays.
+    let first = [
+        load(0),
+        load(1),
+        load(2),
+        load(3),
+        load(4),
+        load(5),
+        load(6),
+        load(7),
+        load(8),
+        load(9),
+        load(10),
+        load(11),
+        load(12),
+        load(13),
+        load(14),
+        load(15),
+    ];
+    store(0, &transpose16(first));
+    let second = [
+        load(16),
+        load(17),
+        load(18),
+        load(19),
+        load(20),
+        load(21),
+        load(22),
+        load(23),
+        load(24),
+        load(25),
+        load(26),
+        load(27),
+        load(28),
+        load(29),
+        load(30),
+        load(31),
+    ];
+    store(1, &transpose16(second));
 }
 
 /// Transposes a 16 x 16 byte matrix held one row per register. Interleaving rows i and
@@ -410,22 +446,37 @@ fn assemble_block(du_rows: &[&[u8]; 9], dv_rows: &[&[u8]; 9], x: usize, out: &mu
 /// by one bit; four rounds swap row and column.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn transpose16(mut r: [std::arch::x86_64::__m128i; 16]) -> [std::arch::x86_64::__m128i; 16] {
-    use std::arch::x86_64::{_mm_unpackhi_epi8, _mm_unpacklo_epi8};
-    for _ in 0..4 {
-        r = std::array::from_fn(|o| {
-            let (a, b) = (r[o / 2], r[o / 2 + 8]);
-            // SAFETY: SSE2 is part of the x86_64 baseline; register-only operations.
-            unsafe {
-                if o % 2 == 0 {
-                    _mm_unpacklo_epi8(a, b)
-                } else {
-                    _mm_unpackhi_epi8(a, b)
-                }
-            }
-        });
+fn transpose16(r: [std::arch::x86_64::__m128i; 16]) -> [std::arch::x86_64::__m128i; 16] {
+    interleave16(&interleave16(&interleave16(&interleave16(&r))))
+}
+
+/// One round of [`transpose16`], spelt out as an array literal of constant indices so the
+/// sixteen registers stay registers (an array built in a loop was copied through memory).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn interleave16(r: &[std::arch::x86_64::__m128i; 16]) -> [std::arch::x86_64::__m128i; 16] {
+    use std::arch::x86_64::{_mm_unpackhi_epi8 as hi, _mm_unpacklo_epi8 as lo};
+    // SAFETY: SSE2 is part of the x86_64 baseline; register-only operations.
+    unsafe {
+        [
+            lo(r[0], r[8]),
+            hi(r[0], r[8]),
+            lo(r[1], r[9]),
+            hi(r[1], r[9]),
+            lo(r[2], r[10]),
+            hi(r[2], r[10]),
+            lo(r[3], r[11]),
+            hi(r[3], r[11]),
+            lo(r[4], r[12]),
+            hi(r[4], r[12]),
+            lo(r[5], r[13]),
+            hi(r[5], r[13]),
+            lo(r[6], r[14]),
+            hi(r[6], r[14]),
+            lo(r[7], r[15]),
+            hi(r[7], r[15]),
+        ]
     }
-    r
 }
 
 /// A normalised Sobel response scaled by 1/4 around 128, rounded half up and clamped.
