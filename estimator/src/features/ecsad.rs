@@ -318,8 +318,11 @@ crate::multiversion! {
 #[inline(always)]
 fn bin_support_body(support: &mut Support, x_axis: &Vector3<f32>, y_axis: &Vector3<f32>, ring_edge2: &[f32; 3]) {
     let Support { x, y, z, bin } = support;
+    // A plain loop over a sized buffer rather than `extend` with a closure, which a build
+    // may leave as a call per point.
     bin.clear();
-    bin.extend(x.iter().zip(y.iter()).zip(z.iter()).map(|((&dx, &dy), &dz)| {
+    bin.resize(x.len(), 0);
+    for (b, ((&dx, &dy), &dz)) in bin.iter_mut().zip(x.iter().zip(y.iter()).zip(z.iter())) {
         let u = x_axis.x * dx + x_axis.y * dy + x_axis.z * dz;
         let v = y_axis.x * dx + y_axis.y * dy + y_axis.z * dz;
         let r2 = u * u + v * v;
@@ -329,8 +332,8 @@ fn bin_support_body(support: &mut Support, x_axis: &Vector3<f32>, y_axis: &Vecto
         let t = azimuth_turns(v, u) + 0.5 / sectors;
         let t = if t >= 1.0 { t - 1.0 } else { t };
         let sector = ((t * sectors) as u8).min(3 * (ring + 1) - 1);
-        3 * ring * (ring + 1) / 2 + sector
-    }));
+        *b = 3 * ring * (ring + 1) / 2 + sector;
+    }
 }
 
 /// Describes key point `k` into `out`, gathering its support into `support`.
