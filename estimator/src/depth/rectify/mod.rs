@@ -349,7 +349,8 @@ fn remap_row_with(p: &RowProjection, y: f64, row: &mut [RemapEntry]) {
             *u = if behind { f64::NAN } else { k00 * xd + k01 * yd + k02 };
             *v = if behind { f64::NAN } else { k11 * yd + k12 };
         }
-        // `remap_entry` without branches: the same numbers, chosen by masks.
+        // The entry without branches: the numbers of the obvious branching version (the
+        // tests' `remap_entry`, the oracle), chosen by masks.
         let (mut index, mut frac_x, mut frac_y) = ([OUTSIDE; REMAP_LANES], [0u16; REMAP_LANES], [0u16; REMAP_LANES]);
         for i in 0..REMAP_LANES {
             let (u, v) = (us[i], vs[i]);
