@@ -92,9 +92,11 @@ impl CloudBuilder {
         cloud.depth.reset(disparity.width, disparity.height, f32::INFINITY);
         let w = disparity.width;
         // Row by row: a pixel's coordinates without a division.
-        let pixels = disparity.data.chunks_exact(w.max(1)).enumerate().flat_map(|(y, row)| {
-            row.iter().enumerate().map(move |(x, &d)| (x, y, d))
-        });
+        let pixels = disparity
+            .data
+            .chunks_exact(w.max(1))
+            .enumerate()
+            .flat_map(|(y, row)| row.iter().enumerate().map(move |(x, &d)| (x, y, d)));
         for (i, (x, y, d)) in pixels.enumerate() {
             // NaN and +inf fail `d < INFINITY`; zero and negative disparities lie at or
             // beyond infinity.
