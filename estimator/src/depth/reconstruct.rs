@@ -88,7 +88,16 @@ impl DecoderFor {
 impl Reconstructor {
     /// The workspace for `rig` with the cell's work volume and settings.
     pub fn new(cell: &Cell, rig: &Rig, method: Method) -> Result<Reconstructor> {
-        let rectification = Rectification::new(rig, &cell.work_volume)?;
+        Self::with_rectification(cell, rig, method, Rectification::new(rig, &cell.work_volume)?)
+    }
+
+    /// The workspace around a rectification of `rig` made already.
+    fn with_rectification(
+        cell: &Cell,
+        rig: &Rig,
+        method: Method,
+        rectification: Rectification,
+    ) -> Result<Reconstructor> {
         let cam = &rectification.camera;
         let (w, h) = (cam.width, cam.height);
         let decoder_for = DecoderFor::new(cell, &rectification);
@@ -120,7 +129,7 @@ impl Reconstructor {
         let decoder_for = DecoderFor::new(cell, &rectification);
         let shots = self.method.shots(cell.sensor.fringe_periods.len());
         if decoder_for != self.decoder_for || shots != self.rect_left.len() {
-            *self = Reconstructor::new(cell, rig, self.method)?;
+            *self = Reconstructor::with_rectification(cell, rig, self.method, rectification)?;
             return Ok(());
         }
         self.builder = CloudBuilder::new(&rectification.camera, &cell.work_volume, &cell.reconstruction);
