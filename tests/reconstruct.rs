@@ -1,5 +1,6 @@
 //! Reconstruction against the simulator's ground truth: depth error and coverage on the
-//! tray and item pixels that both cameras see, for one-shot and 12-shot captures.
+//! tray and item pixels that both cameras see (on the rows the method matches), for
+//! one-shot and 12-shot captures.
 
 use camplace_config::{Cell, Placement};
 use camplace_estimator::{Method, Reconstruction, Reconstructor};
@@ -39,7 +40,9 @@ fn score(text: &str, method: Method, n: u64) -> Score {
         let rect = rec.rectification();
         let cam = &rect.camera;
         rect.disparity_truth(&rig.left, &frame.depth_left, &mut truth);
-        for y in 0..cam.height {
+        // The one-shot matcher matches every row_step-th row; the phase decoder every row.
+        let row_step = if method == Method::OneShot { cell.stereo.row_step as usize } else { 1 };
+        for y in (0..cam.height).step_by(row_step) {
             for x in 0..cam.width {
                 let dt = truth.get(x, y);
                 if !dt.is_finite() {

@@ -204,6 +204,8 @@ pub struct StereoParams {
     pub prior_beta: f64,
     /// Half side of the sub-pixel refinement window, px.
     pub subpixel_radius: u32,
+    /// Dense matching runs on every `row_step`-th row (1: every row).
+    pub row_step: u32,
 }
 
 /// The 12-shot phase decoder's settings.
@@ -553,6 +555,9 @@ impl Cell {
                 "stereo.min_texture",
                 format!("expected 0 to {MAX_TEXTURE} (16 descriptor bytes x 255), got {}", st.min_texture),
             ));
+        }
+        if !(1..=8).contains(&st.row_step) {
+            return Err(Error::value("stereo.row_step", format!("expected 1 to 8 rows, got {}", st.row_step)));
         }
         if st.gap_width > 1000 {
             return Err(Error::value("stereo.gap_width", format!("expected 0 to 1000 pixels, got {}", st.gap_width)));
@@ -911,6 +916,8 @@ mod tests {
             ("[metrics]\nsuccess_rotation = 1e9\n", "metrics.success_rotation"),
             ("[stereo]\nlr_tolerance = 4294967296\n", "stereo.lr_tolerance"),
             ("[stereo]\nprior_sigma = 1e308\n", "stereo.prior_sigma"),
+            ("[stereo]\nrow_step = 0\n", "stereo.row_step"),
+            ("[stereo]\nrow_step = 9\n", "stereo.row_step"),
             ("[phase]\nmin_modulation = 1e9\n", "phase.min_modulation"),
             ("[reconstruction]\nbackground_margin = 1e308\n", "reconstruction.background_margin"),
         ];

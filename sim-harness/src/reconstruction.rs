@@ -187,7 +187,10 @@ pub fn match_rectified(
         )));
     }
     let span = (range.1 - range.0).ceil() as usize + 1;
-    let mut elas = Elas::new(&cell.stereo, l.width, l.height, span);
+    // A rectified pair is matched to be looked at and scored against other matchers: every
+    // row, whatever row step the estimator's cell sets.
+    let params = camplace_config::StereoParams { row_step: 1, ..cell.stereo.clone() };
+    let mut elas = Elas::new(&params, l.width, l.height, span);
     let mut disparity = FloatImage::default();
     elas.compute(&l, &r, range, &mut disparity)?;
     let mut times = Vec::with_capacity(pair.runs as usize);
@@ -200,7 +203,8 @@ pub fn match_rectified(
     create_dir(out)?;
     camplace_config::write_pfm(&out.join("disparity.pfm"), disparity.width, disparity.height, &disparity.data)?;
     let fb = (pair.focal_px * pair.baseline_mm) as f32;
-    let depth: Vec<f32> = disparity.data.iter().map(|&d| if d > 0.0 { fb / d } else { f32::INFINITY }).collect();
+    let depth: Vec<f32> =
+        disparity.data.iter().map(|&d| if d.is_finite() && d > 0.0 { fb / d } else { f32::INFINITY }).collect();
     camplace_config::write_pfm(&out.join("depth.pfm"), disparity.width, disparity.height, &depth)?;
     let valid = disparity.data.iter().filter(|d| d.is_finite()).count();
     Ok(RectifiedDepth {

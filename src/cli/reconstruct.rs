@@ -26,6 +26,8 @@ pub struct Args {
     #[arg(long)]
     rig: Option<PathBuf>,
     /// The pair is already rectified (Middlebury style): give --focal-px and --baseline-mm.
+    /// Every row is matched, whatever the cell's `[stereo] row_step` (which the dataset and
+    /// pair modes follow, as the estimator does: the rows between stay empty).
     #[arg(long, requires_all = ["focal_px", "baseline_mm"], conflicts_with = "rig")]
     rectified: bool,
     /// Focal length of a rectified pair, px.

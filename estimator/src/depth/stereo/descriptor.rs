@@ -129,8 +129,9 @@ impl DescriptorImage {
         }
     }
 
-    /// Fills the descriptors of `img` (same size as the buffers).
-    pub fn compute(&mut self, img: &GrayImage) {
+    /// Fills the descriptors of `img` (same size as the buffers) on the rows `wanted`
+    /// accepts; the other rows keep what they held.
+    pub fn compute(&mut self, img: &GrayImage, wanted: impl Fn(usize) -> bool + Sync) {
         let (w, h) = (self.width, self.height);
         debug_assert!(img.width == w && img.height == h);
         if w < 2 * BORDER + 1 || h < 2 * BORDER + 1 {
@@ -149,7 +150,7 @@ impl DescriptorImage {
             normalise_band(gx, gy, row_sum, inv_cols, w, h, band * BAND, du, dv);
         });
         let (du, dv) = (&self.du, &self.dv);
-        self.data.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        self.data.par_chunks_mut(w).enumerate().filter(|(y, _)| wanted(*y)).for_each(|(y, row)| {
             if y < BORDER || y + BORDER >= h {
                 row.fill([NEUTRAL; LEN]);
                 return;
@@ -544,7 +545,7 @@ mod tests {
         let (w, h) = (20, 12);
         let img = GrayImage::from_vec(w, h, (0..w * h).map(|i| (2 * (i % w)) as u8).collect()).unwrap();
         let mut d = DescriptorImage::new(w, h);
-        d.compute(&img);
+        d.compute(&img, |_| true);
         let inner = d.data[5 * w + 9];
         let expect = sobel_byte(16.0 * NORM_TARGET / 8.0f32.max(NORM_FLOOR));
         assert_eq!(&inner[..11], &[expect; 11]);
@@ -578,7 +579,7 @@ mod tests {
         for (w, h) in [(11, 11), (37, 19), (70, 23)] {
             let img = GrayImage::from_vec(w, h, (0..w * h).map(|_| rng.random_range(0..=255u8)).collect()).unwrap();
             let mut d = DescriptorImage::new(w, h);
-            d.compute(&img);
+            d.compute(&img, |_| true);
             let sobel = |x: usize, y: usize| sobel_at(&img, x, y);
             let bytes = |x: usize, y: usize| -> (u8, u8) {
                 let (mut sum, mut count) = (0, 0);
@@ -617,6 +618,18 @@ mod tests {
                 }
             }
             assert!(differ * 100 < (w - 2 * BORDER) * (h - 2 * BORDER) * LEN, "{differ} bytes off by one");
+            // Some rows only: those rows as in the whole image, the others untouched.
+            let mut some = DescriptorImage::new(w, h);
+            let marker = [7u8; LEN];
+            some.data.fill(marker);
+            some.compute(&img, |y| y % 3 == 0);
+            for (y, (got, all)) in some.data.chunks_exact(w).zip(d.data.chunks_exact(w)).enumerate() {
+                if y % 3 == 0 {
+                    assert_eq!(got, all, "row {y}");
+                } else {
+                    assert!(got.iter().all(|g| *g == marker), "row {y} written");
+                }
+            }
         }
     }
 
@@ -630,7 +643,7 @@ mod tests {
         for (w, h) in [(11, 11), (37, 19), (65, 33), (70, 23), (129, 17), (640, 48)] {
             let img = GrayImage::from_vec(w, h, (0..w * h).map(|_| rng.random_range(0..=255u8)).collect()).unwrap();
             let mut d = DescriptorImage::new(w, h);
-            d.compute(&img);
+            d.compute(&img, |_| true);
             let sobel = |x: usize, y: usize| sobel_at(&img, x, y);
             for y in 0..h {
                 for x in 0..w {
@@ -660,7 +673,7 @@ mod tests {
         for (w, h) in [(11, 11), (20, 12), (25, 13), (26, 13), (37, 19), (41, 16), (70, 23), (100, 40), (640, 48)] {
             let img = GrayImage::from_vec(w, h, (0..w * h).map(|_| rng.random_range(0..=255u8)).collect()).unwrap();
             let mut d = DescriptorImage::new(w, h);
-            d.compute(&img);
+            d.compute(&img, |_| true);
             for y in 0..h {
                 for x in 0..w {
                     let mut expect = [NEUTRAL; LEN];
@@ -700,8 +713,8 @@ mod tests {
             GrayImage::from_vec(w, h, bright.iter().map(|&v| (off + scale * v).round() as u8).collect()).unwrap()
         };
         let (mut a, mut b) = (DescriptorImage::new(w, h), DescriptorImage::new(w, h));
-        a.compute(&to_img(1.0, 20.0));
-        b.compute(&to_img(0.25, 10.0));
+        a.compute(&to_img(1.0, 20.0), |_| true);
+        b.compute(&to_img(0.25, 10.0), |_| true);
         let mut worst = 0;
         for y in BORDER + NORM_RADIUS..h - BORDER - NORM_RADIUS {
             for x in BORDER + NORM_RADIUS..w - BORDER - NORM_RADIUS {

@@ -33,6 +33,9 @@ pub struct Elas {
     speckle_similarity: f32,
     gap_width: usize,
     subpixel_radius: usize,
+    /// Dense matching runs on every `row_step`-th row from row 0 (see
+    /// `StereoParams::row_step`).
+    row_step: usize,
     /// Prior energy by |d - prior| in px: -ln(gamma + exp(-delta^2 / 2 sigma^2)) + ln gamma,
     /// over beta, rounded (ELAS's Gaussian-plus-uniform prior).
     prior_energy: Vec<i32>,
@@ -47,7 +50,10 @@ pub struct Elas {
     prior: Prior,
     grid_left: CandidateGrid,
     grid_right: CandidateGrid,
-    disp_right: Vec<f32>,
+    /// The matched rows of the left and the right map, one after another (all rows at a
+    /// row step of 1).
+    dense_left: Vec<f32>,
+    dense_right: Vec<f32>,
     speckles: SpeckleScratch,
     subpixel: SubpixelScratch,
 }
@@ -69,6 +75,8 @@ impl Elas {
             .collect::<Vec<i32>>();
         let vector_prior = VectorPrior::new(&prior_energy, max_disparity_span + 1);
         let cell = params.grid_size.max(1) as usize;
+        let row_step = params.row_step.max(1) as usize;
+        let matched = width * height.div_ceil(row_step);
         Elas {
             width,
             height,
@@ -81,6 +89,7 @@ impl Elas {
             speckle_similarity: params.speckle_similarity as f32,
             gap_width: params.gap_width as usize,
             subpixel_radius: params.subpixel_radius as usize,
+            row_step,
             prior_energy,
             vector_prior,
             kernel: Kernel::detect(),
@@ -91,8 +100,9 @@ impl Elas {
             prior: Prior::new(width, height, step),
             grid_left: CandidateGrid::new(width, height, cell, max_disparity_span),
             grid_right: CandidateGrid::new(width, height, cell, max_disparity_span),
-            disp_right: vec![INVALID; width * height],
-            speckles: SpeckleScratch::new(width, height),
+            dense_left: vec![INVALID; matched],
+            dense_right: vec![INVALID; matched],
+            speckles: SpeckleScratch::new(width, height.div_ceil(row_step)),
             subpixel: SubpixelScratch::new(width * height),
         }
     }
@@ -158,13 +168,16 @@ impl DisparityMatcher for Elas {
             lr_tolerance: self.lr_tolerance.round().max(1.0) as i32,
             kernel,
         };
-        self.desc_left.compute(left);
-        self.desc_right.compute(right);
+        // Descriptors are read on the support grid's rows and the matched rows only.
+        let (step, support_step) = (self.row_step, self.support.step);
+        let wanted = |y: usize| y % step == 0 || y % support_step == 0;
+        self.desc_left.compute(left, wanted);
+        self.desc_right.compute(right, wanted);
         self.support.compute(&self.desc_left, &self.desc_right, &sp);
         self.support.points(&mut self.points);
         self.grid_left.compute(&self.points, disparities, false);
         self.grid_right.compute(&self.points, disparities, true);
-        self.prior.compute(&self.support);
+        self.prior.compute(&self.support, step);
 
         let left_side =
             Side { own: &self.desc_left, other: &self.desc_right, prior: &self.prior.left, grid: &self.grid_left };
@@ -178,8 +191,12 @@ impl DisparityMatcher for Elas {
             vector: self.vector_prior,
         };
         let lr_tol = self.lr_tolerance;
-        out.data.par_chunks_mut(w).zip(self.disp_right.par_chunks_mut(w)).enumerate().for_each(|(y, (dl, dr))| {
+        let matched = w * h.div_ceil(step);
+        let (dense, dense_right) = (&mut self.dense_left[..matched], &mut self.dense_right[..matched]);
+        dense.par_chunks_mut(w).zip(dense_right.par_chunks_mut(w)).enumerate().for_each(|(j, (dl, dr))| {
+            let y = j * step;
             if y < BORDER || y + BORDER >= h {
+                dl.fill(INVALID);
                 dr.fill(INVALID);
                 return;
             }
@@ -192,9 +209,15 @@ impl DisparityMatcher for Elas {
             }
         });
 
-        remove_speckles(&mut out.data, w, self.speckle_size, self.speckle_similarity, &mut self.speckles);
-        refine_subpixel(left, right, &mut out.data, self.subpixel_radius, &mut self.subpixel);
-        interpolate_gaps(&mut out.data, w, self.gap_width);
+        // A region of n pixels holds about n / step matched ones.
+        let speckle_size = self.speckle_size.div_ceil(step);
+        remove_speckles(dense, w, speckle_size, self.speckle_similarity, &mut self.speckles);
+        refine_subpixel(left, right, dense, step, self.subpixel_radius, &mut self.subpixel);
+        interpolate_gaps(dense, w, self.gap_width, self.gap_width / step);
+        // The matched rows into their places; the rows between stay INVALID.
+        for (j, row) in dense.chunks_exact(w).enumerate() {
+            out.data[j * step * w..(j * step + 1) * w].copy_from_slice(row);
+        }
         Ok(())
     }
 }

@@ -173,15 +173,20 @@ fn join(runs: &mut [Run], base: usize, a: usize, b: usize) {
     runs[big].size += runs[small].size;
 }
 
-/// Fills runs of at most `max_gap` invalid pixels between two valid ones, along rows and
-/// then columns: linearly across a surface, with the farther (smaller) disparity across an
-/// edge, so a gap never invents a surface in front of both sides.
-pub fn interpolate_gaps(disp: &mut [f32], width: usize, max_gap: usize) {
+/// Fills runs of at most `max_gap` invalid pixels between two valid ones along rows, then
+/// of at most `max_gap_down` along columns: linearly across a surface, with the farther
+/// (smaller) disparity across an edge, so a gap never invents a surface in front of both
+/// sides. (The two differ when `disp` holds every other row or fewer.)
+pub fn interpolate_gaps(disp: &mut [f32], width: usize, max_gap: usize, max_gap_down: usize) {
     if max_gap == 0 {
         return;
     }
     let height = disp.len() / width;
     disp.par_chunks_mut(width).for_each(|row| fill_line(row, max_gap));
+    if max_gap_down == 0 {
+        return;
+    }
+    let max_gap = max_gap_down;
     for x in 0..width {
         let mut run_start: Option<usize> = None;
         let mut last_valid: Option<usize> = None;
@@ -357,7 +362,7 @@ mod tests {
         d[w + 4] = 10.6;
         d[w + 5] = 30.0;
         d[w + 9] = 20.0;
-        interpolate_gaps(&mut d, w, 3);
+        interpolate_gaps(&mut d, w, 3, 3);
         assert!((d[w + 2] - 10.2).abs() < 1e-5 && (d[w + 3] - 10.4).abs() < 1e-5);
         assert_eq!(&d[w + 6..w + 9], &[20.0; 3]);
         assert!(d[w].is_infinite() && d[w + 10].is_infinite());

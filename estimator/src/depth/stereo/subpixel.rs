@@ -82,13 +82,24 @@ struct Planes<'a> {
 /// window leaves the image, that lack gradient, whose first step reaches one pixel (the cost
 /// is not locally quadratic there) or whose result moves more than one pixel keep their
 /// integer disparity.
-pub fn refine_subpixel(left: &GrayImage, right: &GrayImage, disp: &mut [f32], radius: usize, s: &mut SubpixelScratch) {
+///
+/// `disp` holds every `row_step`-th row of the images from row 0 (all of them at 1), as
+/// dense matching with a row step leaves them.
+pub fn refine_subpixel(
+    left: &GrayImage,
+    right: &GrayImage,
+    disp: &mut [f32],
+    row_step: usize,
+    radius: usize,
+    s: &mut SubpixelScratch,
+) {
     let (w, h) = (left.width, left.height);
     float_planes(left, &mut s.left, &mut s.left_grad);
     float_planes(right, &mut s.right, &mut s.right_grad);
     let p = Planes { lf: &s.left, lg: &s.left_grad, rf: &s.right, rg: &s.right_grad, width: w, radius };
     let (x_lo, x_hi) = (radius + 1, w.saturating_sub(radius + 1));
-    disp.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+    disp.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
+        let y = j * row_step;
         if y < radius || y + radius >= h || x_lo >= x_hi {
             return;
         }
@@ -344,7 +355,7 @@ mod tests {
         let shift = 7.3f32;
         let (left, right) = shifted_pair(11, w, h, shift);
         let mut d = vec![7.0f32; w * h];
-        refine_subpixel(&left, &right, &mut d, 2, &mut SubpixelScratch::new(0));
+        refine_subpixel(&left, &right, &mut d, 1, 2, &mut SubpixelScratch::new(0));
         let mut errs: Vec<f32> = (4..h - 4)
             .flat_map(|y| (14..w - 6).map(move |x| (y, x)))
             .map(|(y, x)| (d[y * w + x] - shift).abs())
@@ -400,11 +411,23 @@ mod tests {
                     })
                     .collect();
                 let mut fast = d.clone();
-                refine_subpixel(&l, &r, &mut fast, radius, &mut SubpixelScratch::new(0));
+                refine_subpixel(&l, &r, &mut fast, 1, radius, &mut SubpixelScratch::new(0));
                 let refined = slow.iter().zip(&d).filter(|(s, d)| s.is_finite() && s != d).count();
                 assert!(refined > w * h / 4, "only {refined} pixels refined");
                 for i in 0..w * h {
                     assert_eq!(fast[i].to_bits(), slow[i].to_bits(), "pixel {i}: {} vs {}", fast[i], slow[i]);
+                }
+                // Every row_step-th row alone, as dense matching with a row step leaves
+                // them: each refined as in the whole map.
+                for row_step in [2, 3] {
+                    let mut rows: Vec<f32> = d.chunks_exact(w).step_by(row_step).flatten().copied().collect();
+                    refine_subpixel(&l, &r, &mut rows, row_step, radius, &mut SubpixelScratch::new(0));
+                    for (j, row) in rows.chunks_exact(w).enumerate() {
+                        let y = j * row_step;
+                        for (x, v) in row.iter().enumerate() {
+                            assert_eq!(v.to_bits(), slow[y * w + x].to_bits(), "row {y} / {row_step}, column {x}");
+                        }
+                    }
                 }
             }
         }

@@ -7,7 +7,7 @@ use camplace_config::{Cell, StereoParams};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::dense::Kernel;
+use super::dense::{Kernel, INVALID};
 use super::{DisparityMatcher, Elas};
 use crate::cpu::{Avx2, Avx512};
 use crate::{FloatImage, GrayImage};
@@ -189,10 +189,12 @@ struct Score {
     median: f64,
 }
 
-fn score(est: &FloatImage, truth: &FloatImage, margin: usize) -> Score {
+/// Accuracy over the pixels with a true disparity, `margin` px inside the image, on the
+/// rows a matcher with `row_step` matches.
+fn score(est: &FloatImage, truth: &FloatImage, margin: usize, row_step: usize) -> Score {
     let mut errs = Vec::new();
     let mut total = 0usize;
-    for y in margin..truth.height - margin {
+    for y in (margin..truth.height - margin).filter(|y| y % row_step == 0) {
         for x in margin..truth.width - margin {
             let t = truth.get(x, y);
             if !t.is_finite() {
@@ -287,23 +289,35 @@ fn box_scene(seed: u64) -> Scene {
     }
 }
 
-fn run(scene: &Scene, seed: u64, range: (f32, f32)) -> (FloatImage, FloatImage, GrayImage, GrayImage) {
+/// The row steps every accuracy test runs at: every row, and the default.
+const ROW_STEPS: [u32; 2] = [1, 2];
+
+fn run(scene: &Scene, seed: u64, range: (f32, f32), row_step: u32) -> (FloatImage, FloatImage, GrayImage, GrayImage) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let left = scene.render(false, &mut rng);
     let right = scene.render(true, &mut rng);
-    let mut elas = Elas::new(&params(), scene.width, scene.height, 128);
+    let mut elas = Elas::new(&StereoParams { row_step, ..params() }, scene.width, scene.height, 128);
     let mut out = FloatImage::default();
     elas.compute(&left, &right, range, &mut out).unwrap();
+    // The rows between the matched ones hold nothing.
+    for (y, row) in out.data.chunks_exact(scene.width).enumerate() {
+        if y % row_step as usize != 0 {
+            assert!(row.iter().all(|d| *d == INVALID), "row {y} of a map with row step {row_step}");
+        }
+    }
     (out, scene.truth(), left, right)
 }
 
 #[test]
 fn slanted_plane_bright_texture() {
-    for seed in 0..3 {
+    for (seed, row_step) in (0..3).flat_map(|seed| ROW_STEPS.map(|r| (seed, r))) {
         let scene = slanted_plane_scene(seed, 60.0, 140.0);
-        let (est, truth, _, _) = run(&scene, 100 + seed, (80.0, 150.0));
-        let s = score(&est, &truth, 8);
-        eprintln!("bright plane {seed}: coverage {:.4} bad2 {:.5} median {:.4}", s.coverage, s.bad2, s.median);
+        let (est, truth, _, _) = run(&scene, 100 + seed, (80.0, 150.0), row_step);
+        let s = score(&est, &truth, 8, row_step as usize);
+        eprintln!(
+            "bright plane {seed}/{row_step}: coverage {:.4} bad2 {:.5} median {:.4}",
+            s.coverage, s.bad2, s.median
+        );
         assert!(s.coverage > 0.95, "coverage {}", s.coverage);
         assert!(s.bad2 < 0.002, "bad-2 {}", s.bad2);
         assert!(s.median < 0.1, "median {}", s.median);
@@ -314,11 +328,11 @@ fn slanted_plane_bright_texture() {
 fn slanted_plane_dark_texture() {
     // The dark items: albedo 0.08 under the projector leaves a contrast of about 15 grey
     // levels against noise of +-10.
-    for seed in 0..2 {
+    for (seed, row_step) in (0..2).flat_map(|seed| ROW_STEPS.map(|r| (seed, r))) {
         let scene = slanted_plane_scene(10 + seed, 8.0, 16.0);
-        let (est, truth, _, _) = run(&scene, 200 + seed, (80.0, 150.0));
-        let s = score(&est, &truth, 8);
-        eprintln!("dark plane {seed}: coverage {:.4} bad2 {:.5} median {:.4}", s.coverage, s.bad2, s.median);
+        let (est, truth, _, _) = run(&scene, 200 + seed, (80.0, 150.0), row_step);
+        let s = score(&est, &truth, 8, row_step as usize);
+        eprintln!("dark plane {seed}/{row_step}: coverage {:.4} bad2 {:.5} median {:.4}", s.coverage, s.bad2, s.median);
         assert!(s.coverage > 0.85, "coverage {}", s.coverage);
         assert!(s.bad2 < 0.015, "bad-2 {}", s.bad2);
         assert!(s.median < 0.4, "median {}", s.median);
@@ -327,13 +341,20 @@ fn slanted_plane_dark_texture() {
 
 #[test]
 fn box_on_plane_against_brute_force() {
+    for row_step in ROW_STEPS {
+        box_on_plane_against_brute_force_at(row_step);
+    }
+}
+
+fn box_on_plane_against_brute_force_at(row_step: u32) {
     let scene = box_scene(4);
     let range = (85.0, 135.0);
-    let (est, truth, left, right) = run(&scene, 300, range);
-    let s = score(&est, &truth, 8);
+    let (est, truth, left, right) = run(&scene, 300, range, row_step);
+    let step = row_step as usize;
+    let s = score(&est, &truth, 8, step);
     let reference = brute_force(&left, &right, range);
-    let r = score(&reference, &truth, 8);
-    eprintln!("box elas: coverage {:.4} bad2 {:.5} median {:.4}", s.coverage, s.bad2, s.median);
+    let r = score(&reference, &truth, 8, step);
+    eprintln!("box elas {row_step}: coverage {:.4} bad2 {:.5} median {:.4}", s.coverage, s.bad2, s.median);
     eprintln!("box brute force: coverage {:.4} bad2 {:.5} median {:.4}", r.coverage, r.bad2, r.median);
     assert!(s.coverage > 0.93, "coverage {}", s.coverage);
     assert!(s.bad2 < 0.01, "bad-2 {}", s.bad2);
@@ -344,7 +365,7 @@ fn box_on_plane_against_brute_force() {
     // The box's top is found as the box, edges included.
     let mut on_top = 0;
     let mut right_top = 0;
-    for y in 75..166 {
+    for y in (75..166).filter(|y| y % step == 0) {
         for x in 155..246 {
             on_top += 1;
             let (e, t) = (est.get(x, y), truth.get(x, y));
@@ -391,10 +412,14 @@ fn every_kernel_gives_the_same_map() {
     let scene = box_scene(5);
     let mut rng = ChaCha8Rng::seed_from_u64(400);
     let (left, right) = (scene.render(false, &mut rng), scene.render(true, &mut rng));
-    let maps: Vec<Vec<u32>> =
-        kernels().into_iter().map(|k| map_bits(&params(), k, &left, &right, (85.0, 135.0))).collect();
-    assert!(maps.iter().all(|m| *m == maps[0]), "{} kernels differ", maps.len());
-    assert!(maps[0].iter().filter(|&&d| f32::from_bits(d).is_finite()).count() > left.data.len() / 2);
+    for row_step in ROW_STEPS {
+        let p = StereoParams { row_step, ..params() };
+        let maps: Vec<Vec<u32>> =
+            kernels().into_iter().map(|k| map_bits(&p, k, &left, &right, (85.0, 135.0))).collect();
+        assert!(maps.iter().all(|m| *m == maps[0]), "{} kernels differ at row step {row_step}", maps.len());
+        let matched = maps[0].iter().filter(|&&d| f32::from_bits(d).is_finite()).count();
+        assert!(matched > left.data.len() / 2 / row_step as usize, "{matched} matched at row step {row_step}");
+    }
 }
 
 #[test]
