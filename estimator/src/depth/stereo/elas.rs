@@ -170,7 +170,7 @@ impl DisparityMatcher for Elas {
         };
         // Descriptors are read on the support grid's rows and the matched rows only.
         let (step, support_step) = (self.row_step, self.support.step);
-        let wanted = |y: usize| y % step == 0 || y % support_step == 0;
+        let wanted = |y: usize| y.is_multiple_of(step) || y.is_multiple_of(support_step);
         self.desc_left.compute(left, wanted);
         self.desc_right.compute(right, wanted);
         self.support.compute(&self.desc_left, &self.desc_right, &sp);
