@@ -137,13 +137,14 @@ impl TopK {
     /// so placing it after every equal distance keeps ties in index order.
     #[inline]
     fn insert(&mut self, k: usize, d2: f32, model: u32) {
+        // Insertion sort's step: each farther entry moves one slot back as the scan passes
+        // it (the k-th falls off a full list), in one pass without a call to memmove.
         let mut at = self.len.min(k - 1);
         while at > 0 && self.distance2[at - 1] > d2 {
+            self.distance2[at] = self.distance2[at - 1];
+            self.model[at] = self.model[at - 1];
             at -= 1;
         }
-        let end = self.len.min(k - 1);
-        self.distance2.copy_within(at..end, at + 1);
-        self.model.copy_within(at..end, at + 1);
         self.distance2[at] = d2;
         self.model[at] = model;
         self.len = (self.len + 1).min(k);

@@ -1,7 +1,9 @@
 //! The one-shot matcher after Geiger, Roser and Urtasun (2010), "Efficient Large-Scale
 //! Stereo Matching": Sobel descriptors, robust support points, a Delaunay plane prior and
 //! candidate grid, dense matching of both images near the prior, a left-right check, then
-//! speckle removal, sub-pixel refinement and small-gap interpolation.
+//! speckle removal, sub-pixel refinement and small-gap interpolation. Dense matching and
+//! everything after it run on every `row_step`-th row only; the rows between are left
+//! invalid in the map.
 //!
 //! Allocation: every buffer is sized in [`Elas::new`]; `compute` reuses them and never
 //! allocates (the triangulation is structured by the support grid, see `triangulation`).
@@ -50,8 +52,8 @@ pub struct Elas {
     prior: Prior,
     grid_left: CandidateGrid,
     grid_right: CandidateGrid,
-    /// The matched rows of the left and the right map, one after another (all rows at a
-    /// row step of 1).
+    /// The left and the right image's maps on the matched rows only, row j holding image
+    /// row j x `row_step` (every row at a row step of 1).
     dense_left: Vec<f32>,
     dense_right: Vec<f32>,
     speckles: SpeckleScratch,
