@@ -186,7 +186,6 @@ pub fn interpolate_gaps(disp: &mut [f32], width: usize, max_gap: usize, max_gap_
     if max_gap_down == 0 {
         return;
     }
-    let max_gap = max_gap_down;
     for x in 0..width {
         let mut run_start: Option<usize> = None;
         let mut last_valid: Option<usize> = None;
@@ -195,7 +194,7 @@ pub fn interpolate_gaps(disp: &mut [f32], width: usize, max_gap: usize, max_gap_
             if d.is_finite() {
                 if let (Some(s), Some(lv)) = (run_start, last_valid) {
                     let gap = y - s;
-                    if gap <= max_gap {
+                    if gap <= max_gap_down {
                         let (d0, d1) = (disp[lv * width + x], d);
                         for k in s..y {
                             disp[k * width + x] = gap_value(d0, d1, (k - lv) as f32 / (y - lv) as f32);
