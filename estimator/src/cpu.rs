@@ -38,18 +38,6 @@ pub fn avx512_available() -> bool {
     }
 }
 
-/// Whether this machine runs AVX2 with FMA (feature matching's AVX2 kernel).
-fn avx2_fma_available() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        avx2_available() && std::arch::is_x86_feature_detected!("fma")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
 /// Whether this machine runs AVX-512 F and what it implies: AVX2, FMA and F16C (feature
 /// matching's AVX-512 kernel).
 fn avx512f_available() -> bool {
@@ -105,11 +93,6 @@ cpu_proof!(
     /// This machine runs AVX2.
     Avx2,
     avx2_available
-);
-cpu_proof!(
-    /// This machine runs AVX2 and FMA.
-    Avx2Fma,
-    avx2_fma_available
 );
 cpu_proof!(
     /// This machine runs AVX-512 F (and AVX2, FMA and F16C).

@@ -14,14 +14,17 @@
 //! values are bytes 0..=255, the query's are shifted to signed bytes q - 128, and one
 //! `vpdpbusd` sums 4 dimensions of 16 features at once in exact 32-bit integers;
 //! q.m = (q - 128).m + 128 sum(m) restores the product, with sum(m) stored per feature. The
-//! distances are the same whole numbers, so every kernel returns the same matches.
+//! distances are the same whole numbers, so every kernel returns the same matches. On CPUs
+//! with AVX2 but not AVX-512 the products run on 16-bit words: one `vpmaddwd` multiplies 2
+//! dimensions of 8 features and sums each feature's pair into an exact 32-bit integer,
+//! twice the work of an 8-lane f32 multiply-add on half the bytes.
 
 use rayon::prelude::*;
 use std::f32::consts::PI;
 
 use super::ecsad::{Descriptor, ECSAD_DIM};
 #[cfg(target_arch = "x86_64")]
-use crate::cpu::{Avx2Fma, Avx512F, Avx512Vnni};
+use crate::cpu::{Avx2, Avx512F, Avx512Vnni};
 use crate::{Correspondence, Error, ErrorKind, Result};
 
 /// Largest k the matcher keeps per scene key point.
@@ -83,6 +86,23 @@ struct ByteBlock {
     offsets: [i32; LANES],
 }
 
+/// Pairs of dimensions in a word block (30 dimensions, 15 pairs).
+const WORD_PAIRS: usize = ECSAD_DIM.div_ceil(2);
+
+/// 16 model features as 16-bit words for the AVX2 kernel: pair p holds dimensions 2p and
+/// 2p + 1 of lane l at words 2l and 2l + 1.
+#[derive(Clone, Copy)]
+#[repr(C, align(32))]
+struct WordBlock {
+    pairs: [[i16; 2 * LANES]; WORD_PAIRS],
+    /// |m|^2 per feature: the squared distance is |q|^2 + norm - 2 q.m. [`PAD_OFFSET`] for
+    /// a pad lane of a short block.
+    norms: [i32; LANES],
+}
+
+// The word kernel reads every half row and both halves of the norms with aligned 32-byte loads.
+const _: () = assert!((2 * LANES * 2).is_multiple_of(64) && std::mem::offset_of!(WordBlock, norms).is_multiple_of(32));
+
 /// A pad lane's offset: its distance is at least 2^28 - 2^21, beyond [`UNBOUNDED`], so it
 /// never enters a top list. (A real squared distance is at most 30 x 255^2 < 2^21, and
 /// 2 (q - 128).m lies within ±2^21.)
@@ -102,21 +122,32 @@ const _: () = assert!((4 * LANES).is_multiple_of(64) && std::mem::offset_of!(Byt
 enum Kernel {
     Baseline,
     #[cfg(target_arch = "x86_64")]
-    Avx2(Avx2Fma),
+    Avx2(Avx2),
     #[cfg(target_arch = "x86_64")]
     Avx512(Avx512F),
     #[cfg(target_arch = "x86_64")]
     Avx512Vnni(Avx512Vnni),
 }
 
+/// Which layout of the model's blocks a kernel reads.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Layout {
+    Floats,
+    Words,
+    Bytes,
+}
+
 impl Kernel {
-    /// Whether the kernel reads the byte blocks (else the f32 ones).
-    fn reads_bytes(self) -> bool {
-        #[cfg(target_arch = "x86_64")]
-        if let Kernel::Avx512Vnni(_) = self {
-            return true;
+    fn layout(self) -> Layout {
+        match self {
+            Kernel::Baseline => Layout::Floats,
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2(_) => Layout::Words,
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx512(_) => Layout::Floats,
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx512Vnni(_) => Layout::Bytes,
         }
-        false
     }
 }
 
@@ -188,6 +219,7 @@ impl TopK {
 #[derive(Clone)]
 pub struct FeatureMatcher {
     blocks: Vec<ModelBlock>,
+    word_blocks: Vec<WordBlock>,
     byte_blocks: Vec<ByteBlock>,
     heights: Vec<f32>,
     kernel: Kernel,
@@ -210,7 +242,7 @@ impl FeatureMatcher {
     }
 
     /// [`FeatureMatcher::new`] with `kernel`; only the blocks it reads are laid out (bytes
-    /// for the VNNI kernel, f32 for the others).
+    /// for the VNNI kernel, words for the AVX2 one, f32 for the others).
     fn with_kernel(descriptors: &[Descriptor], heights: &[f32], kernel: Kernel) -> Result<Self> {
         if descriptors.len() != heights.len() {
             return Err(Error::new(
@@ -221,30 +253,44 @@ impl FeatureMatcher {
         if descriptors.len() >= u32::MAX as usize {
             return Err(Error::new(ErrorKind::Model, "matcher: too many model features for u32 indices"));
         }
-        let bytes = kernel.reads_bytes();
+        let layout = kernel.layout();
+        let count = |l: Layout| if layout == l { descriptors.len().div_ceil(LANES) } else { 0 };
         let empty = ModelBlock { dims: [[0.0; LANES]; ECSAD_DIM], norms: [f32::INFINITY; LANES] };
-        let mut blocks = vec![empty; if bytes { 0 } else { descriptors.len().div_ceil(LANES) }];
+        let mut blocks = vec![empty; count(Layout::Floats)];
+        let empty = WordBlock { pairs: [[0; 2 * LANES]; WORD_PAIRS], norms: [PAD_OFFSET; LANES] };
+        let mut word_blocks = vec![empty; count(Layout::Words)];
         let empty = ByteBlock { groups: [[0; 4 * LANES]; BYTE_GROUPS], offsets: [PAD_OFFSET; LANES] };
-        let mut byte_blocks = vec![empty; if bytes { descriptors.len().div_ceil(LANES) } else { 0 }];
+        let mut byte_blocks = vec![empty; count(Layout::Bytes)];
         for (i, d) in descriptors.iter().enumerate() {
             let (q, lane) = (quantise(d), i % LANES);
-            if bytes {
-                let block = &mut byte_blocks[i / LANES];
-                for (dim, &v) in q.iter().enumerate() {
-                    block.groups[dim / 4][4 * lane + dim % 4] = v as u8;
+            let norm = q.iter().fold(0i32, |n, &v| n + (v * v) as i32);
+            match layout {
+                Layout::Bytes => {
+                    let block = &mut byte_blocks[i / LANES];
+                    for (dim, &v) in q.iter().enumerate() {
+                        block.groups[dim / 4][4 * lane + dim % 4] = v as u8;
+                    }
+                    block.offsets[lane] = norm - 256 * q.iter().fold(0i32, |s, &v| s + v as i32);
                 }
-                let (norm, sum) = q.iter().fold((0i32, 0i32), |(n, s), &v| (n + (v * v) as i32, s + v as i32));
-                block.offsets[lane] = norm - 256 * sum;
-            } else {
-                let block = &mut blocks[i / LANES];
-                for (dim, &v) in q.iter().enumerate() {
-                    block.dims[dim][lane] = v;
+                Layout::Words => {
+                    let block = &mut word_blocks[i / LANES];
+                    for (dim, &v) in q.iter().enumerate() {
+                        block.pairs[dim / 2][2 * lane + dim % 2] = v as i16;
+                    }
+                    block.norms[lane] = norm;
                 }
-                block.norms[lane] = q.iter().map(|v| v * v).sum();
+                Layout::Floats => {
+                    let block = &mut blocks[i / LANES];
+                    for (dim, &v) in q.iter().enumerate() {
+                        block.dims[dim][lane] = v;
+                    }
+                    block.norms[lane] = q.iter().map(|v| v * v).sum();
+                }
             }
         }
         Ok(FeatureMatcher {
             blocks,
+            word_blocks,
             byte_blocks,
             heights: heights.to_vec(),
             kernel,
@@ -262,7 +308,7 @@ impl FeatureMatcher {
             if let Some(proof) = Avx512F::detect() {
                 return Kernel::Avx512(proof);
             }
-            if let Some(proof) = Avx2Fma::detect() {
+            if let Some(proof) = Avx2::detect() {
                 return Kernel::Avx2(proof);
             }
         }
@@ -315,7 +361,8 @@ impl FeatureMatcher {
             self.queries.push(q);
         }
         out.resize(scene.len() * k, Correspondence { scene: DROPPED, model: 0, distance2: 0.0 });
-        let (blocks, byte_blocks, heights, kernel) = (&self.blocks, &self.byte_blocks, &self.heights, self.kernel);
+        let blocks = Blocks { floats: &self.blocks, words: &self.word_blocks, bytes: &self.byte_blocks };
+        let (heights, kernel) = (&self.heights, self.kernel);
         out.par_chunks_mut(GROUP * k)
             .zip(self.queries.par_chunks(GROUP))
             .zip(self.query_norms.par_chunks(GROUP))
@@ -323,7 +370,7 @@ impl FeatureMatcher {
             .enumerate()
             .for_each(|(group, (((slots, queries), norms), scene_heights))| {
                 let mut tops = [TopK::EMPTY; GROUP];
-                search(kernel, blocks, byte_blocks, queries, norms, k, &mut tops);
+                search(kernel, blocks, queries, norms, k, &mut tops);
                 let first = group * GROUP;
                 for (qi, top) in tops.iter().take(queries.len()).enumerate() {
                     let h = scene_heights[qi];
@@ -344,32 +391,32 @@ impl FeatureMatcher {
     }
 }
 
+/// The model's blocks in every layout (only the chosen kernel's is filled).
+#[derive(Clone, Copy)]
+struct Blocks<'a> {
+    floats: &'a [ModelBlock],
+    words: &'a [WordBlock],
+    bytes: &'a [ByteBlock],
+}
+
 /// Runs the kernel build chosen for this CPU.
-fn search(
-    kernel: Kernel,
-    blocks: &[ModelBlock],
-    byte_blocks: &[ByteBlock],
-    queries: &[[f32; ECSAD_DIM]],
-    norms: &[f32],
-    k: usize,
-    tops: &mut [TopK],
-) {
+fn search(kernel: Kernel, blocks: Blocks<'_>, queries: &[[f32; ECSAD_DIM]], norms: &[f32], k: usize, tops: &mut [TopK]) {
     match kernel {
-        Kernel::Baseline => search_tiles::<false>(blocks, queries, norms, k, tops),
-        // SAFETY: the proof shows this machine runs AVX2 and FMA, all `search_avx2` enables.
+        Kernel::Baseline => search_tiles::<false>(blocks.floats, queries, norms, k, tops),
+        // SAFETY: the proof shows this machine runs AVX2, all `search_words` enables.
         #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2(_) => unsafe { search_avx2(blocks, queries, norms, k, tops) },
+        Kernel::Avx2(_) => unsafe { search_words(blocks.words, queries, norms, k, tops) },
         // SAFETY: the proof shows this machine runs AVX-512 F with AVX2 and FMA, all
         // `search_avx512` enables.
         #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512(_) => unsafe { search_avx512(blocks, queries, norms, k, tops) },
+        Kernel::Avx512(_) => unsafe { search_avx512(blocks.floats, queries, norms, k, tops) },
         // SAFETY: the proof shows this machine runs AVX-512 F, BW and VNNI, all
         // `search_vnni` enables.
         #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512Vnni(_) => unsafe { search_vnni(byte_blocks, queries, norms, k, tops) },
+        Kernel::Avx512Vnni(_) => unsafe { search_vnni(blocks.bytes, queries, norms, k, tops) },
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = byte_blocks;
+    let _ = (blocks.words, blocks.bytes);
 }
 
 /// The k nearest model features of up to GROUP queries from byte blocks, walking the model
@@ -438,10 +485,82 @@ fn search_vnni(blocks: &[ByteBlock], queries: &[[f32; ECSAD_DIM]], norms: &[f32]
     }
 }
 
+/// The k nearest model features of up to GROUP queries from word blocks, walking the model
+/// tile by tile as [`search_tiles`] does, 2 dimensions of 8 features per instruction, each
+/// query's 16 lanes in two registers (8 accumulators of the 16 AVX2 registers). Distances
+/// are compared as the exact integers they are.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn search_avx2(blocks: &[ModelBlock], queries: &[[f32; ECSAD_DIM]], norms: &[f32], k: usize, tops: &mut [TopK]) {
-    search_tiles::<true>(blocks, queries, norms, k, tops)
+#[target_feature(enable = "avx2")]
+// Indexed loops over fixed-size arrays are the shape that keeps the accumulators in registers.
+#[allow(clippy::needless_range_loop)]
+fn search_words(blocks: &[WordBlock], queries: &[[f32; ECSAD_DIM]], norms: &[f32], k: usize, tops: &mut [TopK]) {
+    use std::arch::x86_64::*;
+    const HALF: usize = LANES / 2;
+    for (tile, tile_blocks) in blocks.chunks(TILE_BLOCKS).enumerate() {
+        let first_block = tile * TILE_BLOCKS;
+        for (sub, (qs, ns)) in queries.chunks(TILE_QUERIES).zip(norms.chunks(TILE_QUERIES)).enumerate() {
+            // Each query's values (whole numbers 0..=255) as words, 2 dimensions to an i32.
+            let mut q = [[0i32; WORD_PAIRS]; TILE_QUERIES];
+            for (qi, query) in qs.iter().enumerate() {
+                for (p, pair) in q[qi].iter_mut().enumerate() {
+                    let word = |j: usize| query.get(2 * p + j).map_or(0, |&v| v as u32);
+                    *pair = (word(0) | word(1) << 16) as i32;
+                }
+            }
+            // As in the VNNI kernel: d = |q|^2 + norm - 2 q.m < bound exactly when
+            // norm - 2 q.m < bound - |q|^2.
+            let (n, tops) = (qs.len(), &mut tops[sub * TILE_QUERIES..sub * TILE_QUERIES + qs.len()]);
+            let (mut norm, mut rest) = ([0i32; TILE_QUERIES], [0i32; TILE_QUERIES]);
+            for qi in 0..n {
+                norm[qi] = ns[qi] as i32;
+                rest[qi] = tops[qi].bound() - norm[qi];
+            }
+            for (b, block) in tile_blocks.iter().enumerate() {
+                let mut acc = [[_mm256_setzero_si256(); 2]; TILE_QUERIES];
+                for p in 0..WORD_PAIRS {
+                    // SAFETY: two 32-byte halves of a 64-byte row of a block, 32-byte aligned
+                    // (the block is, and its rows are 64 bytes long; asserted with the type).
+                    let (lo, hi) = unsafe {
+                        let row = block.pairs[p].as_ptr();
+                        (_mm256_load_si256(row.cast()), _mm256_load_si256(row.add(LANES).cast()))
+                    };
+                    for qi in 0..TILE_QUERIES {
+                        let word = _mm256_set1_epi32(q[qi][p]);
+                        acc[qi][0] = _mm256_add_epi32(acc[qi][0], _mm256_madd_epi16(lo, word));
+                        acc[qi][1] = _mm256_add_epi32(acc[qi][1], _mm256_madd_epi16(hi, word));
+                    }
+                }
+                // SAFETY: 8 i32 halves of a block's norms, 32-byte aligned (asserted with the type).
+                let (norm_lo, norm_hi) = unsafe {
+                    let norms = block.norms.as_ptr();
+                    (_mm256_load_si256(norms.cast()), _mm256_load_si256(norms.add(HALF).cast()))
+                };
+                // A fixed count of queries, so that the accumulators stay in registers.
+                for qi in 0..TILE_QUERIES {
+                    if qi >= n {
+                        break;
+                    }
+                    let bound = _mm256_set1_epi32(rest[qi]);
+                    let e_lo = _mm256_sub_epi32(norm_lo, _mm256_slli_epi32::<1>(acc[qi][0]));
+                    let e_hi = _mm256_sub_epi32(norm_hi, _mm256_slli_epi32::<1>(acc[qi][1]));
+                    let below_lo = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(bound, e_lo))) as u16;
+                    let below_hi = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(bound, e_hi))) as u16;
+                    let below = below_lo | below_hi << HALF;
+                    if below != 0 {
+                        let mut partial = [0i32; LANES];
+                        // SAFETY: twice 8 i32 into a 16-i32 array.
+                        unsafe {
+                            _mm256_storeu_si256(partial.as_mut_ptr().cast(), e_lo);
+                            _mm256_storeu_si256(partial.as_mut_ptr().add(HALF).cast(), e_hi);
+                        }
+                        let top = &mut tops[qi];
+                        top.insert_lanes(k, below, &partial, norm[qi], ((first_block + b) * LANES) as u32);
+                        rest[qi] = top.bound() - norm[qi];
+                    }
+                }
+            }
+        }
+    }
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -550,7 +669,7 @@ mod tests {
         let mut kernels = vec![Kernel::Baseline];
         #[cfg(target_arch = "x86_64")]
         {
-            kernels.extend(Avx2Fma::detect().map(Kernel::Avx2));
+            kernels.extend(Avx2::detect().map(Kernel::Avx2));
             kernels.extend(Avx512F::detect().map(Kernel::Avx512));
             kernels.extend(Avx512Vnni::detect().map(Kernel::Avx512Vnni));
         }
