@@ -400,7 +400,14 @@ struct Blocks<'a> {
 }
 
 /// Runs the kernel build chosen for this CPU.
-fn search(kernel: Kernel, blocks: Blocks<'_>, queries: &[[f32; ECSAD_DIM]], norms: &[f32], k: usize, tops: &mut [TopK]) {
+fn search(
+    kernel: Kernel,
+    blocks: Blocks<'_>,
+    queries: &[[f32; ECSAD_DIM]],
+    norms: &[f32],
+    k: usize,
+    tops: &mut [TopK],
+) {
     match kernel {
         Kernel::Baseline => search_tiles::<false>(blocks.floats, queries, norms, k, tops),
         // SAFETY: the proof shows this machine runs AVX2, all `search_words` enables.

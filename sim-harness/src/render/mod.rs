@@ -12,6 +12,7 @@ pub mod raster;
 pub mod render_files;
 pub mod shade;
 mod simulator;
+mod terms;
 
 pub use board::{render_board_views, table_board_pose, BoardTruth};
 pub use simulator::{Frame, Method, Simulator};

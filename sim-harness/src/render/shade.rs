@@ -22,14 +22,15 @@
 //! dots from aliasing at a quarter of the cost of four sub-samples.
 
 use camplace_config::{FloatImage, GrayImage};
-use nalgebra::{Matrix3, Point3, Vector3};
+use nalgebra::Point3;
 use rayon::prelude::*;
 
-use crate::render::defocus::{level_weight, ThinLens};
+use crate::render::defocus::ThinLens;
 use crate::render::noise::read_out;
 use crate::render::pattern::ProjectorImage;
-use crate::render::raster::{MapPixel, View, ZBuffer, NO_TRIANGLE};
-use crate::scene::{Gloss, SceneTriangle, ID_TABLE};
+use crate::render::raster::{View, ZBuffer};
+use crate::render::terms::{terms_row, Context, Homographies, Row, TriangleTerms};
+use crate::scene::{SceneTriangle, ID_TABLE};
 
 /// A point is in shadow only when the occluder is nearer to the light than this, mm.
 pub const SHADOW_BIAS_MM: f64 = 1.0;
@@ -73,7 +74,7 @@ pub struct ShadingTerms {
     /// ([`level_weight`]) of the patterns' blur stacks that give it (kept only with defocus).
     pub projector_blur: Vec<(u32, f32)>,
     /// Whether the projector's defocus is rendered.
-    defocused: bool,
+    pub(crate) defocused: bool,
     triangles: Vec<TriangleTerms>,
 }
 
@@ -104,6 +105,33 @@ impl ShadingTerms {
         lights: &Lights<'_>,
         depth: &mut FloatImage,
         ids: &mut GrayImage,
+    ) {
+        self.compute_with(camera, zbuffer, triangles, lights, (depth, ids), terms_row);
+    }
+
+    /// [`ShadingTerms::compute`] one pixel at a time, the obvious way.
+    #[cfg(test)]
+    pub(crate) fn compute_per_pixel(
+        &mut self,
+        camera: &View,
+        zbuffer: &ZBuffer,
+        triangles: &[SceneTriangle],
+        lights: &Lights<'_>,
+        depth: &mut FloatImage,
+        ids: &mut GrayImage,
+    ) {
+        self.compute_with(camera, zbuffer, triangles, lights, (depth, ids), |ctx, fy, row| ctx.row_per_pixel(fy, row));
+    }
+
+    /// [`ShadingTerms::compute`] with `row` doing each row's pixels.
+    fn compute_with(
+        &mut self,
+        camera: &View,
+        zbuffer: &ZBuffer,
+        triangles: &[SceneTriangle],
+        lights: &Lights<'_>,
+        (depth, ids): (&mut FloatImage, &mut GrayImage),
+        row_terms: fn(&Context<'_>, f64, Row<'_>),
     ) {
         let (w, h) = (self.width, self.height);
         debug_assert!(camera.width == w && camera.height == h && zbuffer.width == w);
@@ -169,7 +197,7 @@ impl ShadingTerms {
                         depth: &mut depth[span.clone()],
                         ids: &mut ids[span],
                     };
-                    terms_row(&ctx, y as f64, row);
+                    row_terms(&ctx, y as f64, row);
                 }
             });
     }
@@ -274,238 +302,3 @@ fn shade_band_body(pattern: &ProjectorImage, exposure: Exposure, first: u64, ter
 /// Rows of pixels per task of parallel work: enough to pay for a task, few enough to share
 /// 480 rows between a handful of threads.
 const ROWS_PER_TASK: usize = 16;
-
-/// `other.k (R k_inv + t plane)`, split so that one triangle's homography costs a rank-one
-/// update instead of the products of rotation and intrinsic matrices.
-struct Homographies {
-    /// `other.k R k_inv`.
-    rotation: Matrix3<f64>,
-    /// `other.k t`.
-    translation: Vector3<f64>,
-}
-
-impl Homographies {
-    fn new(from: &View, to: &View) -> Homographies {
-        let t = to.t_view_world * from.t_world_view;
-        let r = t.rotation.to_rotation_matrix().into_inner();
-        Homographies { rotation: to.k * r * from.k_inv, translation: to.k * t.translation.vector }
-    }
-
-    /// The rows of the homography of a surface with inverse-depth plane `plane`, as
-    /// `View::homography_to` defines it.
-    fn for_plane(&self, plane: [f64; 3]) -> [[f64; 3]; 3] {
-        let (m, t) = (&self.rotation, &self.translation);
-        std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)] + t[i] * plane[j]))
-    }
-}
-
-/// What the per-pixel work needs of one triangle, in one camera's pixel coordinates.
-#[derive(Debug, Clone, Copy, Default)]
-struct TriangleTerms {
-    /// Inverse-depth plane: 1/z = a x + b y + c.
-    plane: [f64; 3],
-    /// Rows of the homography to the projector's homogeneous pixel.
-    h_projector: [[f64; 3]; 3],
-    /// Rows of the homography to the lamp's shadow-map pixel (zeros without the map).
-    h_lamp: [[f64; 3]; 3],
-    /// 255 albedo, grey levels.
-    albedo: f64,
-    /// Unit normal turned towards the camera.
-    normal: [f64; 3],
-    /// Glossy lobe.
-    gloss: Gloss,
-    /// n.(lamp - p) with n turned towards the camera: the lamp lights the face only when
-    /// positive (0 when the lamp is off).
-    lamp_facing: f64,
-    /// n.(projector - p), likewise.
-    projector_facing: f64,
-    /// Object id.
-    id: u8,
-}
-
-/// One image row of the outputs and the z-buffer's triangles.
-struct Row<'r> {
-    tri: &'r [u32],
-    base: &'r mut [f32],
-    projector: &'r mut [f32],
-    uv: &'r mut [[f32; 2]],
-    blur: &'r mut [(u32, f32)],
-    depth: &'r mut [f32],
-    ids: &'r mut [u8],
-}
-
-/// Everything the per-pixel work reads, shared by the threads.
-struct Context<'a> {
-    rays: [[f64; 3]; 3],
-    centre: [f64; 3],
-    lamp_position: [f64; 3],
-    projector_centre: [f64; 3],
-    terms: &'a [TriangleTerms],
-    triangles: &'a [SceneTriangle],
-    lights: &'a Lights<'a>,
-}
-
-camplace_estimator::multiversion! {
-    /// [`Context::row`].
-    fn terms_row(ctx: &Context<'_>, fy: f64, row: Row<'_>) => terms_row_body
-}
-
-#[inline(always)]
-fn terms_row_body(ctx: &Context<'_>, fy: f64, row: Row<'_>) {
-    ctx.row(fy, row);
-}
-
-impl Context<'_> {
-    /// The terms of every pixel of row `fy`.
-    #[inline(always)]
-    fn row(&self, fy: f64, row: Row<'_>) {
-        let w = row.tri.len();
-        let (base, proj, uvs, depth, ids) =
-            (&mut row.base[..w], &mut row.projector[..w], &mut row.uv[..w], &mut row.depth[..w], &mut row.ids[..w]);
-        let blur = row.blur;
-        let [rx, ry, r0] = self.rays;
-        // The unit-depth ray of pixel (x, fy) is ray_row + rx x.
-        let ray_row: [f64; 3] = std::array::from_fn(|i| ry[i] * fy + r0[i]);
-        let l = self.lights;
-        let lamp_map = l.lamp_shadow.map(|(_, map)| map);
-        let projector_on = l.projector_gain > 0.0;
-        for (x, &t) in row.tri.iter().enumerate() {
-            let Some(tt) = self.terms.get(t as usize) else {
-                base[x] = 0.0;
-                proj[x] = 0.0;
-                depth[x] = f32::INFINITY;
-                ids[x] = ID_TABLE;
-                continue;
-            };
-            let t = t as usize;
-            let fx = x as f64;
-            let [a, b, c] = tt.plane;
-            let inv_z = a * fx + b * fy + c;
-            let z = 1.0 / inv_z;
-            let pos: [f64; 3] = std::array::from_fn(|i| self.centre[i] + (ray_row[i] + rx[i] * fx) * z);
-            let mut light = l.ambient;
-            let mut highlight = 0.0;
-            let glossy = tt.gloss.specular > 0.0;
-            let to_camera = if glossy { unit(sub(&self.centre, &pos)) } else { [0.0; 3] };
-            if tt.lamp_facing > 0.0 {
-                let visible = match lamp_map {
-                    None => true,
-                    Some(map) => {
-                        let h = &tt.h_lamp;
-                        let qz = h[2][0] * fx + h[2][1] * fy + h[2][2];
-                        // Outside the lamp's map there is nothing that could shadow.
-                        qz <= 0.0 || {
-                            let inv = 1.0 / qz;
-                            let u = (h[0][0] * fx + h[0][1] * fy + h[0][2]) * inv;
-                            let v = (h[1][0] * fx + h[1][1] * fy + h[1][2]) * inv;
-                            match map.lookup(u, v) {
-                                MapPixel::Outside | MapPixel::Empty => true,
-                                MapPixel::Pixel(i) => self.unshadowed(map, i, t, qz * z),
-                            }
-                        }
-                    }
-                };
-                if visible {
-                    let cos = tt.lamp_facing / distance(&self.lamp_position, &pos);
-                    light += l.lamp_strength * cos;
-                    if glossy {
-                        let lobe =
-                            tt.gloss.reflectance_half_way(&tt.normal, &half_way(&self.lamp_position, &pos, &to_camera));
-                        highlight += 255.0 * lobe * l.lamp_strength * cos;
-                    }
-                }
-            }
-            let mut projector = 0.0;
-            if projector_on && tt.projector_facing > 0.0 {
-                let h = &tt.h_projector;
-                let qz = h[2][0] * fx + h[2][1] * fy + h[2][2];
-                if qz > 0.0 {
-                    let map = l.projector_shadow;
-                    let inv = 1.0 / qz;
-                    let u = (h[0][0] * fx + h[0][1] * fy + h[0][2]) * inv;
-                    let v = (h[1][0] * fx + h[1][1] * fy + h[1][2]) * inv;
-                    let lit = match map.lookup(u, v) {
-                        MapPixel::Outside => false,
-                        MapPixel::Empty => true,
-                        MapPixel::Pixel(i) => self.unshadowed(map, i, t, qz * z),
-                    };
-                    if lit {
-                        let cos = tt.projector_facing / distance(&self.projector_centre, &pos);
-                        let lobe = if glossy {
-                            255.0
-                                * tt.gloss.reflectance_half_way(
-                                    &tt.normal,
-                                    &half_way(&self.projector_centre, &pos, &to_camera),
-                                )
-                        } else {
-                            0.0
-                        };
-                        projector = (tt.albedo + lobe) * l.projector_gain * cos;
-                        uvs[x] = [u as f32, v as f32];
-                        if let Some((lens, top)) = &l.projector_lens {
-                            // The point lies qz z from the projector along its axis.
-                            let (k, w) = level_weight(lens.sigma_px_at_inverse(inv * inv_z), *top);
-                            blur[x] = (k as u32, w);
-                        }
-                    }
-                }
-            }
-            base[x] = (tt.albedo * light + highlight) as f32;
-            proj[x] = projector as f32;
-            depth[x] = z as f32;
-            ids[x] = tt.id;
-        }
-    }
-
-    /// Whether a point of triangle `t` at depth `z_light` from a light is not hidden by
-    /// what the light's shadow map holds at pixel `i`. The point's own surface never
-    /// shadows it, which avoids acne on faces the light grazes.
-    #[inline(always)]
-    fn unshadowed(&self, map: &ZBuffer, i: usize, t: usize, z_light: f64) -> bool {
-        let o = map.triangle[i];
-        if o == NO_TRIANGLE || o as usize == t {
-            return true;
-        }
-        let inverse_depth = map.inverse_depth[i] as f64;
-        // The plane test is the dearer one, so it runs only where the depths say shadow.
-        z_light * inverse_depth <= 1.0 + SHADOW_BIAS_MM * inverse_depth
-            || same_surface(&self.triangles[o as usize], &self.triangles[t])
-    }
-}
-
-/// Euclidean distance between two points.
-#[inline]
-fn distance(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
-    (dx * dx + dy * dy + dz * dz).sqrt()
-}
-
-/// `a - b`.
-#[inline(always)]
-fn sub(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-/// `v` scaled to unit length.
-#[inline(always)]
-fn unit(v: [f64; 3]) -> [f64; 3] {
-    let inv = 1.0 / (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    [v[0] * inv, v[1] * inv, v[2] * inv]
-}
-
-/// The half-way vector, unnormalised, between the direction from `pos` to `light` and the
-/// unit vector `to_camera`.
-#[inline(always)]
-fn half_way(light: &[f64; 3], pos: &[f64; 3], to_camera: &[f64; 3]) -> [f64; 3] {
-    let l = unit(sub(light, pos));
-    [l[0] + to_camera[0], l[1] + to_camera[1], l[2] + to_camera[2]]
-}
-
-/// Whether two triangles lie in one plane (the two halves of a box face, say).
-fn same_surface(a: &SceneTriangle, b: &SceneTriangle) -> bool {
-    let cos = a.normal.dot(&b.normal);
-    if cos.abs() < 1.0 - 1e-9 {
-        return false;
-    }
-    (b.vertices[0] - a.vertices[0]).dot(&a.normal).abs() < 1e-3
-}

@@ -97,6 +97,10 @@ pub struct Simulator {
     /// Renders every fringe shot on its own, the obvious way the pairs are checked against.
     #[cfg(test)]
     fringes_one_by_one: bool,
+    /// Computes the shading terms one pixel at a time, the obvious way the runs are
+    /// checked against.
+    #[cfg(test)]
+    terms_one_by_one: bool,
 }
 
 impl Simulator {
@@ -165,6 +169,8 @@ impl Simulator {
             pattern_prep: (footprint, max_sigma),
             #[cfg(test)]
             fringes_one_by_one: false,
+            #[cfg(test)]
+            terms_one_by_one: false,
             triangles: Vec::new(),
             projector_gain: sensor.projector_gain,
             noise_amplitude: sensor.noise_amplitude,
@@ -387,10 +393,14 @@ impl Simulator {
         let outputs = [(&mut frame.depth_left, &mut frame.ids_left), (&mut frame.depth_right, &mut frame.ids_right)];
         for (c, (depth, ids)) in outputs.into_iter().enumerate() {
             zbuffers[c].rasterize(&cameras[c], triangles, false);
+            #[cfg(test)]
+            let compute = if self.terms_one_by_one { ShadingTerms::compute_per_pixel } else { ShadingTerms::compute };
+            #[cfg(not(test))]
+            let compute = ShadingTerms::compute;
             match &lenses[c] {
-                None => terms[c].compute(&cameras[c], &zbuffers[c], triangles, &lights, depth, ids),
+                None => compute(&mut terms[c], &cameras[c], &zbuffers[c], triangles, &lights, depth, ids),
                 Some(lens) => {
-                    terms[c].compute(&cameras[c], &zbuffers[c], triangles, &lights, canvas_depth, canvas_ids);
+                    compute(&mut terms[c], &cameras[c], &zbuffers[c], triangles, &lights, canvas_depth, canvas_ids);
                     let (w, h) = lens.size();
                     if !(depth.width == w && depth.height == h && depth.data.len() == w * h) {
                         depth.reset(w, h, f32::INFINITY);
@@ -701,6 +711,62 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn runs_give_the_terms_of_one_pixel_at_a_time() {
+        // Every effect on, glossy items and table too, with lens distortion and without,
+        // the lamp on and off, at three placements: the terms, the truth and the images
+        // are the same bits whichever way the terms were computed.
+        let mut glossy = Cell::default();
+        glossy.table.specular = 0.3;
+        glossy.table.roughness = 0.2;
+        glossy.items.specular = 0.5;
+        glossy.items.roughness = 0.05;
+        let mut distorted = Cell::default();
+        distorted.sensor.camera_dist = [-0.1, 0.05, 0.0005, -0.0003, 0.0];
+        let plain = Cell {
+            effects: camplace_config::Effects {
+                defocus: false,
+                specular: false,
+                calibration_error: false,
+                occluder: false,
+            },
+            ..Cell::default()
+        };
+        let mut lit_pixels = 0;
+        for (c, cell) in [Cell::default(), glossy, distorted, plain].into_iter().enumerate() {
+            for (k, placement) in placements().into_iter().enumerate() {
+                let mut scene = draw_scenario(&cell, 3, (c * 3 + k) as u64).scene();
+                if k == 1 {
+                    scene.lamp_strength = 0.0;
+                }
+                let mut sim = Simulator::new(&cell, &placement, 1).unwrap();
+                let mut render = |one_by_one: bool| {
+                    sim.terms_one_by_one = one_by_one;
+                    let mut frame = Frame::default();
+                    sim.render(&scene, Method::OneShot, 9, &mut frame);
+                    (frame, sim.terms.clone())
+                };
+                let ((runs, run_terms), (pixels, pixel_terms)) = (render(false), render(true));
+                assert_eq!(runs, pixels, "cell {c}, placement {k}");
+                for (a, b) in run_terms.iter().zip(&pixel_terms) {
+                    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&a.base), bits(&b.base), "cell {c}, placement {k}: base");
+                    assert_eq!(bits(&a.projector), bits(&b.projector), "cell {c}, placement {k}: projector");
+                    for i in (0..a.projector.len()).filter(|&i| a.projector[i] > 0.0) {
+                        lit_pixels += 1;
+                        let uv = |t: &ShadingTerms| t.projector_uv[i].map(f32::to_bits);
+                        assert_eq!(uv(a), uv(b), "cell {c}, placement {k}: uv of pixel {i}");
+                        if a.defocused {
+                            let blur = |t: &ShadingTerms| (t.projector_blur[i].0, t.projector_blur[i].1.to_bits());
+                            assert_eq!(blur(a), blur(b), "cell {c}, placement {k}: blur of pixel {i}");
+                        }
+                    }
+                }
+            }
+        }
+        assert!(lit_pixels > 1_000_000, "{lit_pixels} lit pixels compared");
     }
 
     #[test]

@@ -84,11 +84,18 @@ impl Gloss {
     pub fn reflectance_half_way(&self, normal: &[f64; 3], half: &[f64; 3]) -> f64 {
         let dot = normal[0] * half[0] + normal[1] * half[1] + normal[2] * half[2];
         let length2 = half[0] * half[0] + half[1] * half[1] + half[2] * half[2];
-        // n.h / |h| below cos_min, without the root.
-        if self.specular <= 0.0 || dot.is_nan() || dot <= 0.0 || dot * dot < self.cos_min * self.cos_min * length2 {
+        if !self.near_mirror(dot, length2) {
             return 0.0;
         }
         self.reflectance(dot / length2.sqrt())
+    }
+
+    /// Whether a half-way vector with n.h = `dot` and |h|² = `length2` lies near enough the
+    /// mirror direction for the lobe not to be negligible: n.h / |h| at least cos_min, tested
+    /// without the root.
+    #[inline(always)]
+    pub fn near_mirror(&self, dot: f64, length2: f64) -> bool {
+        !(self.specular <= 0.0 || dot.is_nan() || dot <= 0.0 || dot * dot < self.cos_min * self.cos_min * length2)
     }
 }
 
