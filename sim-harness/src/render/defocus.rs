@@ -258,7 +258,9 @@ pub fn level_weight(sigma: f32, top: usize) -> (usize, f32) {
     let octave = 2 * ((bits >> 23) - 127) + 2 + ((bits >> 22) & 1);
     // SAFETY: c is finite and within 0..=32 (the last level), which i32 holds.
     let halves = unsafe { (2.0 * c).to_int_unchecked::<i32>() };
-    let k = if c < 2.0 { halves } else { octave } as usize;
+    // A select and a clamp the vectoriser keeps in lanes (k is at most 12 already: the
+    // octave of 32 is 2 * 5 + 2), and table reads without a bounds check.
+    let k = (if c < 2.0 { halves } else { octave }).clamp(0, LEVELS.len() as i32 - 1) as usize;
     (k, (c * c - LEVELS[k] * LEVELS[k]) * INV_STEP[k])
 }
 

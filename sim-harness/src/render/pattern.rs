@@ -91,8 +91,11 @@ pub struct ProjectorImage {
     one_row: bool,
     /// The filtered value at index i is centred on pixel i + offset.
     offset: f32,
-    /// Level 0: the filtered image (or its one row); above it, its defocused copies.
-    stack: BlurStack,
+    /// Level 0: the filtered image (or its one row); above it, its defocused copies; level
+    /// k at `k * stride`, so that one index reaches any level.
+    levels: Vec<f32>,
+    /// Values a level holds: `width` times the rows kept.
+    stride: usize,
 }
 
 impl ProjectorImage {
@@ -120,7 +123,20 @@ impl ProjectorImage {
         }
         let mut stack = BlurStack::default();
         stack.build(&values, w.max(1), max_sigma);
-        ProjectorImage { width: w, height: h, one_row, offset: (b as f32 - 1.0) / 2.0, stack }
+        let stride = values.len();
+        let levels = stack.levels().concat();
+        ProjectorImage { width: w, height: h, one_row, offset: (b as f32 - 1.0) / 2.0, levels, stride }
+    }
+
+    /// Level `k` of the stack.
+    #[inline(always)]
+    fn level(&self, k: usize) -> &[f32] {
+        &self.levels[k * self.stride..(k + 1) * self.stride]
+    }
+
+    /// The stack's top level.
+    fn top(&self) -> usize {
+        (self.levels.len() / self.stride.max(1)).saturating_sub(1)
     }
 
     /// Brightness at projector pixel coordinates (u, v), pixel centres at integers.
@@ -128,7 +144,7 @@ impl ProjectorImage {
     pub fn sample(&self, u: f32, v: f32) -> f32 {
         match self.taps(u, v) {
             None => 0.0,
-            Some(t) => t.read(&self.stack.levels()[0]),
+            Some(t) => t.read(self.level(0)),
         }
     }
 
@@ -138,14 +154,139 @@ impl ProjectorImage {
     #[inline(always)]
     pub fn sample_defocused(&self, u: f32, v: f32, blur: (u32, f32)) -> f32 {
         let Some(t) = self.taps(u, v) else { return 0.0 };
-        let levels = self.stack.levels();
         let (k, w) = (blur.0 as usize, blur.1);
-        let a = t.read(&levels[k]);
+        let a = t.read(self.level(k));
         if w == 0.0 {
             a
         } else {
-            a + w * (t.read(&levels[k + 1]) - a)
+            a + w * (t.read(self.level(k + 1)) - a)
         }
+    }
+
+    /// Adds the pattern's light to the first pixels of a run, sixteen at a time with
+    /// AVX-512 where this machine has it: `out[i] = scale * base[i] + proj[i] *
+    /// sample_defocused(uv[i], blur[i])` (`sample` when `blur` is empty) wherever `proj[i]`
+    /// is positive, else `scale * base[i]`. Returns how many pixels it did (a multiple of
+    /// sixteen, 0 without AVX-512); the caller does the rest one at a time, with the same
+    /// bits (oracle test).
+    #[inline(always)]
+    pub fn add_light_wide(&self, scale: f32, run: LightRun<'_>, out: &mut [f32]) -> usize {
+        #[cfg(target_arch = "x86_64")]
+        if camplace_estimator::avx512_available() && self.levels.len() <= i32::MAX as usize {
+            // SAFETY: AVX-512 F, BW, DQ and VL were just detected.
+            return unsafe { self.add_light_avx512(scale, run, out) };
+        }
+        let _ = (scale, run, out);
+        0
+    }
+
+    /// [`ProjectorImage::add_light_wide`]'s vector path.
+    ///
+    /// # Safety
+    ///
+    /// The machine runs AVX-512 F, BW, DQ and VL, and every index into `levels` fits an i32.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,avx512f,avx512bw,avx512dq,avx512vl")]
+    unsafe fn add_light_avx512(&self, scale: f32, run: LightRun<'_>, out: &mut [f32]) -> usize {
+        use std::arch::x86_64::*;
+        const LANES: usize = 16;
+        let LightRun { base, proj, uv, blur } = run;
+        let n = out.len().min(base.len()).min(proj.len()).min(uv.len());
+        let defocused = !blur.is_empty();
+        let n = if defocused { n.min(blur.len()) } else { n };
+        if self.width < 2 || self.height == 0 || self.levels.is_empty() {
+            return 0;
+        }
+        let (w, h) = (self.width as f32, self.height as f32);
+        let (scale_v, zero) = (_mm512_set1_ps(scale), _mm512_setzero_ps());
+        let (low, u_end, v_end) = (_mm512_set1_ps(-0.5), _mm512_set1_ps(w - 0.5), _mm512_set1_ps(h - 0.5));
+        let u_off = _mm512_set1_ps(self.offset);
+        let v_off = _mm512_set1_ps(if self.one_row { 0.0 } else { self.offset });
+        let (u_max, v_max) = (_mm512_set1_ps(w - 1.0), _mm512_set1_ps(h - 1.0));
+        let x0_max = _mm512_set1_epi32(self.width.saturating_sub(2) as i32);
+        let y0_max = _mm512_set1_epi32(self.height.saturating_sub(2) as i32);
+        let (x_last, y_last) = (_mm512_set1_epi32(self.width as i32 - 1), _mm512_set1_epi32(self.height as i32 - 1));
+        let (one, row_len) = (_mm512_set1_epi32(1), _mm512_set1_epi32(self.width as i32));
+        let (top, stride) = (_mm512_set1_epi32(self.top() as i32), _mm512_set1_epi32(self.stride as i32));
+        let data = self.levels.as_ptr();
+        // The bilinear value at offsets `r0`/`r1` (row starts) and columns `x0`/`x1` of
+        // the level starting at `at`, in lanes `m`; Taps::read's operations in its order.
+        let read = |m: __mmask16, at: __m512i, r0: __m512i, r1: __m512i, x0: __m512i, x1: __m512i, fx, fy| {
+            let gather = |row: __m512i, col: __m512i| {
+                let index = _mm512_add_epi32(at, _mm512_add_epi32(row, col));
+                // SAFETY: in lanes `m` the index lies inside `levels` (rows, columns and
+                // levels clamped to the image and the stack); the others read nothing.
+                unsafe { _mm512_mask_i32gather_ps::<4>(zero, m, index, data.cast()) }
+            };
+            let (a, b) = (gather(r0, x0), gather(r0, x1));
+            let upper = _mm512_add_ps(a, _mm512_mul_ps(fx, _mm512_sub_ps(b, a)));
+            if self.one_row {
+                return upper;
+            }
+            let (c, d) = (gather(r1, x0), gather(r1, x1));
+            let lower = _mm512_add_ps(c, _mm512_mul_ps(fx, _mm512_sub_ps(d, c)));
+            _mm512_add_ps(upper, _mm512_mul_ps(fy, _mm512_sub_ps(lower, upper)))
+        };
+        let mut x = 0;
+        while x + LANES <= n {
+            let (mut us, mut vs) = ([0.0f32; LANES], [0.0f32; LANES]);
+            for (j, q) in uv[x..x + LANES].iter().enumerate() {
+                (us[j], vs[j]) = (q[0], q[1]);
+            }
+            // SAFETY: 16 values from x, inside every slice as x + 16 <= n.
+            let (b, p, u, v) = unsafe {
+                (
+                    _mm512_loadu_ps(base.as_ptr().add(x)),
+                    _mm512_loadu_ps(proj.as_ptr().add(x)),
+                    _mm512_loadu_ps(us.as_ptr()),
+                    _mm512_loadu_ps(vs.as_ptr()),
+                )
+            };
+            let g = _mm512_mul_ps(scale_v, b);
+            // Lit and inside the image, as `taps` decides (NaN fails every comparison).
+            let mut m = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(p, zero);
+            m &= _mm512_cmp_ps_mask::<_CMP_GE_OQ>(u, low) & _mm512_cmp_ps_mask::<_CMP_GE_OQ>(v, low);
+            m &= _mm512_cmp_ps_mask::<_CMP_LT_OQ>(u, u_end) & _mm512_cmp_ps_mask::<_CMP_LT_OQ>(v, v_end);
+            // f32::clamp: below the least the least, above the most the most, else itself.
+            let clamp = |a: __m512, most: __m512| _mm512_min_ps(most, _mm512_max_ps(zero, a));
+            let uc = clamp(_mm512_sub_ps(u, u_off), u_max);
+            let x0 = _mm512_min_epi32(_mm512_cvttps_epi32(uc), x0_max);
+            let fx = _mm512_sub_ps(uc, _mm512_cvtepi32_ps(x0));
+            let x1 = _mm512_min_epi32(_mm512_add_epi32(x0, one), x_last);
+            let (r0, r1, fy) = if self.one_row {
+                (_mm512_setzero_si512(), _mm512_setzero_si512(), zero)
+            } else {
+                let vc = clamp(_mm512_sub_ps(v, v_off), v_max);
+                let y0 = _mm512_min_epi32(_mm512_cvttps_epi32(vc), y0_max);
+                let fy = _mm512_sub_ps(vc, _mm512_cvtepi32_ps(y0));
+                let y1 = _mm512_min_epi32(_mm512_add_epi32(y0, one), y_last);
+                (_mm512_mullo_epi32(y0, row_len), _mm512_mullo_epi32(y1, row_len), fy)
+            };
+            let sample = if defocused {
+                let (mut ks, mut ws) = ([0i32; LANES], [0.0f32; LANES]);
+                for (j, &(k, wt)) in blur[x..x + LANES].iter().enumerate() {
+                    (ks[j], ws[j]) = (k.min(i32::MAX as u32) as i32, wt);
+                }
+                // SAFETY: two 16-value local arrays.
+                let (k, wt) = unsafe { (_mm512_loadu_si512(ks.as_ptr().cast()), _mm512_loadu_ps(ws.as_ptr())) };
+                let k = _mm512_min_epi32(k, top);
+                let above = _mm512_min_epi32(_mm512_add_epi32(k, one), top);
+                let a = read(m, _mm512_mullo_epi32(k, stride), r0, r1, x0, x1, fx, fy);
+                // Where the weight is 0 the level above is not read, and the value is `a`.
+                let m_above = m & _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(wt, zero);
+                let b = read(m_above, _mm512_mullo_epi32(above, stride), r0, r1, x0, x1, fx, fy);
+                let mixed = _mm512_add_ps(a, _mm512_mul_ps(wt, _mm512_sub_ps(b, a)));
+                _mm512_mask_blend_ps(m_above, a, mixed)
+            } else {
+                read(m, _mm512_setzero_si512(), r0, r1, x0, x1, fx, fy)
+            };
+            let lit = _mm512_add_ps(g, _mm512_mul_ps(p, sample));
+            let value = _mm512_mask_blend_ps(m, g, lit);
+            // SAFETY: 16 values into out[x .. x + 16], inside as x + 16 <= n.
+            unsafe { _mm512_storeu_ps(out.as_mut_ptr().add(x), value) };
+            x += LANES;
+        }
+        x
     }
 
     /// The bilinear taps of (u, v), `None` outside the image.
@@ -169,6 +310,20 @@ impl ProjectorImage {
         let y1 = (y0 + 1).min(self.height - 1);
         Some(Taps { r0: y0 * self.width, r1: y1 * self.width, x0, x1, fx, fy })
     }
+}
+
+/// A run of pixels' pattern-independent light and projector terms (`blur` empty without
+/// the projector's defocus), as [`ProjectorImage::add_light_wide`] reads them.
+#[derive(Debug, Clone, Copy)]
+pub struct LightRun<'a> {
+    /// The pattern-independent grey level.
+    pub base: &'a [f32],
+    /// The projector's gain (0 where it does not light the pixel).
+    pub proj: &'a [f32],
+    /// The projector image coordinates.
+    pub uv: &'a [[f32; 2]],
+    /// The projector's blur level and weight.
+    pub blur: &'a [(u32, f32)],
 }
 
 /// Where a bilinear sample reads: two row starts, two columns and the fractions.
@@ -198,6 +353,7 @@ impl Taps {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::defocus::LEVELS;
     use camplace_config::Cell;
 
     #[test]
@@ -278,5 +434,94 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The pixel-by-pixel light of a run: the obvious version of `add_light_wide`.
+    fn light_one_by_one(p: &ProjectorImage, scale: f32, run: LightRun<'_>, out: &mut [f32]) {
+        for (i, o) in out.iter_mut().enumerate() {
+            let mut g = scale * run.base[i];
+            if run.proj[i] > 0.0 {
+                let (u, v) = (run.uv[i][0], run.uv[i][1]);
+                g += run.proj[i]
+                    * if run.blur.is_empty() { p.sample(u, v) } else { p.sample_defocused(u, v, run.blur[i]) };
+            }
+            *o = g;
+        }
+    }
+
+    #[test]
+    fn light_sixteen_at_a_time_is_the_light_one_by_one() {
+        let mut rng = ChaCha8Rng::seed_from_u64(12);
+        let n = 16 * 40 + 5;
+        let mut ran_wide = false;
+        for (img, footprint, max_sigma) in [
+            (random_dots(90, 60, 2, 0.5, 3), 2, 5.0),
+            (random_dots(90, 60, 1, 0.5, 4), 1, 0.0),
+            (fringe(90, 60, 4.0, 1), 3, 2.5),
+            (fringe(90, 60, 4.0, 3), 1, 0.0),
+            (random_dots(2, 1, 1, 0.5, 5), 1, 1.0),
+        ] {
+            let p = ProjectorImage::new(&img, footprint, max_sigma);
+            let (w, h) = (img.width as f32, img.height as f32);
+            let top = p.top();
+            let base: Vec<f32> = (0..n).map(|_| rng.random_range(0.0..200.0)).collect();
+            // Unlit pixels (0 or less) and lit ones; coordinates inside, on and past every
+            // edge, and NaN where the projector left a pixel's coordinates unset.
+            let proj: Vec<f32> = (0..n)
+                .map(|i| {
+                    if i % 7 == 3 {
+                        0.0
+                    } else if i % 11 == 5 {
+                        -1.0
+                    } else {
+                        rng.random_range(0.0..90.0)
+                    }
+                })
+                .collect();
+            let uv: Vec<[f32; 2]> = (0..n)
+                .map(|i| match i % 13 {
+                    0 => [f32::NAN, 2.0],
+                    1 => [-0.5, -0.5],
+                    2 => [w - 0.5, 1.0],
+                    3 => [w - 0.51, h - 0.51],
+                    4 => [-0.6, 3.0],
+                    _ => [rng.random_range(-2.0..w + 2.0), rng.random_range(-2.0..h + 2.0)],
+                })
+                .collect();
+            let blurs: Vec<(u32, f32)> = (0..n)
+                .map(|i| {
+                    let sigma = if i % 5 == 0 { LEVELS[rng.random_range(0..=top)] } else { rng.random_range(0.0..8.0) };
+                    let (k, wt) = crate::render::defocus::level_weight(sigma, top);
+                    (k as u32, wt)
+                })
+                .collect();
+            for blur in [&blurs[..], &[]] {
+                let run = LightRun { base: &base, proj: &proj, uv: &uv, blur };
+                let mut want = vec![0.0; n];
+                light_one_by_one(&p, 1.5, run, &mut want);
+                let mut got = vec![f32::NAN; n];
+                let done = p.add_light_wide(1.5, run, &mut got);
+                assert_eq!(done % 16, 0);
+                ran_wide |= done > 0;
+                let tail = LightRun {
+                    base: &base[done..],
+                    proj: &proj[done..],
+                    uv: &uv[done..],
+                    blur: &blur[done.min(blur.len())..],
+                };
+                light_one_by_one(&p, 1.5, tail, &mut got[done..]);
+                for i in 0..n {
+                    assert_eq!(
+                        got[i].to_bits(),
+                        want[i].to_bits(),
+                        "pixel {i} at {:?}: {} vs {}",
+                        uv[i],
+                        got[i],
+                        want[i]
+                    );
+                }
+            }
+        }
+        assert_eq!(ran_wide, camplace_estimator::avx512_available(), "the vector path runs where AVX-512 is");
     }
 }

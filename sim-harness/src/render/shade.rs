@@ -27,7 +27,7 @@ use rayon::prelude::*;
 
 use crate::render::defocus::ThinLens;
 use crate::render::noise::read_out;
-use crate::render::pattern::ProjectorImage;
+use crate::render::pattern::{LightRun, ProjectorImage};
 use crate::render::raster::{View, ZBuffer};
 use crate::render::terms::{terms_row, Context, Homographies, Row, TriangleTerms};
 use crate::scene::{SceneTriangle, ID_TABLE};
@@ -275,8 +275,9 @@ fn shade_band_body(pattern: &ProjectorImage, exposure: Exposure, first: u64, ter
         Exposure::Light(scale) => scale,
         Exposure::Sensed(_) => 1.0,
     };
+    let done = pattern.add_light_wide(scale, LightRun { base, proj, uv, blur }, out);
     if blur.len() == n {
-        for x in 0..n {
+        for x in done..n {
             let mut g = scale * base[x];
             let p = proj[x];
             if p > 0.0 {
@@ -285,7 +286,7 @@ fn shade_band_body(pattern: &ProjectorImage, exposure: Exposure, first: u64, ter
             out[x] = g;
         }
     } else {
-        for x in 0..n {
+        for x in done..n {
             let mut g = scale * base[x];
             let p = proj[x];
             if p > 0.0 {

@@ -206,13 +206,14 @@ impl Context<'_> {
                 }
             }
             let mut cos = [0.0; RUN];
+            let reach = distances(&self.lamp_position, &geometry, n);
             for i in 0..n {
-                cos[i] = tt.lamp_facing / distance(&self.lamp_position, &geometry.at(i));
+                cos[i] = tt.lamp_facing / reach[i];
                 let lit = l.ambient + l.lamp_strength * cos[i];
                 light[i] = if visible[i] { lit } else { l.ambient };
             }
             if glossy {
-                let lobe = lobes(&tt.gloss, &tt.normal, &self.lamp_position, &geometry, &to_camera, n);
+                let lobe = lobes(&tt.gloss, &tt.normal, &self.lamp_position, &reach, &geometry, &to_camera, n);
                 for i in 0..n {
                     let h = 0.0 + 255.0 * lobe[i] * l.lamp_strength * cos[i];
                     highlight[i] = if visible[i] { h } else { 0.0 };
@@ -233,13 +234,14 @@ impl Context<'_> {
                         MapPixel::Pixel(p) => self.unshadowed(map, p, t, qz * geometry.z[i]),
                     };
             }
+            let reach = distances(&self.projector_centre, &geometry, n);
             let lobe = if glossy {
-                lobes(&tt.gloss, &tt.normal, &self.projector_centre, &geometry, &to_camera, n)
+                lobes(&tt.gloss, &tt.normal, &self.projector_centre, &reach, &geometry, &to_camera, n)
             } else {
                 [0.0; RUN]
             };
             for i in 0..n {
-                let cos = tt.projector_facing / distance(&self.projector_centre, &geometry.at(i));
+                let cos = tt.projector_facing / reach[i];
                 let g = (tt.albedo + 255.0 * lobe[i]) * l.projector_gain * cos;
                 gain[i] = if lit[i] { g } else { 0.0 };
                 uv[i] = if lit[i] { [q.u[i] as f32, q.v[i] as f32] } else { uv[i] };
@@ -437,35 +439,51 @@ fn image_coordinates(h: &[[f64; 3]; 3], fx0: f64, fy: f64, n: usize) -> ImageCoo
     q
 }
 
-/// The glossy lobe of the `n` points of a run towards the camera under a light at `light`:
-/// the half-way vectors in vector lanes, the power only where the lobe is not negligible.
+/// The glossy lobe of the `n` points of a run towards the camera under a light at `light`,
+/// `reach` away from each: the half-way vectors in vector lanes, the root and the power only
+/// where the lobe is not negligible. The direction to the light is the difference over
+/// `reach`, the very root [`unit`] would take again.
 #[inline(always)]
 fn lobes(
     gloss: &Gloss,
     normal: &[f64; 3],
     light: &[f64; 3],
+    reach: &[f64; RUN],
     geometry: &Geometry,
     to_camera: &[[f64; RUN]; 3],
     n: usize,
 ) -> [f64; RUN] {
     let n = n.min(RUN);
-    let mut cos_half = [0.0; RUN];
+    let mut dots = [0.0; RUN];
+    let mut lengths2 = [0.0; RUN];
     let mut near = [false; RUN];
     for i in 0..n {
-        let camera = [to_camera[0][i], to_camera[1][i], to_camera[2][i]];
-        let half = half_way(light, &geometry.at(i), &camera);
+        let v = sub(light, &geometry.at(i));
+        let inv = 1.0 / reach[i];
+        let half: [f64; 3] = std::array::from_fn(|k| v[k] * inv + to_camera[k][i]);
         let dot = normal[0] * half[0] + normal[1] * half[1] + normal[2] * half[2];
         let length2 = half[0] * half[0] + half[1] * half[1] + half[2] * half[2];
         near[i] = gloss.near_mirror(dot, length2);
-        cos_half[i] = dot / length2.sqrt();
+        dots[i] = dot;
+        lengths2[i] = length2;
     }
     let mut lobe = [0.0; RUN];
     for i in 0..n {
         if near[i] {
-            lobe[i] = gloss.reflectance(cos_half[i]);
+            lobe[i] = gloss.reflectance(dots[i] / lengths2[i].sqrt());
         }
     }
     lobe
+}
+
+/// The distances from `light` to the `n` points of a run.
+#[inline(always)]
+fn distances(light: &[f64; 3], geometry: &Geometry, n: usize) -> [f64; RUN] {
+    let mut reach = [0.0; RUN];
+    for i in 0..n.min(RUN) {
+        reach[i] = distance(light, &geometry.at(i));
+    }
+    reach
 }
 
 /// Euclidean distance between two points.
@@ -490,6 +508,7 @@ fn unit(v: [f64; 3]) -> [f64; 3] {
 
 /// The half-way vector, unnormalised, between the direction from `pos` to `light` and the
 /// unit vector `to_camera`.
+#[cfg(test)]
 #[inline(always)]
 fn half_way(light: &[f64; 3], pos: &[f64; 3], to_camera: &[f64; 3]) -> [f64; 3] {
     let l = unit(sub(light, pos));
