@@ -171,6 +171,7 @@ impl ShadingTerms {
             terms: &self.triangles,
             triangles,
             lights,
+            wide: camplace_estimator::avx512_available(),
         };
         let band = w * ROWS_PER_TASK;
         self.defocused = lights.projector_lens.is_some();
