@@ -247,6 +247,14 @@ impl ProjectorImage {
             let mut m = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(p, zero);
             m &= _mm512_cmp_ps_mask::<_CMP_GE_OQ>(u, low) & _mm512_cmp_ps_mask::<_CMP_GE_OQ>(v, low);
             m &= _mm512_cmp_ps_mask::<_CMP_LT_OQ>(u, u_end) & _mm512_cmp_ps_mask::<_CMP_LT_OQ>(v, v_end);
+            if m == 0 {
+                // No lane samples the pattern (the empty background of a model capture,
+                // a shadow): the pattern-independent light alone.
+                // SAFETY: 16 values into out[x .. x + 16], inside as x + 16 <= n.
+                unsafe { _mm512_storeu_ps(out.as_mut_ptr().add(x), g) };
+                x += LANES;
+                continue;
+            }
             // f32::clamp: below the least the least, above the most the most, else itself.
             let clamp = |a: __m512, most: __m512| _mm512_min_ps(most, _mm512_max_ps(zero, a));
             let uc = clamp(_mm512_sub_ps(u, u_off), u_max);

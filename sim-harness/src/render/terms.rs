@@ -457,17 +457,24 @@ impl Context<'_> {
             let mut m = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(qz, zero);
             m &= _mm512_cmp_pd_mask::<_CMP_GE_OQ>(x, zero) & _mm512_cmp_pd_mask::<_CMP_GE_OQ>(y, zero);
             m &= _mm512_cmp_pd_mask::<_CMP_LT_OQ>(x, width) & _mm512_cmp_pd_mask::<_CMP_LT_OQ>(y, height);
+            if m == 0 {
+                // Every point behind the light or outside its map: nothing to read.
+                out[i..i + LANES].fill(matches!(behind, Behind::Lit));
+                i += LANES;
+                continue;
+            }
             let (xi, yi) = (_mm512_cvttpd_epi32(x), _mm512_cvttpd_epi32(y));
             let pixel = _mm256_add_epi32(_mm256_mullo_epi32(yi, row), xi);
             // SAFETY: in lanes `m` the pixel lies inside the map (both coordinates within
             // it), whose arrays hold width x height values; the other lanes read nothing.
-            let (o, inverse_depth) = unsafe {
-                (
-                    _mm256_mmask_i32gather_epi32::<4>(none, m, pixel, map.triangle.as_ptr().cast()),
-                    _mm256_mmask_i32gather_ps::<4>(_mm256_setzero_ps(), m, pixel, map.inverse_depth.as_ptr()),
-                )
-            };
+            let o = unsafe { _mm256_mmask_i32gather_epi32::<4>(none, m, pixel, map.triangle.as_ptr().cast()) };
             let free = _mm256_cmpeq_epi32_mask(o, none) | _mm256_cmpeq_epi32_mask(o, own);
+            // Only a lane that sees another triangle there reads its depth (most see their
+            // own, or nothing).
+            // SAFETY: as the triangles' gather, in fewer lanes.
+            let inverse_depth = unsafe {
+                _mm256_mmask_i32gather_ps::<4>(_mm256_setzero_ps(), m & !free, pixel, map.inverse_depth.as_ptr())
+            };
             // `unshadowed`'s depth test: z_light / z_map <= 1 + bias / z_map, in f64.
             let inverse_depth = _mm512_cvtps_pd(inverse_depth);
             let z_light = _mm512_mul_pd(qz, zi);
