@@ -198,7 +198,8 @@ impl Context<'_> {
             if let Some((_, map)) = l.lamp_shadow {
                 // Outside the lamp's map there is nothing that could shadow.
                 let q = image_coordinates(&tt.h_lamp, fx0, fy, n);
-                let done = self.shadow_tests_wide(map, &q, &geometry.z, t, n, Behind::Lit, &mut visible);
+                let run = ShadowRun { map, q: &q, z: &geometry.z, t, n, behind: Behind::Lit };
+                let done = self.shadow_tests_wide(run, &mut visible);
                 for i in done..n {
                     let qz = q.qz[i];
                     visible[i] = qz <= 0.0
@@ -228,7 +229,8 @@ impl Context<'_> {
             let q = image_coordinates(&tt.h_projector, fx0, fy, n);
             let map = l.projector_shadow;
             let mut lit = [false; RUN];
-            let done = self.shadow_tests_wide(map, &q, &geometry.z, t, n, Behind::Dark, &mut lit);
+            let run = ShadowRun { map, q: &q, z: &geometry.z, t, n, behind: Behind::Dark };
+            let done = self.shadow_tests_wide(run, &mut lit);
             for i in done..n {
                 let qz = q.qz[i];
                 lit[i] = qz > 0.0
@@ -392,22 +394,16 @@ impl Context<'_> {
     /// gets), the same bits. Returns how many it did (a multiple of eight; 0 without
     /// AVX-512); the caller tests the rest one at a time.
     #[inline(always)]
-    fn shadow_tests_wide(
-        &self,
-        map: &ZBuffer,
-        q: &ImageCoordinates,
-        z: &[f64; RUN],
-        t: usize,
-        n: usize,
-        behind: Behind,
-        out: &mut [bool; RUN],
-    ) -> usize {
+    fn shadow_tests_wide(&self, run: ShadowRun<'_>, out: &mut [bool; RUN]) -> usize {
         #[cfg(target_arch = "x86_64")]
-        if self.wide && map.width.saturating_mul(map.height) <= i32::MAX as usize && t < NO_TRIANGLE as usize {
+        if self.wide
+            && run.map.width.saturating_mul(run.map.height) <= i32::MAX as usize
+            && run.t < NO_TRIANGLE as usize
+        {
             // SAFETY: `wide` is set only where AVX-512 F, BW, DQ and VL were detected.
-            return unsafe { self.shadow_tests_avx512(map, q, z, t, n, behind, out) };
+            return unsafe { self.shadow_tests_avx512(run, out) };
         }
-        let _ = (map, q, z, t, n, behind, out);
+        let _ = (run, out);
         0
     }
 
@@ -421,17 +417,8 @@ impl Context<'_> {
     /// The machine runs AVX-512 F, BW, DQ and VL; the map's pixel count fits an i32.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,avx512f,avx512bw,avx512dq,avx512vl")]
-    #[allow(clippy::too_many_arguments)]
-    unsafe fn shadow_tests_avx512(
-        &self,
-        map: &ZBuffer,
-        q: &ImageCoordinates,
-        z: &[f64; RUN],
-        t: usize,
-        n: usize,
-        behind: Behind,
-        out: &mut [bool; RUN],
-    ) -> usize {
+    unsafe fn shadow_tests_avx512(&self, run: ShadowRun<'_>, out: &mut [bool; RUN]) -> usize {
+        let ShadowRun { map, q, z, t, n, behind } = run;
         use std::arch::x86_64::*;
         const LANES: usize = 8;
         let n = n.min(RUN);
@@ -498,6 +485,19 @@ impl Context<'_> {
         }
         i
     }
+}
+
+/// One run's shadow tests under one light: its shadow map, the run's image coordinates in
+/// it and depths, the triangle the run sees, its length and what a point behind the light
+/// gets.
+#[derive(Clone, Copy)]
+struct ShadowRun<'a> {
+    map: &'a ZBuffer,
+    q: &'a ImageCoordinates,
+    z: &'a [f64; RUN],
+    t: usize,
+    n: usize,
+    behind: Behind,
 }
 
 /// What a shadow test gives a point behind a light or outside its shadow map.
