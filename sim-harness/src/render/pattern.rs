@@ -163,12 +163,39 @@ impl ProjectorImage {
         }
     }
 
-    /// Adds the pattern's light to the first pixels of a run, sixteen at a time with
-    /// AVX-512 where this machine has it: `out[i] = scale * base[i] + proj[i] *
+    /// The light of a run of pixels, one at a time: `out[i] = scale * base[i] + proj[i] *
     /// sample_defocused(uv[i], blur[i])` (`sample` when `blur` is empty) wherever `proj[i]`
-    /// is positive, else `scale * base[i]`. Returns how many pixels it did (a multiple of
-    /// sixteen, 0 without AVX-512); the caller does the rest one at a time, with the same
-    /// bits (oracle test).
+    /// is positive, else `scale * base[i]`.
+    #[inline(always)]
+    pub fn add_light(&self, scale: f32, run: LightRun<'_>, out: &mut [f32]) {
+        let n = out.len();
+        let LightRun { base, proj, uv, blur } = run;
+        let (base, proj, uv) = (&base[..n], &proj[..n], &uv[..n]);
+        if blur.len() >= n {
+            for x in 0..n {
+                let mut g = scale * base[x];
+                let p = proj[x];
+                if p > 0.0 {
+                    g += p * self.sample_defocused(uv[x][0], uv[x][1], blur[x]);
+                }
+                out[x] = g;
+            }
+        } else {
+            for x in 0..n {
+                let mut g = scale * base[x];
+                let p = proj[x];
+                if p > 0.0 {
+                    g += p * self.sample(uv[x][0], uv[x][1]);
+                }
+                out[x] = g;
+            }
+        }
+    }
+
+    /// [`ProjectorImage::add_light`] on the first pixels of a run, sixteen at a time with
+    /// AVX-512 where this machine has it, with the same bits (oracle test). Returns how
+    /// many pixels it did (a multiple of sixteen, 0 without AVX-512); the caller does the
+    /// rest one at a time.
     #[inline(always)]
     pub fn add_light_wide(&self, scale: f32, run: LightRun<'_>, out: &mut [f32]) -> usize {
         #[cfg(target_arch = "x86_64")]
@@ -334,6 +361,14 @@ pub struct LightRun<'a> {
     pub blur: &'a [(u32, f32)],
 }
 
+impl<'a> LightRun<'a> {
+    /// The run from pixel `k` on.
+    pub fn from(self, k: usize) -> LightRun<'a> {
+        let blur = if self.blur.is_empty() { self.blur } else { &self.blur[k..] };
+        LightRun { base: &self.base[k..], proj: &self.proj[k..], uv: &self.uv[k..], blur }
+    }
+}
+
 /// Where a bilinear sample reads: two row starts, two columns and the fractions.
 #[derive(Debug, Clone, Copy)]
 struct Taps {
@@ -444,19 +479,6 @@ mod tests {
         }
     }
 
-    /// The pixel-by-pixel light of a run: the obvious version of `add_light_wide`.
-    fn light_one_by_one(p: &ProjectorImage, scale: f32, run: LightRun<'_>, out: &mut [f32]) {
-        for (i, o) in out.iter_mut().enumerate() {
-            let mut g = scale * run.base[i];
-            if run.proj[i] > 0.0 {
-                let (u, v) = (run.uv[i][0], run.uv[i][1]);
-                g += run.proj[i]
-                    * if run.blur.is_empty() { p.sample(u, v) } else { p.sample_defocused(u, v, run.blur[i]) };
-            }
-            *o = g;
-        }
-    }
-
     #[test]
     fn light_sixteen_at_a_time_is_the_light_one_by_one() {
         let mut rng = ChaCha8Rng::seed_from_u64(12);
@@ -506,18 +528,12 @@ mod tests {
             for blur in [&blurs[..], &[]] {
                 let run = LightRun { base: &base, proj: &proj, uv: &uv, blur };
                 let mut want = vec![0.0; n];
-                light_one_by_one(&p, 1.5, run, &mut want);
+                p.add_light(1.5, run, &mut want);
                 let mut got = vec![f32::NAN; n];
                 let done = p.add_light_wide(1.5, run, &mut got);
                 assert_eq!(done % 16, 0);
                 ran_wide |= done > 0;
-                let tail = LightRun {
-                    base: &base[done..],
-                    proj: &proj[done..],
-                    uv: &uv[done..],
-                    blur: &blur[done.min(blur.len())..],
-                };
-                light_one_by_one(&p, 1.5, tail, &mut got[done..]);
+                p.add_light(1.5, run.from(done), &mut got[done..]);
                 for i in 0..n {
                     assert_eq!(
                         got[i].to_bits(),

@@ -276,26 +276,9 @@ fn shade_band_body(pattern: &ProjectorImage, exposure: Exposure, first: u64, ter
         Exposure::Light(scale) => scale,
         Exposure::Sensed(_) => 1.0,
     };
-    let done = pattern.add_light_wide(scale, LightRun { base, proj, uv, blur }, out);
-    if blur.len() == n {
-        for x in done..n {
-            let mut g = scale * base[x];
-            let p = proj[x];
-            if p > 0.0 {
-                g += p * pattern.sample_defocused(uv[x][0], uv[x][1], blur[x]);
-            }
-            out[x] = g;
-        }
-    } else {
-        for x in done..n {
-            let mut g = scale * base[x];
-            let p = proj[x];
-            if p > 0.0 {
-                g += p * pattern.sample(uv[x][0], uv[x][1]);
-            }
-            out[x] = g;
-        }
-    }
+    let run = LightRun { base, proj, uv, blur };
+    let done = pattern.add_light_wide(scale, run, out);
+    pattern.add_light(scale, run.from(done), &mut out[done..]);
     if let Exposure::Sensed(noise) = exposure {
         read_out(out, first, noise);
     }

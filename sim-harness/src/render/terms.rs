@@ -104,7 +104,8 @@ pub(super) struct Context<'a> {
     pub(super) terms: &'a [TriangleTerms],
     pub(super) triangles: &'a [SceneTriangle],
     pub(super) lights: &'a Lights<'a>,
-    /// Whether this machine runs the AVX-512 shadow tests ([`crate::render`] checks once).
+    /// Whether this machine runs the AVX-512 shadow tests (checked once per camera and frame,
+    /// where the context is made).
     pub(super) wide: bool,
 }
 
@@ -385,9 +386,7 @@ impl Context<'_> {
         z_light * inverse_depth <= 1.0 + SHADOW_BIAS_MM * inverse_depth
             || same_surface(&self.triangles[o as usize], &self.triangles[t])
     }
-}
 
-impl Context<'_> {
     /// The shadow tests of a run's first pixels under a light whose shadow map is `map`,
     /// eight at a time with AVX-512 where this machine has it, into `out`: the per-pixel
     /// tests' verdicts (`behind` says what a point behind the light or outside its map
