@@ -7,8 +7,9 @@
 //! per-triangle value is a constant of the run. Each run goes in passes: the geometry
 //! (depth, surface point, the projector's and the lamp's image coordinates) and the light
 //! (distances, cosines, glossy lobes) are straight-line f64 arithmetic the compiler runs in
-//! vector lanes; only the shadow-map lookups and the rare powers of a glossy lobe near its
-//! mirror direction go pixel by pixel. Every pass does the IEEE operations of the per-pixel
+//! vector lanes, the projector's blur levels too; only the shadow-map lookups, the rare
+//! powers of a glossy lobe near its mirror direction and the stores of what only lit pixels
+//! get go pixel by pixel. Every pass does the IEEE operations of the per-pixel
 //! formula in its order, so the terms are bit for bit those of the one-pixel-at-a-time
 //! version kept for the tests.
 
@@ -17,12 +18,13 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use crate::render::defocus::level_weight;
+use crate::render::defocus::{level_weight, LEVELS};
 use crate::render::raster::{MapPixel, View, ZBuffer, NO_TRIANGLE};
 use crate::render::shade::{Lights, SHADOW_BIAS_MM};
 use crate::scene::{Gloss, SceneTriangle, ID_TABLE};
 
-/// Longest run of pixels taken in one set of passes (its buffers live on the stack).
+/// Longest run of pixels taken in one set of passes (their buffers, one set per row, live on
+/// the stack).
 const RUN: usize = 32;
 
 /// 0, 1, 2, ... as f64: a run's pixel x is its first x plus these, exactly.
@@ -127,6 +129,7 @@ impl Context<'_> {
         let Row { tri, base, projector, uv, blur, depth, ids } = row;
         let (base, projector, uv, depth, ids) =
             (&mut base[..w], &mut projector[..w], &mut uv[..w], &mut depth[..w], &mut ids[..w]);
+        let mut scratch = RunScratch::default();
         let mut x0 = 0;
         while x0 < w {
             let t = tri[x0];
@@ -149,21 +152,23 @@ impl Context<'_> {
                         depth: &mut depth[span.clone()],
                         ids: &mut ids[span],
                     };
-                    self.run(fy, x0, t as usize, tt, out);
+                    self.run(fy, x0, t as usize, tt, out, &mut scratch);
                 }
             }
             x0 = x1;
         }
     }
 
-    /// The terms of a run of pixels from (`x0`, `fy`) that all see triangle `t`.
+    /// The terms of a run of pixels from (`x0`, `fy`) that all see triangle `t`, its
+    /// passes' values in `s` (each pass writes the lanes it reads later).
     #[inline(always)]
-    fn run(&self, fy: f64, x0: usize, t: usize, tt: &TriangleTerms, out: RunOut<'_>) {
+    fn run(&self, fy: f64, x0: usize, t: usize, tt: &TriangleTerms, out: RunOut<'_>, s: &mut RunScratch) {
         // Bounded by RUN in the compiler's eyes too, so that the passes carry no index checks.
         let n = out.base.len().min(RUN);
         let RunOut { base, projector, uv, blur, depth, ids } = out;
         let (base, projector, uv, depth, ids) =
             (&mut base[..n], &mut projector[..n], &mut uv[..n], &mut depth[..n], &mut ids[..n]);
+        let RunScratch { geometry, to_camera, light, highlight, mask, cos, gain, q, reach, lobe, half, level } = s;
         let fx0 = x0 as f64;
         let l = self.lights;
         let [rx, ry, r0] = self.rays;
@@ -171,7 +176,6 @@ impl Context<'_> {
         let ray_row: [f64; 3] = std::array::from_fn(|i| ry[i] * fy + r0[i]);
         let [a, b, c] = tt.plane;
         let b_fy = b * fy;
-        let mut geometry = Geometry::default();
         for i in 0..n {
             let fx = fx0 + OFFSETS[i];
             let inv_z = a * fx + b_fy + c;
@@ -183,7 +187,6 @@ impl Context<'_> {
             }
         }
         let glossy = tt.gloss.specular > 0.0;
-        let mut to_camera = [[0.0; RUN]; 3];
         if glossy {
             for i in 0..n {
                 let v = unit(sub(&self.centre, &geometry.at(i)));
@@ -192,15 +195,16 @@ impl Context<'_> {
                 }
             }
         }
-        let mut light = [l.ambient; RUN];
-        let mut highlight = [0.0; RUN];
+        light[..n].fill(l.ambient);
+        highlight[..n].fill(0.0);
         if tt.lamp_facing > 0.0 {
-            let mut visible = [true; RUN];
+            let visible = &mut *mask;
+            visible[..n].fill(true);
             if let Some((_, map)) = l.lamp_shadow {
                 // Outside the lamp's map there is nothing that could shadow.
-                let q = image_coordinates(&tt.h_lamp, fx0, fy, n);
-                let run = ShadowRun { map, q: &q, z: &geometry.z, t, n, behind: Behind::Lit };
-                let done = self.shadow_tests_wide(run, &mut visible);
+                image_coordinates(&tt.h_lamp, fx0, fy, n, q);
+                let run = ShadowRun { map, q, z: &geometry.z, t, n, behind: Behind::Lit };
+                let done = self.shadow_tests_wide(run, visible);
                 for i in done..n {
                     let qz = q.qz[i];
                     visible[i] = qz <= 0.0
@@ -210,28 +214,27 @@ impl Context<'_> {
                         };
                 }
             }
-            let mut cos = [0.0; RUN];
-            let reach = distances(&self.lamp_position, &geometry, n);
+            distances(&self.lamp_position, geometry, n, reach);
             for i in 0..n {
                 cos[i] = tt.lamp_facing / reach[i];
                 let lit = l.ambient + l.lamp_strength * cos[i];
                 light[i] = if visible[i] { lit } else { l.ambient };
             }
             if glossy {
-                let lobe = lobes(&tt.gloss, &tt.normal, &self.lamp_position, &reach, &geometry, &to_camera, n);
+                lobes(&tt.gloss, &tt.normal, &self.lamp_position, reach, geometry, to_camera, n, half, lobe);
                 for i in 0..n {
                     let h = 0.0 + 255.0 * lobe[i] * l.lamp_strength * cos[i];
                     highlight[i] = if visible[i] { h } else { 0.0 };
                 }
             }
         }
-        let mut gain = [0.0; RUN];
+        gain[..n].fill(0.0);
         if l.projector_gain > 0.0 && tt.projector_facing > 0.0 {
-            let q = image_coordinates(&tt.h_projector, fx0, fy, n);
+            image_coordinates(&tt.h_projector, fx0, fy, n, q);
             let map = l.projector_shadow;
-            let mut lit = [false; RUN];
-            let run = ShadowRun { map, q: &q, z: &geometry.z, t, n, behind: Behind::Dark };
-            let done = self.shadow_tests_wide(run, &mut lit);
+            let lit = &mut *mask;
+            let run = ShadowRun { map, q, z: &geometry.z, t, n, behind: Behind::Dark };
+            let done = self.shadow_tests_wide(run, lit);
             for i in done..n {
                 let qz = q.qz[i];
                 lit[i] = qz > 0.0
@@ -241,24 +244,40 @@ impl Context<'_> {
                         MapPixel::Pixel(p) => self.unshadowed(map, p, t, qz * geometry.z[i]),
                     };
             }
-            let reach = distances(&self.projector_centre, &geometry, n);
-            let lobe = if glossy {
-                lobes(&tt.gloss, &tt.normal, &self.projector_centre, &reach, &geometry, &to_camera, n)
+            distances(&self.projector_centre, geometry, n, reach);
+            if glossy {
+                lobes(&tt.gloss, &tt.normal, &self.projector_centre, reach, geometry, to_camera, n, half, lobe);
             } else {
-                [0.0; RUN]
-            };
+                lobe[..n].fill(0.0);
+            }
+            // Each pass apart, so that the arithmetic runs in lanes and only the stores of
+            // the lit pixels' coordinates and blurs go one at a time.
             for i in 0..n {
                 let cos = tt.projector_facing / reach[i];
                 let g = (tt.albedo + 255.0 * lobe[i]) * l.projector_gain * cos;
                 gain[i] = if lit[i] { g } else { 0.0 };
-                uv[i] = if lit[i] { [q.u[i] as f32, q.v[i] as f32] } else { uv[i] };
+            }
+            for i in 0..n {
+                if lit[i] {
+                    uv[i] = [q.u[i] as f32, q.v[i] as f32];
+                }
             }
             if let Some((lens, top)) = &l.projector_lens {
                 let blur = &mut blur[..n];
+                let (ks, ws) = level;
+                // A stack's top level is one of its levels; bounded here, the loop below
+                // carries no index check.
+                let top = (*top).min(LEVELS.len() - 1);
                 for i in 0..n {
                     // The point lies qz z from the projector along its axis.
-                    let (k, w) = level_weight(lens.sigma_px_at_inverse(q.inv_qz[i] * geometry.inv_z[i]), *top);
-                    blur[i] = if lit[i] { (k as u32, w) } else { blur[i] };
+                    let (k, w) = level_weight(lens.sigma_px_at_inverse(q.inv_qz[i] * geometry.inv_z[i]), top);
+                    ks[i] = k as u32;
+                    ws[i] = w;
+                }
+                for i in 0..n {
+                    if lit[i] {
+                        blur[i] = (ks[i], ws[i]);
+                    }
                 }
             }
         }
@@ -518,6 +537,60 @@ struct RunOut<'r> {
     ids: &'r mut [u8],
 }
 
+/// The values a run's passes hand on to later ones, made once per row and reused run after
+/// run: a pass writes the first `n` lanes of what it fills before any later pass reads them,
+/// so nothing is cleared between runs.
+struct RunScratch {
+    geometry: Geometry,
+    /// Unit vectors from the surface to the camera (glossy surfaces only).
+    to_camera: [[f64; RUN]; 3],
+    /// Base light, and the lamp's highlight.
+    light: [f64; RUN],
+    highlight: [f64; RUN],
+    /// A shadow test's verdicts: visible from the lamp, then lit by the projector.
+    mask: [bool; RUN],
+    /// The lamp's cosine over distance.
+    cos: [f64; RUN],
+    /// The projector's gain.
+    gain: [f64; RUN],
+    /// Image coordinates in the lamp's view, then in the projector's.
+    q: ImageCoordinates,
+    /// Distances to the lamp, then to the projector.
+    reach: [f64; RUN],
+    /// A glossy lobe towards the camera, and its half-way vectors.
+    lobe: [f64; RUN],
+    half: HalfWays,
+    /// The projector's blur level and weight.
+    level: ([u32; RUN], [f32; RUN]),
+}
+
+impl Default for RunScratch {
+    fn default() -> Self {
+        RunScratch {
+            geometry: Geometry::default(),
+            to_camera: [[0.0; RUN]; 3],
+            light: [0.0; RUN],
+            highlight: [0.0; RUN],
+            mask: [false; RUN],
+            cos: [0.0; RUN],
+            gain: [0.0; RUN],
+            q: ImageCoordinates { qz: [0.0; RUN], inv_qz: [0.0; RUN], u: [0.0; RUN], v: [0.0; RUN] },
+            reach: [0.0; RUN],
+            lobe: [0.0; RUN],
+            half: HalfWays { dots: [0.0; RUN], lengths2: [0.0; RUN], near: [false; RUN] },
+            level: ([0; RUN], [0.0; RUN]),
+        }
+    }
+}
+
+/// A run's half-way vectors between a light and the camera: their dot products with the
+/// normal, their squared lengths and whether the lobe is near its mirror direction there.
+struct HalfWays {
+    dots: [f64; RUN],
+    lengths2: [f64; RUN],
+    near: [bool; RUN],
+}
+
 /// A run's inverse depths, depths (mm along the camera's z) and surface points (world mm).
 struct Geometry {
     inv_z: [f64; RUN],
@@ -548,11 +621,11 @@ struct ImageCoordinates {
     v: [f64; RUN],
 }
 
-/// The image coordinates through homography `h` of the `n` pixels from (`fx0`, `fy`).
+/// The image coordinates through homography `h` of the `n` pixels from (`fx0`, `fy`), into
+/// `q`'s first `n` lanes.
 #[inline(always)]
-fn image_coordinates(h: &[[f64; 3]; 3], fx0: f64, fy: f64, n: usize) -> ImageCoordinates {
+fn image_coordinates(h: &[[f64; 3]; 3], fx0: f64, fy: f64, n: usize, q: &mut ImageCoordinates) {
     let n = n.min(RUN);
-    let mut q = ImageCoordinates { qz: [0.0; RUN], inv_qz: [0.0; RUN], u: [0.0; RUN], v: [0.0; RUN] };
     let [hu, hv, hz] = h.map(|row| (row[0], row[1] * fy, row[2]));
     for i in 0..n {
         let fx = fx0 + OFFSETS[i];
@@ -563,14 +636,15 @@ fn image_coordinates(h: &[[f64; 3]; 3], fx0: f64, fy: f64, n: usize) -> ImageCoo
         q.u[i] = (hu.0 * fx + hu.1 + hu.2) * inv;
         q.v[i] = (hv.0 * fx + hv.1 + hv.2) * inv;
     }
-    q
 }
 
 /// The glossy lobe of the `n` points of a run towards the camera under a light at `light`,
 /// `reach` away from each: the half-way vectors in vector lanes, the root and the power only
-/// where the lobe is not negligible. The direction to the light is the difference over
-/// `reach`, the very root [`unit`] would take again.
+/// where the lobe is not negligible, into `lobe`'s first `n` lanes (`half` holds the
+/// half-way vectors' dot products and lengths). The direction to the light is the
+/// difference over `reach`, the very root [`unit`] would take again.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn lobes(
     gloss: &Gloss,
     normal: &[f64; 3],
@@ -579,11 +653,11 @@ fn lobes(
     geometry: &Geometry,
     to_camera: &[[f64; RUN]; 3],
     n: usize,
-) -> [f64; RUN] {
+    half: &mut HalfWays,
+    lobe: &mut [f64; RUN],
+) {
     let n = n.min(RUN);
-    let mut dots = [0.0; RUN];
-    let mut lengths2 = [0.0; RUN];
-    let mut near = [false; RUN];
+    let HalfWays { dots, lengths2, near } = half;
     for i in 0..n {
         let v = sub(light, &geometry.at(i));
         let inv = 1.0 / reach[i];
@@ -594,23 +668,17 @@ fn lobes(
         dots[i] = dot;
         lengths2[i] = length2;
     }
-    let mut lobe = [0.0; RUN];
     for i in 0..n {
-        if near[i] {
-            lobe[i] = gloss.reflectance(dots[i] / lengths2[i].sqrt());
-        }
+        lobe[i] = if near[i] { gloss.reflectance(dots[i] / lengths2[i].sqrt()) } else { 0.0 };
     }
-    lobe
 }
 
-/// The distances from `light` to the `n` points of a run.
+/// The distances from `light` to the `n` points of a run, into `reach`'s first `n` lanes.
 #[inline(always)]
-fn distances(light: &[f64; 3], geometry: &Geometry, n: usize) -> [f64; RUN] {
-    let mut reach = [0.0; RUN];
+fn distances(light: &[f64; 3], geometry: &Geometry, n: usize, reach: &mut [f64; RUN]) {
     for i in 0..n.min(RUN) {
         reach[i] = distance(light, &geometry.at(i));
     }
-    reach
 }
 
 /// Euclidean distance between two points.
