@@ -310,7 +310,14 @@ pub struct EstimatorParams {
     /// Whether the pose turned by quarter turns is scored too (beyond the paper).
     pub turn_check: bool,
     pub seed: u64,
+    /// Fill states the model builder captures per viewpoint, full to empty evenly apart
+    /// (at most slots + 1, every state).
+    pub model_fill_states: u32,
 }
+
+/// The most fill states per viewpoint a model may be built from (a tray with more slots
+/// than this takes an evenly spread subset anyway).
+const MAX_MODEL_FILL_STATES: u32 = 1000;
 
 /// How a pose estimate is judged.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -612,6 +619,15 @@ impl Cell {
             return Err(Error::value(
                 "estimator.normal_radius",
                 "expected at least surface_resolution, or a normal has too few points to fit",
+            ));
+        }
+        if !(1..=MAX_MODEL_FILL_STATES).contains(&e.model_fill_states) {
+            return Err(Error::value(
+                "estimator.model_fill_states",
+                format!(
+                    "expected a whole number of fill states from 1 (the full tray only) to {MAX_MODEL_FILL_STATES}, got {}",
+                    e.model_fill_states
+                ),
             ));
         }
         pos("estimator.keypoint_spacing", e.keypoint_spacing)?;
@@ -966,5 +982,18 @@ mod tests {
     fn wrong_type_is_named() {
         let e = Cell::from_toml_str("[estimator]\nk = \"many\"\n", Path::new(".")).unwrap_err();
         assert_eq!(e.key(), "estimator.k", "{e}");
+    }
+
+    #[test]
+    fn model_fill_states_out_of_range_are_named() {
+        for bad in ["0", "1001", "-3", "2.5"] {
+            let text = format!("[estimator]\nmodel_fill_states = {bad}\n");
+            let e = Cell::from_toml_str(&text, Path::new(".")).unwrap_err();
+            assert_eq!(e.key(), "estimator.model_fill_states", "{bad}: {e}");
+        }
+        for good in [1, 3, 1000] {
+            let text = format!("[estimator]\nmodel_fill_states = {good}\n");
+            assert_eq!(Cell::from_toml_str(&text, Path::new(".")).unwrap().estimator.model_fill_states, good);
+        }
     }
 }

@@ -1,6 +1,7 @@
 //! Builds the tray model the estimator loads, after the paper §3: the tray alone, turned
-//! about z in 60° steps, each turn captured full and then with the item closest to the
-//! sensor removed until empty, every capture rendered and reconstructed by the very sensor
+//! about z in 60° steps, each turn captured full and then with the items closest to the
+//! sensor removed until empty — in the cell's `model_fill_states` steps, evenly apart, where
+//! the paper takes one item at a time — every capture rendered and reconstructed by the very sensor
 //! and estimator stages of the placement. Each capture's key points and descriptors are
 //! the estimator's own (same spacing, radius and relief filter); a viewpoint's fill states
 //! then share the features they agree on. The file format is the estimator's.
@@ -91,8 +92,9 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
             order.into_iter().map(|(n, _)| n).collect()
         })
         .collect();
-    let states = slots + 1;
     let params = &cell.estimator;
+    let removed = fill_states(slots, params.model_fill_states as usize);
+    let states = removed.len();
     // Without a table the stereo matcher may still fill the empty background with surfaces
     // interpolated across gaps; only what lies on the tray and its items belongs to the model.
     let (lo, hi) = tray_bounds(probe.objects(), slots, CROP_MARGIN_MM);
@@ -106,7 +108,7 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
     };
     let captures = each_index(VIEWPOINTS * states, setup, |(sim, rec, features, frame, reconstruction), index| {
         let (v, state) = (index / states, index % states);
-        let mut filled: Vec<usize> = removal[v][state..].to_vec();
+        let mut filled: Vec<usize> = removal[v][removed[state]..].to_vec();
         filled.sort_unstable();
         let scene = SceneSpec { t_world_tray: poses[v], filled, ..base.clone() };
         sim.render(&scene, method, noise_key(seed, MODEL_NOISE_OFFSET + index as u64, false), frame);
@@ -163,6 +165,18 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
     // model used as built and one read back from a file or a study's cache give the same
     // poses.
     Ok(Model::from_bytes(&model.to_bytes())?)
+}
+
+/// How many items each of `wanted` fill states of a tray with `slots` slots has taken out:
+/// 0 (full) to `slots` (empty), evenly apart and rounded, ascending. With `wanted` above
+/// `slots + 1` every state is taken; with 1, the full tray alone.
+fn fill_states(slots: usize, wanted: usize) -> Vec<usize> {
+    let n = wanted.clamp(1, slots + 1);
+    if n == 1 {
+        return vec![0];
+    }
+    // Steps of slots / (n - 1) >= 1 apart round to distinct counts.
+    (0..n).map(|k| (k * slots + (n - 1) / 2) / (n - 1)).collect()
 }
 
 /// Bounding box, tray frame, of the tray with every slot filled, grown by `margin` mm.
@@ -251,4 +265,30 @@ fn merge_fill_states(captures: &[Capture], radius: f32, model: &mut Model) {
 /// Every ICP point of the model, tray frame (what `model.ply` shows).
 pub fn model_points(model: &Model) -> Vec<[f32; 3]> {
     model.views.iter().flat_map(|v| v.points.iter().map(|p| [p.x, p.y, p.z])).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fill_states_run_from_full_to_empty_evenly_apart() {
+        assert_eq!(fill_states(8, 3), vec![0, 4, 8]);
+        assert_eq!(fill_states(8, 5), vec![0, 2, 4, 6, 8]);
+        assert_eq!(fill_states(8, 2), vec![0, 8]);
+        assert_eq!(fill_states(4, 3), vec![0, 2, 4]);
+        assert_eq!(fill_states(7, 3), vec![0, 4, 7]);
+        assert_eq!(fill_states(8, 1), vec![0]);
+        assert_eq!(fill_states(0, 3), vec![0]);
+        // More states than the tray has: every one, as the paper builds it.
+        assert_eq!(fill_states(4, 1000), vec![0, 1, 2, 3, 4]);
+        for slots in 0..40 {
+            for wanted in 1..45 {
+                let s = fill_states(slots, wanted);
+                assert_eq!(s.len(), wanted.min(slots + 1), "{slots} slots, {wanted} wanted");
+                assert_eq!((s[0], *s.last().unwrap()), (0, if s.len() > 1 { slots } else { 0 }));
+                assert!(s.windows(2).all(|w| w[0] < w[1]), "{slots} slots, {wanted} wanted: {s:?}");
+            }
+        }
+    }
 }
