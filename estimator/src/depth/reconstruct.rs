@@ -210,12 +210,8 @@ impl Reconstructor {
             check_size("right", i, img, self.raw_right)?;
         }
         let t = Instant::now();
-        for (raw, rect) in left.iter().zip(self.rect_left.iter_mut()) {
-            self.rectification.rectify_left(raw, rect);
-        }
-        for (raw, rect) in right.iter().zip(self.rect_right.iter_mut()) {
-            self.rectification.rectify_right(raw, rect);
-        }
+        self.rectification.rectify_left_shots(left, &mut self.rect_left);
+        self.rectification.rectify_right_shots(right, &mut self.rect_right);
         timings.rectify_ms = ms(t);
         let t = Instant::now();
         let range = self.rectification.disparity_range();

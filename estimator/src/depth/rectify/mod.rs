@@ -3,6 +3,7 @@
 //! it, and the disparity search range. Matching itself lives in `stereo`.
 
 mod camera;
+mod resample;
 
 pub use camera::RectifiedCamera;
 
@@ -153,13 +154,27 @@ impl Rectification {
     /// Resamples a raw left image onto the rectified canvas (0 where the raw image ends).
     /// A raw image of the wrong size yields an all-black canvas.
     pub fn rectify_left(&self, raw: &GrayImage, out: &mut GrayImage) {
-        remap(&self.map_left, self.left.width, self.left.height, &self.camera, raw, out);
+        self.rectify_left_shots(std::slice::from_ref(raw), std::slice::from_mut(out));
     }
 
     /// Resamples a raw right image onto the rectified canvas (0 where the raw image ends).
     /// A raw image of the wrong size yields an all-black canvas.
     pub fn rectify_right(&self, raw: &GrayImage, out: &mut GrayImage) {
-        remap(&self.map_right, self.right.width, self.right.height, &self.camera, raw, out);
+        self.rectify_right_shots(std::slice::from_ref(raw), std::slice::from_mut(out));
+    }
+
+    /// [`Rectification::rectify_left`] of every shot of a frame, `raws[i]` into `outs[i]`,
+    /// in one pass over the remap table.
+    pub fn rectify_left_shots(&self, raws: &[GrayImage], outs: &mut [GrayImage]) {
+        let canvas = (self.camera.width, self.camera.height);
+        resample::remap_shots(&self.map_left, (self.left.width, self.left.height), canvas, raws, outs);
+    }
+
+    /// [`Rectification::rectify_right`] of every shot of a frame, `raws[i]` into `outs[i]`,
+    /// in one pass over the remap table.
+    pub fn rectify_right_shots(&self, raws: &[GrayImage], outs: &mut [GrayImage]) {
+        let canvas = (self.camera.width, self.camera.height);
+        resample::remap_shots(&self.map_right, (self.right.width, self.right.height), canvas, raws, outs);
     }
 
     /// The disparities (px) the seen work volume spans at this placement, with a margin:
@@ -385,120 +400,6 @@ fn round_non_negative(a: f64) -> f64 {
     } else {
         f
     }
-}
-
-fn remap(map: &[RemapEntry], raw_w: usize, raw_h: usize, cam: &RectifiedCamera, raw: &GrayImage, out: &mut GrayImage) {
-    out.reset(cam.width, cam.height, 0);
-    if raw.width != raw_w || raw.height != raw_h || raw.data.len() != raw_w * raw_h {
-        return;
-    }
-    let src = &raw.data;
-    #[cfg(target_arch = "x86_64")]
-    let wide = crate::cpu::Avx512::detect();
-    out.data.par_chunks_mut(cam.width).zip(map.par_chunks(cam.width)).for_each(|(row, entries)| {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(proof) = wide {
-            return remap_row_wide(proof, src, raw_w, entries, row);
-        }
-        remap_pixels(src, raw_w, entries, row);
-    });
-}
-
-/// Resamples `entries` into `row` one pixel at a time: the reference the vector path
-/// equals.
-fn remap_pixels(src: &[u8], raw_w: usize, entries: &[RemapEntry], row: &mut [u8]) {
-    for (o, e) in row.iter_mut().zip(entries) {
-        if e.index == OUTSIDE {
-            *o = 0;
-            continue;
-        }
-        let i = e.index as usize;
-        let (a, b) = (src[i] as u32, src[i + 1] as u32);
-        let (c, d) = (src[i + raw_w] as u32, src[i + raw_w + 1] as u32);
-        let (fx, fy) = (e.frac_x as u32, e.frac_y as u32);
-        let top = a * (FRAC_ONE - fx) + b * fx;
-        let bottom = c * (FRAC_ONE - fx) + d * fx;
-        let v = top * (FRAC_ONE - fy) + bottom * fy;
-        *o = ((v + (1 << (2 * FRAC_BITS - 1))) >> (2 * FRAC_BITS)) as u8;
-    }
-}
-
-/// [`remap_pixels`] sixteen pixels a step with AVX-512: two gathers of four bytes per
-/// pixel (the raw row pair's neighbours), the same 32-bit arithmetic, the same bits. A
-/// step whose reads might pass the end of `src` (a lane within a row and 3 bytes of it)
-/// and the row's last pixels go one at a time.
-#[cfg(target_arch = "x86_64")]
-fn remap_row_wide(_proof: crate::cpu::Avx512, src: &[u8], raw_w: usize, entries: &[RemapEntry], row: &mut [u8]) {
-    // SAFETY: the proof shows this machine runs AVX-512 F and BW.
-    unsafe { remap_row_avx512(src, raw_w, entries, row) }
-}
-
-/// # Safety
-///
-/// The machine runs AVX-512 F and BW.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512bw")]
-fn remap_row_avx512(src: &[u8], raw_w: usize, entries: &[RemapEntry], row: &mut [u8]) {
-    use std::arch::x86_64::*;
-    const LANES: usize = 16;
-    let n = row.len().min(entries.len());
-    // A lane reads src[i ..= i + 3] and src[i + raw_w ..= i + raw_w + 3]: inside when
-    // i + raw_w + 3 < src.len(), which outside lanes (read at i = 0) need as well.
-    let Some(limit) = src.len().checked_sub(raw_w + 3) else {
-        return remap_pixels(src, raw_w, entries, row);
-    };
-    if limit == 0 || limit > i32::MAX as usize {
-        return remap_pixels(src, raw_w, entries, row);
-    }
-    let (even, odd) = (
-        _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30),
-        _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31),
-    );
-    let (one, byte, low16) = (_mm512_set1_epi32(FRAC_ONE as i32), _mm512_set1_epi32(0xff), _mm512_set1_epi32(0xffff));
-    let round = _mm512_set1_epi32(1 << (2 * FRAC_BITS - 1));
-    let (outside, below) = (_mm512_set1_epi32(OUTSIDE as i32), _mm512_set1_epi32(limit as i32));
-    let down = _mm512_set1_epi32(raw_w as i32);
-    let mut x = 0;
-    while x + LANES <= n {
-        // SAFETY: 16 entries of 8 bytes (repr(C): index, frac_x, frac_y) from x, inside
-        // `entries` as x + 16 <= n.
-        let (lo, hi) = unsafe {
-            let at = entries.as_ptr().add(x).cast::<i32>();
-            (_mm512_loadu_si512(at.cast()), _mm512_loadu_si512(at.add(LANES).cast()))
-        };
-        let index = _mm512_permutex2var_epi32(lo, even, hi);
-        let frac = _mm512_permutex2var_epi32(lo, odd, hi);
-        let out_mask = _mm512_cmpeq_epi32_mask(index, outside);
-        // Unsigned, so OUTSIDE (all ones) is not below anything.
-        let safe = _mm512_cmplt_epu32_mask(index, below) | out_mask;
-        if safe != 0xffff {
-            remap_pixels(src, raw_w, &entries[x..x + LANES], &mut row[x..x + LANES]);
-            x += LANES;
-            continue;
-        }
-        let index = _mm512_maskz_mov_epi32(!out_mask, index);
-        // SAFETY: every lane's index is below `limit` (outside lanes read at 0), so both
-        // four-byte reads lie inside `src`.
-        let (top, bottom) = unsafe {
-            (
-                _mm512_i32gather_epi32::<1>(index, src.as_ptr().cast()),
-                _mm512_i32gather_epi32::<1>(_mm512_add_epi32(index, down), src.as_ptr().cast()),
-            )
-        };
-        let (a, b) = (_mm512_and_si512(top, byte), _mm512_and_si512(_mm512_srli_epi32::<8>(top), byte));
-        let (c, d) = (_mm512_and_si512(bottom, byte), _mm512_and_si512(_mm512_srli_epi32::<8>(bottom), byte));
-        let (fx, fy) = (_mm512_and_si512(frac, low16), _mm512_srli_epi32::<16>(frac));
-        let (gx, gy) = (_mm512_sub_epi32(one, fx), _mm512_sub_epi32(one, fy));
-        let upper = _mm512_add_epi32(_mm512_mullo_epi32(a, gx), _mm512_mullo_epi32(b, fx));
-        let lower = _mm512_add_epi32(_mm512_mullo_epi32(c, gx), _mm512_mullo_epi32(d, fx));
-        let v = _mm512_add_epi32(_mm512_mullo_epi32(upper, gy), _mm512_mullo_epi32(lower, fy));
-        let v = _mm512_srli_epi32::<{ 2 * FRAC_BITS }>(_mm512_add_epi32(v, round));
-        let v = _mm512_maskz_mov_epi32(!out_mask, v);
-        // SAFETY: 16 bytes into row[x .. x + 16], inside as x + 16 <= n.
-        unsafe { _mm_storeu_si128(row.as_mut_ptr().add(x).cast(), _mm512_cvtepi32_epi8(v)) };
-        x += LANES;
-    }
-    remap_pixels(src, raw_w, &entries[x..n], &mut row[x..n]);
 }
 
 /// The rectified-left extent and disparities of the work volume where both cameras see it.
@@ -864,40 +765,6 @@ mod tests {
             })
             .count();
         assert!(behind > 0, "expected part of the canvas behind the turned camera");
-    }
-
-    #[test]
-    fn vector_resampling_gives_the_bits_of_one_pixel_at_a_time() {
-        // Random tables over small raw images: outside entries, indices up to the last
-        // pixel whose 2 x 2 neighbourhood exists (so near the end of the buffer, where the
-        // vector reads would pass it), every fraction, rows of awkward lengths.
-        let Some(proof) = crate::cpu::Avx512::detect() else { return };
-        let mut rng = ChaCha8Rng::seed_from_u64(17);
-        let mut vector_steps = 0;
-        for (raw_w, raw_h) in [(2usize, 2usize), (3, 2), (17, 5), (64, 48), (5, 40)] {
-            let src: Vec<u8> = (0..raw_w * raw_h).map(|_| rng.random_range(0..=255u8)).collect();
-            for len in [0usize, 1, 15, 16, 17, 33, 64, 100] {
-                let entries: Vec<RemapEntry> = (0..len)
-                    .map(|_| {
-                        let (x, y) = (rng.random_range(0..raw_w - 1), rng.random_range(0..raw_h - 1));
-                        // Rare, so that most steps of 16 run the vector path.
-                        let near_end = rng.random_range(0..40) == 0;
-                        let (x, y) = if near_end { (raw_w - 2, raw_h - 2) } else { (x, y) };
-                        let index = if rng.random_range(0..5) == 0 { OUTSIDE } else { (y * raw_w + x) as u32 };
-                        let frac = |rng: &mut ChaCha8Rng| rng.random_range(0..=FRAC_ONE) as u16;
-                        RemapEntry { index, frac_x: frac(&mut rng), frac_y: frac(&mut rng) }
-                    })
-                    .collect();
-                let (mut slow, mut fast) = (vec![7u8; len], vec![9u8; len]);
-                remap_pixels(&src, raw_w, &entries, &mut slow);
-                remap_row_wide(proof, &src, raw_w, &entries, &mut fast);
-                assert_eq!(fast, slow, "{raw_w} x {raw_h}, {len} pixels");
-                let limit = (raw_w * raw_h).saturating_sub(raw_w + 3);
-                let fits = |e: &RemapEntry| e.index == OUTSIDE || (e.index as usize) < limit;
-                vector_steps += entries.chunks_exact(16).filter(|c| limit > 0 && c.iter().all(fits)).count();
-            }
-        }
-        assert!(vector_steps > 20, "only {vector_steps} steps of 16 took the vector path");
     }
 
     #[test]
