@@ -80,11 +80,20 @@ struct RunLine<'a> {
 }
 
 /// The folder and file name stem of `--latency-plot PATH`, checked before the run so a bad
-/// path cannot end a run whose poses were written.
+/// path cannot end a run whose poses were written. A name ending in `.png` or `.svg` stands
+/// for its stem: both files are drawn either way.
 fn plot_target(path: &Path) -> anyhow::Result<(PathBuf, String)> {
     let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let stem = |name: &str| {
+        [".png", ".svg"]
+            .iter()
+            .find_map(|ext| name.strip_suffix(ext))
+            .filter(|s| !s.is_empty())
+            .unwrap_or(name)
+            .to_string()
+    };
     match path.file_name().and_then(|n| n.to_str()) {
-        Some(name) if dir.is_dir() => Ok((dir.to_path_buf(), name.to_string())),
+        Some(name) if dir.is_dir() => Ok((dir.to_path_buf(), stem(name))),
         _ => bail!("--latency-plot {}: expected a file name (without extension) in an existing folder", path.display()),
     }
 }
@@ -170,4 +179,21 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_latency_plot_named_with_its_extension_is_drawn_under_its_stem() {
+        let dir = std::env::temp_dir();
+        for (given, stem) in
+            [("lat", "lat"), ("lat.png", "lat"), ("lat.svg", "lat"), ("lat.v2", "lat.v2"), (".png", ".png")]
+        {
+            let (folder, name) = plot_target(&dir.join(given)).unwrap();
+            assert_eq!((folder, name.as_str()), (dir.clone(), stem), "--latency-plot {given}");
+        }
+        assert!(plot_target(&dir.join("no/such/folder/lat.png")).is_err());
+    }
 }
