@@ -94,7 +94,7 @@ fn plot_target(path: &Path) -> anyhow::Result<(PathBuf, String)> {
     };
     match path.file_name().and_then(|n| n.to_str()) {
         Some(name) if dir.is_dir() => Ok((dir.to_path_buf(), stem(name))),
-        _ => bail!("--latency-plot {}: expected a file name (without extension) in an existing folder", path.display()),
+        _ => bail!("--latency-plot {}: expected a file name in an existing folder", path.display()),
     }
 }
 

@@ -166,15 +166,19 @@ impl Rectification {
     /// [`Rectification::rectify_left`] of every shot of a frame, `raws[i]` into `outs[i]`,
     /// in one pass over the remap table.
     pub fn rectify_left_shots(&self, raws: &[GrayImage], outs: &mut [GrayImage]) {
-        let canvas = (self.camera.width, self.camera.height);
-        resample::remap_shots(&self.map_left, (self.left.width, self.left.height), canvas, raws, outs);
+        self.resample(&self.map_left, &self.left, raws, outs);
     }
 
     /// [`Rectification::rectify_right`] of every shot of a frame, `raws[i]` into `outs[i]`,
     /// in one pass over the remap table.
     pub fn rectify_right_shots(&self, raws: &[GrayImage], outs: &mut [GrayImage]) {
+        self.resample(&self.map_right, &self.right, raws, outs);
+    }
+
+    /// The shots of one raw camera through its remap table onto the canvas.
+    fn resample(&self, map: &[RemapEntry], raw: &Camera, raws: &[GrayImage], outs: &mut [GrayImage]) {
         let canvas = (self.camera.width, self.camera.height);
-        resample::remap_shots(&self.map_right, (self.right.width, self.right.height), canvas, raws, outs);
+        resample::remap_shots(map, (raw.width, raw.height), canvas, raws, outs);
     }
 
     /// The disparities (px) the seen work volume spans at this placement, with a margin:

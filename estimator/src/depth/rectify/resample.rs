@@ -33,6 +33,8 @@ pub(super) fn remap_shots(
     raws: &[GrayImage],
     outs: &mut [GrayImage],
 ) {
+    #[cfg(target_arch = "x86_64")]
+    let wide = crate::cpu::Avx512::detect();
     for (raws, outs) in raws.chunks(SHOTS_PER_PASS).zip(outs.chunks_mut(SHOTS_PER_PASS)) {
         let mut srcs: heapless::Vec<&[u8], SHOTS_PER_PASS> = heapless::Vec::new();
         let mut rows: heapless::Vec<SharedRows, SHOTS_PER_PASS> = heapless::Vec::new();
@@ -53,8 +55,6 @@ pub(super) fn remap_shots(
         if srcs.is_empty() || w == 0 {
             continue;
         }
-        #[cfg(target_arch = "x86_64")]
-        let wide = crate::cpu::Avx512::detect();
         let (srcs, rows) = (&srcs[..], &rows[..]);
         map.par_chunks(w).take(h).enumerate().for_each(|(y, entries)| {
             let mut out: heapless::Vec<&mut [u8], SHOTS_PER_PASS> = heapless::Vec::new();
@@ -98,7 +98,7 @@ pub(super) fn remap_pixels(src: &[u8], raw_w: usize, entries: &[RemapEntry], row
 /// are read and unpacked once, then each shot takes two gathers of four bytes per pixel
 /// (the raw row pair's neighbours) and the same 32-bit arithmetic, for the same bits. A
 /// step whose reads might pass the end of a source (a lane within a row and 3 bytes of it)
-/// and the row's last pixels go one at a time. Every source holds the same number of bytes.
+/// and the row's last pixels go one at a time; the shortest source bounds the reads of all.
 #[cfg(target_arch = "x86_64")]
 pub(super) fn remap_row_wide(
     _proof: crate::cpu::Avx512,
@@ -125,11 +125,11 @@ fn remap_row_avx512(srcs: &[&[u8]], raw_w: usize, entries: &[RemapEntry], rows: 
         }
     };
     let n = rows.iter().map(|r| r.len()).min().unwrap_or(0).min(entries.len());
-    let len = srcs.first().map_or(0, |s| s.len());
+    let len = srcs.iter().map(|s| s.len()).min().unwrap_or(0);
     // A lane reads src[i ..= i + 3] and src[i + raw_w ..= i + raw_w + 3]: inside when
     // i + raw_w + 3 < src.len(), which outside lanes (read at i = 0) need as well.
     let limit = len.saturating_sub(raw_w + 3);
-    if limit == 0 || limit > i32::MAX as usize || srcs.iter().any(|s| s.len() != len) {
+    if limit == 0 || limit > i32::MAX as usize {
         return one_at_a_time(entries, rows, 0, n);
     }
     let (even, odd) = (
@@ -164,7 +164,7 @@ fn remap_row_avx512(srcs: &[&[u8]], raw_w: usize, entries: &[RemapEntry], rows: 
         let (gx, gy) = (_mm512_sub_epi32(one, fx), _mm512_sub_epi32(one, fy));
         for (src, row) in srcs.iter().zip(rows.iter_mut()) {
             // SAFETY: every lane's index is below `limit` (outside lanes read at 0), so
-            // both four-byte reads lie inside `src`, which holds `len` bytes.
+            // both four-byte reads lie inside `src`, which holds at least `len` bytes.
             let (top, bottom) = unsafe {
                 (
                     _mm512_i32gather_epi32::<1>(index, src.as_ptr().cast()),
