@@ -248,32 +248,32 @@ impl BlurStack {
 /// weight of level k + 1 that gives the mixture the variance `sigma`² (0 at or past the top).
 #[inline(always)]
 pub fn level_weight(sigma: f32, top: usize) -> (usize, f32) {
-    // Without branches, so that a pass over many pixels runs in vector lanes: NaN and blurs
-    // of 0 or less read level 0 (max drops a NaN), blurs at or past the top read the top;
-    // the level is the last at or below the blur, and at a level's own blur the weight is 0.
+    // Without branches or table reads, so that a pass over many pixels runs in vector lanes
+    // (a table read per lane would be a gather): NaN and blurs of 0 or less read level 0
+    // (max drops a NaN), blurs at or past the top read the top; the level is the last at or
+    // below the blur, and at a level's own blur the weight is 0.
     let c = sigma.max(0.0).min(LEVELS[top]);
     // Below 2 the levels step by a half; from 2 on they are 2^e and 1.5 2^e (k = 2e + 2
-    // and 2e + 3), which the exponent and the first mantissa bit of c tell.
-    let bits = c.to_bits() as i32;
-    let octave = 2 * ((bits >> 23) - 127) + 2 + ((bits >> 22) & 1);
+    // and 2e + 3), which the exponent and the first mantissa bit of c tell, and which c's
+    // bits keep when the rest of its mantissa is cleared.
+    let bits = c.to_bits();
+    let octave = 2 * ((bits >> 23) as i32 - 127) + 2 + ((bits >> 22) & 1) as i32;
     // SAFETY: c is finite and within 0..=32 (the last level), which i32 holds.
     let halves = unsafe { (2.0 * c).to_int_unchecked::<i32>() };
     // A select and a clamp the vectoriser keeps in lanes (k is at most 12 already: the
-    // octave of 32 is 2 * 5 + 2), and table reads without a bounds check.
+    // octave of 32 is 2 * 5 + 2).
     let k = (if c < 2.0 { halves } else { octave }).clamp(0, LEVELS.len() as i32 - 1) as usize;
-    (k, (c * c - LEVELS[k] * LEVELS[k]) * INV_STEP[k])
+    // Level k's blur and the next one up, exactly LEVELS[k] and LEVELS[k + 1] (past the
+    // last level, 48, whose weight multiplies 0 as c is then the last level's blur).
+    let (level, next) = if c < 2.0 {
+        (halves as f32 * 0.5, (halves + 1) as f32 * 0.5)
+    } else {
+        let octave_start = bits & 0xFF80_0000;
+        let next = if bits & 0x0040_0000 != 0 { octave_start + 0x0080_0000 } else { octave_start | 0x0040_0000 };
+        (f32::from_bits(bits & 0xFFC0_0000), f32::from_bits(next))
+    };
+    (k, (c * c - level * level) * (1.0 / (next * next - level * level)))
 }
-
-/// 1 / (σ_{k+1}² - σ_k²) for each level k below the last, and 0 for the last.
-const INV_STEP: [f32; LEVELS.len()] = {
-    let mut inv = [0.0; LEVELS.len()];
-    let mut k = 0;
-    while k + 1 < inv.len() {
-        inv[k] = 1.0 / (LEVELS[k + 1] * LEVELS[k + 1] - LEVELS[k] * LEVELS[k]);
-        k += 1;
-    }
-    inv
-};
 
 /// The top level a stack needs for blurs up to `max_sigma`: the first at or above it.
 pub fn top_level(max_sigma: f32) -> usize {
@@ -480,6 +480,38 @@ mod tests {
         }
         assert_eq!(level_weight(f32::NAN, 5), (0, 0.0));
         assert_eq!(level_weight(f32::INFINITY, 5), (5, 0.0));
+    }
+
+    /// [`level_weight`] the obvious way: the level found by search, the weight through a
+    /// table of the reciprocal steps between levels (0 past the last).
+    fn level_weight_by_table(sigma: f32, top: usize) -> (usize, f32) {
+        let c = sigma.max(0.0).min(LEVELS[top]);
+        let k = (0..LEVELS.len()).rev().find(|&j| LEVELS[j] <= c).unwrap();
+        let inv_step = match LEVELS.get(k + 1) {
+            Some(&next) => 1.0 / (next * next - LEVELS[k] * LEVELS[k]),
+            None => 0.0,
+        };
+        (k, (c * c - LEVELS[k] * LEVELS[k]) * inv_step)
+    }
+
+    #[test]
+    fn level_weights_are_bit_for_bit_the_table_reads() {
+        // Every 331st float from 0 to past the last level, every level and its neighbours
+        // a few ulps away, and what lies outside the levels.
+        let mut sigmas: Vec<f32> = (0..=40f32.to_bits()).step_by(331).map(f32::from_bits).collect();
+        for &level in &LEVELS {
+            let b = level.to_bits() as i64;
+            sigmas.extend((b - 4..=b + 4).filter(|&v| v >= 0).map(|v| f32::from_bits(v as u32)));
+        }
+        sigmas.extend([-0.0, -1.0, -f32::MIN_POSITIVE, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, f32::MAX, 1e-40]);
+        for top in 0..LEVELS.len() {
+            for &sigma in &sigmas {
+                let (k, w) = level_weight(sigma, top);
+                let (want_k, want_w) = level_weight_by_table(sigma, top);
+                assert_eq!((k, w.to_bits()), (want_k, want_w.to_bits()), "σ {sigma:e}, top {top}: {w} vs {want_w}");
+            }
+        }
+        assert!(sigmas.len() > 3_000_000, "{} blurs compared", sigmas.len());
     }
 
     #[test]

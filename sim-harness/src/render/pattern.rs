@@ -192,15 +192,42 @@ impl ProjectorImage {
         }
     }
 
+    /// Hints the cache with the values that the lit pixels of `run` will read, one pixel in
+    /// [`PREFETCH_EVERY`] (neighbours read the same cache lines), so that they are at hand
+    /// when the run is lit: a run of the next row, prefetched while this row is lit. For a
+    /// one-row image (the fringes), whose row stays in the cache, it does nothing. It
+    /// changes no value.
+    #[inline(always)]
+    pub fn prefetch(&self, run: LightRun<'_>) {
+        if self.one_row {
+            return;
+        }
+        let LightRun { proj, uv, blur, .. } = run;
+        let top = self.top();
+        let n = proj.len().min(uv.len());
+        for x in (0..n).step_by(PREFETCH_EVERY) {
+            // Unlit pixels (gain 0) read nothing.
+            let Some(t) = self.taps(uv[x][0], uv[x][1]).filter(|_| proj[x] > 0.0) else { continue };
+            let k = blur.get(x).map_or(0, |b| (b.0 as usize).min(top));
+            for level in k..=(k + 1).min(top) {
+                for row in [t.r0, t.r1] {
+                    prefetch(self.levels.as_ptr().wrapping_add(level * self.stride + row + t.x0));
+                }
+            }
+        }
+    }
+
     /// [`ProjectorImage::add_light`] on the first pixels of a run, sixteen at a time with
-    /// AVX-512 where this machine has it, with the same bits (oracle test). Returns how
-    /// many pixels it did (a multiple of sixteen, 0 without AVX-512); the caller does the
-    /// rest one at a time.
+    /// AVX-512 where this machine has it, with the same bits (oracle test), for a one-row
+    /// image (the fringes), whose two taps a level come from one row in the cache. Returns
+    /// how many pixels it did (a multiple of sixteen; 0 without AVX-512 or for an image of
+    /// many rows, whose eight taps over two levels gathered sixteen lanes at a time wait on
+    /// memory longer than the one-pixel loop does); the caller does the rest one at a time.
     #[inline(always)]
     pub fn add_light_wide(&self, scale: f32, run: LightRun<'_>, out: &mut [f32]) -> usize {
         #[cfg(target_arch = "x86_64")]
-        if camplace_estimator::avx512_available() && self.levels.len() <= i32::MAX as usize {
-            // SAFETY: AVX-512 F, BW, DQ and VL were just detected.
+        if self.one_row && camplace_estimator::avx512_available() && self.levels.len() <= i32::MAX as usize {
+            // SAFETY: AVX-512 F, BW, DQ and VL were just detected, the image has one row.
             return unsafe { self.add_light_avx512(scale, run, out) };
         }
         let _ = (scale, run, out);
@@ -211,7 +238,8 @@ impl ProjectorImage {
     ///
     /// # Safety
     ///
-    /// The machine runs AVX-512 F, BW, DQ and VL, and every index into `levels` fits an i32.
+    /// The machine runs AVX-512 F, BW, DQ and VL, the image keeps one row, and every index
+    /// into `levels` fits an i32.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,avx512f,avx512bw,avx512dq,avx512vl")]
     unsafe fn add_light_avx512(&self, scale: f32, run: LightRun<'_>, out: &mut [f32]) -> usize {
@@ -221,38 +249,30 @@ impl ProjectorImage {
         let n = out.len().min(base.len()).min(proj.len()).min(uv.len());
         let defocused = !blur.is_empty();
         let n = if defocused { n.min(blur.len()) } else { n };
-        if self.width < 2 || self.height == 0 || self.levels.is_empty() {
+        if !self.one_row || self.width < 2 || self.height == 0 || self.levels.is_empty() {
             return 0;
         }
         let (w, h) = (self.width as f32, self.height as f32);
         let (scale_v, zero) = (_mm512_set1_ps(scale), _mm512_setzero_ps());
         let (low, u_end, v_end) = (_mm512_set1_ps(-0.5), _mm512_set1_ps(w - 0.5), _mm512_set1_ps(h - 0.5));
         let u_off = _mm512_set1_ps(self.offset);
-        let v_off = _mm512_set1_ps(if self.one_row { 0.0 } else { self.offset });
-        let (u_max, v_max) = (_mm512_set1_ps(w - 1.0), _mm512_set1_ps(h - 1.0));
+        let u_max = _mm512_set1_ps(w - 1.0);
         let x0_max = _mm512_set1_epi32(self.width.saturating_sub(2) as i32);
-        let y0_max = _mm512_set1_epi32(self.height.saturating_sub(2) as i32);
-        let (x_last, y_last) = (_mm512_set1_epi32(self.width as i32 - 1), _mm512_set1_epi32(self.height as i32 - 1));
-        let (one, row_len) = (_mm512_set1_epi32(1), _mm512_set1_epi32(self.width as i32));
+        let x_last = _mm512_set1_epi32(self.width as i32 - 1);
+        let one = _mm512_set1_epi32(1);
         let (top, stride) = (_mm512_set1_epi32(self.top() as i32), _mm512_set1_epi32(self.stride as i32));
         let data = self.levels.as_ptr();
-        // The bilinear value at offsets `r0`/`r1` (row starts) and columns `x0`/`x1` of
-        // the level starting at `at`, in lanes `m`; Taps::read's operations in its order.
-        let read = |m: __mmask16, at: __m512i, r0: __m512i, r1: __m512i, x0: __m512i, x1: __m512i, fx, fy| {
-            let gather = |row: __m512i, col: __m512i| {
-                let index = _mm512_add_epi32(at, _mm512_add_epi32(row, col));
-                // SAFETY: in lanes `m` the index lies inside `levels` (rows, columns and
-                // levels clamped to the image and the stack); the others read nothing.
+        // The linear value at columns `x0`/`x1` of the level (one row) starting at `at`, in
+        // lanes `m`; Taps::read's operations in its order.
+        let read = |m: __mmask16, at: __m512i, x0: __m512i, x1: __m512i, fx| {
+            let gather = |col: __m512i| {
+                let index = _mm512_add_epi32(at, col);
+                // SAFETY: in lanes `m` the index lies inside `levels` (columns and levels
+                // clamped to the image and the stack); the others read nothing.
                 unsafe { _mm512_mask_i32gather_ps::<4>(zero, m, index, data.cast()) }
             };
-            let (a, b) = (gather(r0, x0), gather(r0, x1));
-            let upper = _mm512_add_ps(a, _mm512_mul_ps(fx, _mm512_sub_ps(b, a)));
-            if self.one_row {
-                return upper;
-            }
-            let (c, d) = (gather(r1, x0), gather(r1, x1));
-            let lower = _mm512_add_ps(c, _mm512_mul_ps(fx, _mm512_sub_ps(d, c)));
-            _mm512_add_ps(upper, _mm512_mul_ps(fy, _mm512_sub_ps(lower, upper)))
+            let (a, b) = (gather(x0), gather(x1));
+            _mm512_add_ps(a, _mm512_mul_ps(fx, _mm512_sub_ps(b, a)))
         };
         let mut x = 0;
         while x + LANES <= n {
@@ -283,20 +303,10 @@ impl ProjectorImage {
                 continue;
             }
             // f32::clamp: below the least the least, above the most the most, else itself.
-            let clamp = |a: __m512, most: __m512| _mm512_min_ps(most, _mm512_max_ps(zero, a));
-            let uc = clamp(_mm512_sub_ps(u, u_off), u_max);
+            let uc = _mm512_min_ps(u_max, _mm512_max_ps(zero, _mm512_sub_ps(u, u_off)));
             let x0 = _mm512_min_epi32(_mm512_cvttps_epi32(uc), x0_max);
             let fx = _mm512_sub_ps(uc, _mm512_cvtepi32_ps(x0));
             let x1 = _mm512_min_epi32(_mm512_add_epi32(x0, one), x_last);
-            let (r0, r1, fy) = if self.one_row {
-                (_mm512_setzero_si512(), _mm512_setzero_si512(), zero)
-            } else {
-                let vc = clamp(_mm512_sub_ps(v, v_off), v_max);
-                let y0 = _mm512_min_epi32(_mm512_cvttps_epi32(vc), y0_max);
-                let fy = _mm512_sub_ps(vc, _mm512_cvtepi32_ps(y0));
-                let y1 = _mm512_min_epi32(_mm512_add_epi32(y0, one), y_last);
-                (_mm512_mullo_epi32(y0, row_len), _mm512_mullo_epi32(y1, row_len), fy)
-            };
             let sample = if defocused {
                 let (mut ks, mut ws) = ([0i32; LANES], [0.0f32; LANES]);
                 for (j, &(k, wt)) in blur[x..x + LANES].iter().enumerate() {
@@ -306,14 +316,14 @@ impl ProjectorImage {
                 let (k, wt) = unsafe { (_mm512_loadu_si512(ks.as_ptr().cast()), _mm512_loadu_ps(ws.as_ptr())) };
                 let k = _mm512_min_epi32(k, top);
                 let above = _mm512_min_epi32(_mm512_add_epi32(k, one), top);
-                let a = read(m, _mm512_mullo_epi32(k, stride), r0, r1, x0, x1, fx, fy);
+                let a = read(m, _mm512_mullo_epi32(k, stride), x0, x1, fx);
                 // Where the weight is 0 the level above is not read, and the value is `a`.
                 let m_above = m & _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(wt, zero);
-                let b = read(m_above, _mm512_mullo_epi32(above, stride), r0, r1, x0, x1, fx, fy);
+                let b = read(m_above, _mm512_mullo_epi32(above, stride), x0, x1, fx);
                 let mixed = _mm512_add_ps(a, _mm512_mul_ps(wt, _mm512_sub_ps(b, a)));
                 _mm512_mask_blend_ps(m_above, a, mixed)
             } else {
-                read(m, _mm512_setzero_si512(), r0, r1, x0, x1, fx, fy)
+                read(m, _mm512_setzero_si512(), x0, x1, fx)
             };
             let lit = _mm512_add_ps(g, _mm512_mul_ps(p, sample));
             let value = _mm512_mask_blend_ps(m, g, lit);
@@ -347,6 +357,23 @@ impl ProjectorImage {
     }
 }
 
+/// Pixels of a run per cache hint of [`ProjectorImage::prefetch`]: at about two projector
+/// pixels a camera pixel, six pixels span most of a 64-byte line of a level's row.
+const PREFETCH_EVERY: usize = 6;
+
+/// Asks the cache for the line holding `p`; a hint, which reads nothing and cannot fault.
+#[inline(always)]
+fn prefetch(p: *const f32) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        // SAFETY: a prefetch is a hint: it dereferences nothing, whatever the address.
+        unsafe { _mm_prefetch::<_MM_HINT_T0>(p.cast()) };
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = p;
+}
+
 /// A run of pixels' pattern-independent light and projector terms (`blur` empty without
 /// the projector's defocus), as [`ProjectorImage::add_light_wide`] reads them.
 #[derive(Debug, Clone, Copy)]
@@ -366,6 +393,12 @@ impl<'a> LightRun<'a> {
     pub fn from(self, k: usize) -> LightRun<'a> {
         let blur = if self.blur.is_empty() { self.blur } else { &self.blur[k..] };
         LightRun { base: &self.base[k..], proj: &self.proj[k..], uv: &self.uv[k..], blur }
+    }
+
+    /// The pixels `span` of the run.
+    pub fn span(self, span: std::ops::Range<usize>) -> LightRun<'a> {
+        let blur = if self.blur.is_empty() { self.blur } else { &self.blur[span.clone()] };
+        LightRun { base: &self.base[span.clone()], proj: &self.proj[span.clone()], uv: &self.uv[span], blur }
     }
 }
 

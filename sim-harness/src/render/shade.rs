@@ -68,10 +68,12 @@ pub struct ShadingTerms {
     pub base: Vec<f32>,
     /// 255 albedo gain n.l where the projector lights the pixel, else 0, grey levels.
     pub projector: Vec<f32>,
-    /// Projector coordinates (u, v) of the pixel centre.
+    /// Projector coordinates (u, v) of the pixel centre; meaningful where the projector
+    /// lights the pixel (`projector` > 0), and all that is read.
     pub projector_uv: Vec<[f32; 2]>,
     /// The projector's defocus blur at the pixel's surface point, as the level and weight
-    /// ([`level_weight`]) of the patterns' blur stacks that give it (kept only with defocus).
+    /// ([`level_weight`]) of the patterns' blur stacks that give it (kept only with defocus;
+    /// meaningful where the projector lights the pixel).
     pub projector_blur: Vec<(u32, f32)>,
     /// Whether the projector's defocus is rendered.
     pub(crate) defocused: bool,
@@ -171,7 +173,6 @@ impl ShadingTerms {
             terms: &self.triangles,
             triangles,
             lights,
-            wide: camplace_estimator::avx512_available(),
         };
         let band = w * ROWS_PER_TASK;
         self.defocused = lights.projector_lens.is_some();
@@ -226,7 +227,8 @@ impl ShadingTerms {
             .for_each(|(chunk, (((out, base), proj), uv))| {
                 let span = chunk * band..chunk * band + out.len();
                 let blur = if self.defocused { &self.projector_blur[span] } else { &[] };
-                shade_band(pattern, exposure, (chunk * band) as u64, BandTerms { base, proj, uv, blur }, out);
+                let terms = BandTerms { width: self.width, base, proj, uv, blur };
+                shade_band(pattern, exposure, (chunk * band) as u64, terms, out);
             });
     }
 
@@ -259,8 +261,10 @@ camplace_estimator::multiversion! {
     ) => shade_band_body
 }
 
-/// One band's pattern-independent terms (`blur` empty without the projector's defocus).
+/// One band's pattern-independent terms (`blur` empty without the projector's defocus), in
+/// rows of `width` pixels.
 struct BandTerms<'a> {
+    width: usize,
     base: &'a [f32],
     proj: &'a [f32],
     uv: &'a [[f32; 2]],
@@ -270,15 +274,24 @@ struct BandTerms<'a> {
 #[inline(always)]
 fn shade_band_body(pattern: &ProjectorImage, exposure: Exposure, first: u64, terms: BandTerms<'_>, out: &mut [f32]) {
     let n = out.len();
-    let BandTerms { base, proj, uv, blur } = terms;
+    let BandTerms { width, base, proj, uv, blur } = terms;
     let (base, proj, uv) = (&base[..n], &proj[..n], &uv[..n]);
     let scale = match exposure {
         Exposure::Light(scale) => scale,
         Exposure::Sensed(_) => 1.0,
     };
-    let run = LightRun { base, proj, uv, blur };
-    let done = pattern.add_light_wide(scale, run, out);
-    pattern.add_light(scale, run.from(done), &mut out[done..]);
+    let band = LightRun { base, proj, uv, blur };
+    // Row by row, each row's pattern values asked of the cache while the row before is lit.
+    let width = width.clamp(1, n.max(1));
+    for start in (0..n).step_by(width) {
+        let end = (start + width).min(n);
+        if end < n {
+            pattern.prefetch(band.span(end..(end + width).min(n)));
+        }
+        let row = band.span(start..end);
+        let done = pattern.add_light_wide(scale, row, &mut out[start..end]);
+        pattern.add_light(scale, row.from(done), &mut out[start + done..end]);
+    }
     if let Exposure::Sensed(noise) = exposure {
         read_out(out, first, noise);
     }

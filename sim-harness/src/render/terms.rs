@@ -7,11 +7,12 @@
 //! per-triangle value is a constant of the run. Each run goes in passes: the geometry
 //! (depth, surface point, the projector's and the lamp's image coordinates) and the light
 //! (distances, cosines, glossy lobes) are straight-line f64 arithmetic the compiler runs in
-//! vector lanes, the projector's blur levels too; only the shadow-map lookups, the rare
-//! powers of a glossy lobe near its mirror direction and the stores of what only lit pixels
-//! get go pixel by pixel. Every pass does the IEEE operations of the per-pixel
-//! formula in its order, so the terms are bit for bit those of the one-pixel-at-a-time
-//! version kept for the tests.
+//! vector lanes, the projector's blur levels too; only the shadow-map lookups and the rare
+//! powers of a glossy lobe near its mirror direction go pixel by pixel. (The lookups stay
+//! scalar: their tile check skips the empty parts of a map without reading it, which made
+//! them faster than AVX-512 gathers from the map.) Every pass does the IEEE operations of
+//! the per-pixel formula in its order, so the terms are bit for bit those of the
+//! one-pixel-at-a-time version kept for the tests.
 
 // The passes index several fixed-size arrays by pixel: the shape the vectoriser turns into lanes.
 #![allow(clippy::needless_range_loop)]
@@ -106,9 +107,6 @@ pub(super) struct Context<'a> {
     pub(super) terms: &'a [TriangleTerms],
     pub(super) triangles: &'a [SceneTriangle],
     pub(super) lights: &'a Lights<'a>,
-    /// Whether this machine runs the AVX-512 shadow tests (checked once per camera and frame,
-    /// where the context is made).
-    pub(super) wide: bool,
 }
 
 camplace_estimator::multiversion! {
@@ -203,9 +201,7 @@ impl Context<'_> {
             if let Some((_, map)) = l.lamp_shadow {
                 // Outside the lamp's map there is nothing that could shadow.
                 image_coordinates(&tt.h_lamp, fx0, fy, n, q);
-                let run = ShadowRun { map, q, z: &geometry.z, t, n, behind: Behind::Lit };
-                let done = self.shadow_tests_wide(run, visible);
-                for i in done..n {
+                for i in 0..n {
                     let qz = q.qz[i];
                     visible[i] = qz <= 0.0
                         || match map.lookup(q.u[i], q.v[i]) {
@@ -233,9 +229,7 @@ impl Context<'_> {
             image_coordinates(&tt.h_projector, fx0, fy, n, q);
             let map = l.projector_shadow;
             let lit = &mut *mask;
-            let run = ShadowRun { map, q, z: &geometry.z, t, n, behind: Behind::Dark };
-            let done = self.shadow_tests_wide(run, lit);
-            for i in done..n {
+            for i in 0..n {
                 let qz = q.qz[i];
                 lit[i] = qz > 0.0
                     && match map.lookup(q.u[i], q.v[i]) {
@@ -250,17 +244,17 @@ impl Context<'_> {
             } else {
                 lobe[..n].fill(0.0);
             }
-            // Each pass apart, so that the arithmetic runs in lanes and only the stores of
-            // the lit pixels' coordinates and blurs go one at a time.
+            // Each pass apart, so that the arithmetic runs in lanes. The coordinates and
+            // blurs are stored for every pixel of the run, lit or not: only a lit pixel's
+            // are ever read, and plain stores run in lanes where masked ones of pairs would
+            // be scattered.
             for i in 0..n {
                 let cos = tt.projector_facing / reach[i];
                 let g = (tt.albedo + 255.0 * lobe[i]) * l.projector_gain * cos;
                 gain[i] = if lit[i] { g } else { 0.0 };
             }
             for i in 0..n {
-                if lit[i] {
-                    uv[i] = [q.u[i] as f32, q.v[i] as f32];
-                }
+                uv[i] = [q.u[i] as f32, q.v[i] as f32];
             }
             if let Some((lens, top)) = &l.projector_lens {
                 let blur = &mut blur[..n];
@@ -275,9 +269,7 @@ impl Context<'_> {
                     ws[i] = w;
                 }
                 for i in 0..n {
-                    if lit[i] {
-                        blur[i] = (ks[i], ws[i]);
-                    }
+                    blur[i] = (ks[i], ws[i]);
                 }
             }
         }
@@ -405,126 +397,6 @@ impl Context<'_> {
         z_light * inverse_depth <= 1.0 + SHADOW_BIAS_MM * inverse_depth
             || same_surface(&self.triangles[o as usize], &self.triangles[t])
     }
-
-    /// The shadow tests of a run's first pixels under a light whose shadow map is `map`,
-    /// eight at a time with AVX-512 where this machine has it, into `out`: the per-pixel
-    /// tests' verdicts (`behind` says what a point behind the light or outside its map
-    /// gets), the same bits. Returns how many it did (a multiple of eight; 0 without
-    /// AVX-512); the caller tests the rest one at a time.
-    #[inline(always)]
-    fn shadow_tests_wide(&self, run: ShadowRun<'_>, out: &mut [bool; RUN]) -> usize {
-        #[cfg(target_arch = "x86_64")]
-        if self.wide
-            && run.map.width.saturating_mul(run.map.height) <= i32::MAX as usize
-            && run.t < NO_TRIANGLE as usize
-        {
-            // SAFETY: `wide` is set only where AVX-512 F, BW, DQ and VL were detected.
-            return unsafe { self.shadow_tests_avx512(run, out) };
-        }
-        let _ = (run, out);
-        0
-    }
-
-    /// [`Context::shadow_tests_wide`]'s vector path. A pixel inside the map reads the
-    /// triangle there (tiles the map marks empty hold none, so the tile check is only the
-    /// per-pixel path's shortcut) and, when another's, its depth; the rare pixel whose
-    /// depths say shadow takes the plane test one at a time.
-    ///
-    /// # Safety
-    ///
-    /// The machine runs AVX-512 F, BW, DQ and VL; the map's pixel count fits an i32.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,avx512f,avx512bw,avx512dq,avx512vl")]
-    unsafe fn shadow_tests_avx512(&self, run: ShadowRun<'_>, out: &mut [bool; RUN]) -> usize {
-        let ShadowRun { map, q, z, t, n, behind } = run;
-        use std::arch::x86_64::*;
-        const LANES: usize = 8;
-        let n = n.min(RUN);
-        let (zero, half) = (_mm512_setzero_pd(), _mm512_set1_pd(0.5));
-        let (width, height) = (_mm512_set1_pd(map.width as f64), _mm512_set1_pd(map.height as f64));
-        let row = _mm256_set1_epi32(map.width as i32);
-        let (none, own) = (_mm256_set1_epi32(NO_TRIANGLE as i32), _mm256_set1_epi32(t as i32));
-        let (one, bias) = (_mm512_set1_pd(1.0), _mm512_set1_pd(SHADOW_BIAS_MM));
-        let mut i = 0;
-        while i + LANES <= n {
-            // SAFETY: 8 values from i of 32-value arrays, i + 8 <= n <= 32.
-            let (qz, u, v, zi) = unsafe {
-                (
-                    _mm512_loadu_pd(q.qz.as_ptr().add(i)),
-                    _mm512_loadu_pd(q.u.as_ptr().add(i)),
-                    _mm512_loadu_pd(q.v.as_ptr().add(i)),
-                    _mm512_loadu_pd(z.as_ptr().add(i)),
-                )
-            };
-            let (x, y) = (_mm512_add_pd(u, half), _mm512_add_pd(v, half));
-            // In front of the light and inside its map, as `ZBuffer::lookup` decides (NaN
-            // fails every comparison).
-            let mut m = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(qz, zero);
-            m &= _mm512_cmp_pd_mask::<_CMP_GE_OQ>(x, zero) & _mm512_cmp_pd_mask::<_CMP_GE_OQ>(y, zero);
-            m &= _mm512_cmp_pd_mask::<_CMP_LT_OQ>(x, width) & _mm512_cmp_pd_mask::<_CMP_LT_OQ>(y, height);
-            if m == 0 {
-                // Every point behind the light or outside its map: nothing to read.
-                out[i..i + LANES].fill(matches!(behind, Behind::Lit));
-                i += LANES;
-                continue;
-            }
-            let (xi, yi) = (_mm512_cvttpd_epi32(x), _mm512_cvttpd_epi32(y));
-            let pixel = _mm256_add_epi32(_mm256_mullo_epi32(yi, row), xi);
-            // SAFETY: in lanes `m` the pixel lies inside the map (both coordinates within
-            // it), whose arrays hold width x height values; the other lanes read nothing.
-            let o = unsafe { _mm256_mmask_i32gather_epi32::<4>(none, m, pixel, map.triangle.as_ptr().cast()) };
-            let free = _mm256_cmpeq_epi32_mask(o, none) | _mm256_cmpeq_epi32_mask(o, own);
-            // Only a lane that sees another triangle there reads its depth (most see their
-            // own, or nothing).
-            // SAFETY: as the triangles' gather, in fewer lanes.
-            let inverse_depth = unsafe {
-                _mm256_mmask_i32gather_ps::<4>(_mm256_setzero_ps(), m & !free, pixel, map.inverse_depth.as_ptr())
-            };
-            // `unshadowed`'s depth test: z_light / z_map <= 1 + bias / z_map, in f64.
-            let inverse_depth = _mm512_cvtps_pd(inverse_depth);
-            let z_light = _mm512_mul_pd(qz, zi);
-            let deeper = _mm512_mul_pd(z_light, inverse_depth);
-            let limit = _mm512_add_pd(one, _mm512_mul_pd(bias, inverse_depth));
-            let near = _mm512_cmp_pd_mask::<_CMP_LE_OQ>(deeper, limit);
-            let clear = m & (free | near);
-            let mut os = [0u32; LANES];
-            // SAFETY: 8 lanes into an 8-value local array.
-            unsafe { _mm256_storeu_si256(os.as_mut_ptr().cast(), o) };
-            for j in 0..LANES {
-                let inside = m >> j & 1 == 1;
-                let unshadowed = clear >> j & 1 == 1
-                    || (inside && same_surface(&self.triangles[os[j] as usize], &self.triangles[t]));
-                out[i + j] = match behind {
-                    Behind::Lit => !inside || unshadowed,
-                    Behind::Dark => inside && unshadowed,
-                };
-            }
-            i += LANES;
-        }
-        i
-    }
-}
-
-/// One run's shadow tests under one light: its shadow map, the run's image coordinates in
-/// it and depths, the triangle the run sees, its length and what a point behind the light
-/// gets.
-#[derive(Clone, Copy)]
-struct ShadowRun<'a> {
-    map: &'a ZBuffer,
-    q: &'a ImageCoordinates,
-    z: &'a [f64; RUN],
-    t: usize,
-    n: usize,
-    behind: Behind,
-}
-
-/// What a shadow test gives a point behind a light or outside its shadow map.
-#[derive(Debug, Clone, Copy)]
-enum Behind {
-    /// Lit: the lamp, whose map covers every occluder it could cast.
-    Lit,
-    /// Dark: the projector, which lights nothing outside its image.
-    Dark,
 }
 
 /// A run's outputs (`blur` empty without the projector's defocus).
