@@ -218,61 +218,76 @@ impl ProjectorImage {
     }
 
     /// [`ProjectorImage::add_light`] on the first pixels of a run, sixteen at a time with
-    /// AVX-512 where this machine has it, with the same bits (oracle test), for a one-row
-    /// image (the fringes), whose two taps a level come from one row in the cache. Returns
-    /// how many pixels it did (a multiple of sixteen; 0 without AVX-512 or for an image of
-    /// many rows, whose eight taps over two levels gathered sixteen lanes at a time wait on
-    /// memory longer than the one-pixel loop does); the caller does the rest one at a time.
+    /// AVX-512 where this machine has it, with the same bits (oracle test). Returns how many
+    /// pixels it did (a multiple of sixteen, 0 without AVX-512); the caller does the rest
+    /// one at a time. For an image of many rows the gathers wait on memory unless the
+    /// values were asked of the cache ahead ([`ProjectorImage::prefetch`]).
     #[inline(always)]
     pub fn add_light_wide(&self, scale: f32, run: LightRun<'_>, out: &mut [f32]) -> usize {
         #[cfg(target_arch = "x86_64")]
-        if self.one_row && camplace_estimator::avx512_available() && self.levels.len() <= i32::MAX as usize {
-            // SAFETY: AVX-512 F, BW, DQ and VL were just detected, the image has one row.
-            return unsafe { self.add_light_avx512(scale, run, out) };
+        if camplace_estimator::avx512_available() && self.levels.len() <= i32::MAX as usize {
+            // SAFETY: AVX-512 F, BW, DQ and VL were just detected; the variant is the
+            // image's own.
+            return unsafe {
+                if self.one_row {
+                    self.add_light_avx512::<true>(scale, run, out)
+                } else {
+                    self.add_light_avx512::<false>(scale, run, out)
+                }
+            };
         }
         let _ = (scale, run, out);
         0
     }
 
-    /// [`ProjectorImage::add_light_wide`]'s vector path.
+    /// [`ProjectorImage::add_light_wide`]'s vector path, made for a one-row image (the
+    /// fringes: two taps a level, from a row that stays in the cache) or for one of many
+    /// rows (`ONE_ROW` false: four taps a level); it does nothing for the other kind.
     ///
     /// # Safety
     ///
-    /// The machine runs AVX-512 F, BW, DQ and VL, the image keeps one row, and every index
-    /// into `levels` fits an i32.
+    /// The machine runs AVX-512 F, BW, DQ and VL, and every index into `levels` fits an i32.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,avx512f,avx512bw,avx512dq,avx512vl")]
-    unsafe fn add_light_avx512(&self, scale: f32, run: LightRun<'_>, out: &mut [f32]) -> usize {
+    unsafe fn add_light_avx512<const ONE_ROW: bool>(&self, scale: f32, run: LightRun<'_>, out: &mut [f32]) -> usize {
         use std::arch::x86_64::*;
         const LANES: usize = 16;
         let LightRun { base, proj, uv, blur } = run;
         let n = out.len().min(base.len()).min(proj.len()).min(uv.len());
         let defocused = !blur.is_empty();
         let n = if defocused { n.min(blur.len()) } else { n };
-        if !self.one_row || self.width < 2 || self.height == 0 || self.levels.is_empty() {
+        if ONE_ROW != self.one_row || self.width < 2 || self.height == 0 || self.levels.is_empty() {
             return 0;
         }
         let (w, h) = (self.width as f32, self.height as f32);
         let (scale_v, zero) = (_mm512_set1_ps(scale), _mm512_setzero_ps());
         let (low, u_end, v_end) = (_mm512_set1_ps(-0.5), _mm512_set1_ps(w - 0.5), _mm512_set1_ps(h - 0.5));
         let u_off = _mm512_set1_ps(self.offset);
-        let u_max = _mm512_set1_ps(w - 1.0);
+        let v_off = _mm512_set1_ps(if ONE_ROW { 0.0 } else { self.offset });
+        let (u_max, v_max) = (_mm512_set1_ps(w - 1.0), _mm512_set1_ps(h - 1.0));
         let x0_max = _mm512_set1_epi32(self.width.saturating_sub(2) as i32);
-        let x_last = _mm512_set1_epi32(self.width as i32 - 1);
-        let one = _mm512_set1_epi32(1);
+        let y0_max = _mm512_set1_epi32(self.height.saturating_sub(2) as i32);
+        let (x_last, y_last) = (_mm512_set1_epi32(self.width as i32 - 1), _mm512_set1_epi32(self.height as i32 - 1));
+        let (one, row_len) = (_mm512_set1_epi32(1), _mm512_set1_epi32(self.width as i32));
         let (top, stride) = (_mm512_set1_epi32(self.top() as i32), _mm512_set1_epi32(self.stride as i32));
         let data = self.levels.as_ptr();
-        // The linear value at columns `x0`/`x1` of the level (one row) starting at `at`, in
-        // lanes `m`; Taps::read's operations in its order.
-        let read = |m: __mmask16, at: __m512i, x0: __m512i, x1: __m512i, fx| {
-            let gather = |col: __m512i| {
-                let index = _mm512_add_epi32(at, col);
-                // SAFETY: in lanes `m` the index lies inside `levels` (columns and levels
-                // clamped to the image and the stack); the others read nothing.
+        // The bilinear value at offsets `r0`/`r1` (row starts) and columns `x0`/`x1` of
+        // the level starting at `at`, in lanes `m`; Taps::read's operations in its order.
+        let read = |m: __mmask16, at: __m512i, r0: __m512i, r1: __m512i, x0: __m512i, x1: __m512i, fx, fy| {
+            let gather = |row: __m512i, col: __m512i| {
+                let index = _mm512_add_epi32(at, _mm512_add_epi32(row, col));
+                // SAFETY: in lanes `m` the index lies inside `levels` (rows, columns and
+                // levels clamped to the image and the stack); the others read nothing.
                 unsafe { _mm512_mask_i32gather_ps::<4>(zero, m, index, data.cast()) }
             };
-            let (a, b) = (gather(x0), gather(x1));
-            _mm512_add_ps(a, _mm512_mul_ps(fx, _mm512_sub_ps(b, a)))
+            let (a, b) = (gather(r0, x0), gather(r0, x1));
+            let upper = _mm512_add_ps(a, _mm512_mul_ps(fx, _mm512_sub_ps(b, a)));
+            if ONE_ROW {
+                return upper;
+            }
+            let (c, d) = (gather(r1, x0), gather(r1, x1));
+            let lower = _mm512_add_ps(c, _mm512_mul_ps(fx, _mm512_sub_ps(d, c)));
+            _mm512_add_ps(upper, _mm512_mul_ps(fy, _mm512_sub_ps(lower, upper)))
         };
         let mut x = 0;
         while x + LANES <= n {
@@ -303,10 +318,20 @@ impl ProjectorImage {
                 continue;
             }
             // f32::clamp: below the least the least, above the most the most, else itself.
-            let uc = _mm512_min_ps(u_max, _mm512_max_ps(zero, _mm512_sub_ps(u, u_off)));
+            let clamp = |a: __m512, most: __m512| _mm512_min_ps(most, _mm512_max_ps(zero, a));
+            let uc = clamp(_mm512_sub_ps(u, u_off), u_max);
             let x0 = _mm512_min_epi32(_mm512_cvttps_epi32(uc), x0_max);
             let fx = _mm512_sub_ps(uc, _mm512_cvtepi32_ps(x0));
             let x1 = _mm512_min_epi32(_mm512_add_epi32(x0, one), x_last);
+            let (r0, r1, fy) = if ONE_ROW {
+                (_mm512_setzero_si512(), _mm512_setzero_si512(), zero)
+            } else {
+                let vc = clamp(_mm512_sub_ps(v, v_off), v_max);
+                let y0 = _mm512_min_epi32(_mm512_cvttps_epi32(vc), y0_max);
+                let fy = _mm512_sub_ps(vc, _mm512_cvtepi32_ps(y0));
+                let y1 = _mm512_min_epi32(_mm512_add_epi32(y0, one), y_last);
+                (_mm512_mullo_epi32(y0, row_len), _mm512_mullo_epi32(y1, row_len), fy)
+            };
             let sample = if defocused {
                 let (mut ks, mut ws) = ([0i32; LANES], [0.0f32; LANES]);
                 for (j, &(k, wt)) in blur[x..x + LANES].iter().enumerate() {
@@ -316,14 +341,14 @@ impl ProjectorImage {
                 let (k, wt) = unsafe { (_mm512_loadu_si512(ks.as_ptr().cast()), _mm512_loadu_ps(ws.as_ptr())) };
                 let k = _mm512_min_epi32(k, top);
                 let above = _mm512_min_epi32(_mm512_add_epi32(k, one), top);
-                let a = read(m, _mm512_mullo_epi32(k, stride), x0, x1, fx);
+                let a = read(m, _mm512_mullo_epi32(k, stride), r0, r1, x0, x1, fx, fy);
                 // Where the weight is 0 the level above is not read, and the value is `a`.
                 let m_above = m & _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(wt, zero);
-                let b = read(m_above, _mm512_mullo_epi32(above, stride), x0, x1, fx);
+                let b = read(m_above, _mm512_mullo_epi32(above, stride), r0, r1, x0, x1, fx, fy);
                 let mixed = _mm512_add_ps(a, _mm512_mul_ps(wt, _mm512_sub_ps(b, a)));
                 _mm512_mask_blend_ps(m_above, a, mixed)
             } else {
-                read(m, _mm512_setzero_si512(), x0, x1, fx)
+                read(m, _mm512_setzero_si512(), r0, r1, x0, x1, fx, fy)
             };
             let lit = _mm512_add_ps(g, _mm512_mul_ps(p, sample));
             let value = _mm512_mask_blend_ps(m, g, lit);
