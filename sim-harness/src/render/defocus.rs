@@ -482,16 +482,24 @@ mod tests {
         assert_eq!(level_weight(f32::INFINITY, 5), (5, 0.0));
     }
 
-    /// [`level_weight`] the obvious way: the level found by search, the weight through a
-    /// table of the reciprocal steps between levels (0 past the last).
+    /// 1 / (σ_{k+1}² - σ_k²) for each level k below the last, and 0 for the last, worked
+    /// out when compiling.
+    const INV_STEP: [f32; LEVELS.len()] = {
+        let mut inv = [0.0; LEVELS.len()];
+        let mut k = 0;
+        while k + 1 < inv.len() {
+            inv[k] = 1.0 / (LEVELS[k + 1] * LEVELS[k + 1] - LEVELS[k] * LEVELS[k]);
+            k += 1;
+        }
+        inv
+    };
+
+    /// [`level_weight`] the obvious way: the level found by search, the weight through the
+    /// table of the reciprocal steps between levels.
     fn level_weight_by_table(sigma: f32, top: usize) -> (usize, f32) {
         let c = sigma.max(0.0).min(LEVELS[top]);
         let k = (0..LEVELS.len()).rev().find(|&j| LEVELS[j] <= c).unwrap();
-        let inv_step = match LEVELS.get(k + 1) {
-            Some(&next) => 1.0 / (next * next - LEVELS[k] * LEVELS[k]),
-            None => 0.0,
-        };
-        (k, (c * c - LEVELS[k] * LEVELS[k]) * inv_step)
+        (k, (c * c - LEVELS[k] * LEVELS[k]) * INV_STEP[k])
     }
 
     #[test]

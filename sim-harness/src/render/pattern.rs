@@ -554,7 +554,8 @@ mod tests {
             let top = p.top();
             let base: Vec<f32> = (0..n).map(|_| rng.random_range(0.0..200.0)).collect();
             // Unlit pixels (0 or less) and lit ones; coordinates inside, on and past every
-            // edge, and NaN where the projector left a pixel's coordinates unset.
+            // edge, and NaN (what a buffer may hold where no projector coordinates were ever
+            // stored).
             let proj: Vec<f32> = (0..n)
                 .map(|i| {
                     if i % 7 == 3 {

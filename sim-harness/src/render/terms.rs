@@ -8,11 +8,10 @@
 //! (depth, surface point, the projector's and the lamp's image coordinates) and the light
 //! (distances, cosines, glossy lobes) are straight-line f64 arithmetic the compiler runs in
 //! vector lanes, the projector's blur levels too; only the shadow-map lookups and the rare
-//! powers of a glossy lobe near its mirror direction go pixel by pixel. (The lookups stay
-//! scalar: their tile check skips the empty parts of a map without reading it, which made
-//! them faster than AVX-512 gathers from the map.) Every pass does the IEEE operations of
-//! the per-pixel formula in its order, so the terms are bit for bit those of the
-//! one-pixel-at-a-time version kept for the tests.
+//! powers of a glossy lobe near its mirror direction go pixel by pixel (a lookup's tile
+//! check skips the empty parts of a map without reading the map). Every pass does the IEEE
+//! operations of the per-pixel formula in its order, so the terms are bit for bit those of
+//! the one-pixel-at-a-time version kept for the tests.
 
 // The passes index several fixed-size arrays by pixel: the shape the vectoriser turns into lanes.
 #![allow(clippy::needless_range_loop)]
