@@ -52,39 +52,52 @@ const NORM_TARGET: f32 = 64.0;
 /// response of the simulated sensor noise (std ~2 grey levels after its 3x3 mean).
 const NORM_FLOOR: f32 = 12.0;
 
-/// Two descriptors: the unit [`DescriptorBuffer`] allocates in, so that each descriptor
-/// starts on a 32-byte boundary and no 32-byte load of one straddles two cache lines.
-#[derive(Debug, Clone, Copy)]
-#[repr(C, align(64))]
-struct DescriptorPair([Descriptor; 2]);
-const _: () = assert!(std::mem::size_of::<DescriptorPair>() == 2 * LEN);
+/// Alignment of the descriptors in a [`DescriptorBuffer`]: a cache line, so that no 32-byte
+/// load of one straddles two lines.
+const ALIGN: usize = 64;
 
-/// `len` descriptors in 64-byte aligned storage, used as a slice of them.
-#[derive(Debug, Clone)]
+/// `len` descriptors in 64-byte aligned storage, used as a slice of them. The storage is
+/// allocated zeroed, which the allocator does by mapping pages on first use: the rows a
+/// matcher never computes (it reads descriptors on some rows only) cost no memory.
+#[derive(Debug)]
 pub struct DescriptorBuffer {
-    pairs: Vec<DescriptorPair>,
+    bytes: Vec<u8>,
+    /// Where the first descriptor starts in `bytes` (below `ALIGN`).
+    offset: usize,
     len: usize,
 }
 
 impl DescriptorBuffer {
-    fn new(len: usize, value: Descriptor) -> Self {
-        DescriptorBuffer { pairs: vec![DescriptorPair([value; 2]); len.div_ceil(2)], len }
+    /// `len` descriptors of zeros.
+    fn zeroed(len: usize) -> Self {
+        let bytes = vec![0u8; len * LEN + ALIGN - 1];
+        let offset = bytes.as_ptr().align_offset(ALIGN).min(ALIGN - 1);
+        DescriptorBuffer { bytes, offset, len }
+    }
+}
+
+impl Clone for DescriptorBuffer {
+    fn clone(&self) -> Self {
+        // A copy's storage may sit at another offset from a cache line.
+        let mut copy = DescriptorBuffer::zeroed(self.len);
+        copy.copy_from_slice(self);
+        copy
     }
 }
 
 impl std::ops::Deref for DescriptorBuffer {
     type Target = [Descriptor];
     fn deref(&self) -> &[Descriptor] {
-        // SAFETY: a DescriptorPair is two descriptors with no padding (size 64 = 2 x 32, and
-        // u8 arrays need no alignment), so `pairs` holds 2 x pairs.len() >= len of them.
-        unsafe { std::slice::from_raw_parts(self.pairs.as_ptr().cast(), self.len) }
+        // SAFETY: `bytes` holds offset + len x LEN bytes (offset < ALIGN), and a descriptor
+        // is a byte array, which needs no alignment.
+        unsafe { std::slice::from_raw_parts(self.bytes.as_ptr().add(self.offset).cast(), self.len) }
     }
 }
 
 impl std::ops::DerefMut for DescriptorBuffer {
     fn deref_mut(&mut self) -> &mut [Descriptor] {
-        // SAFETY: as in `deref`, with the unique borrow of `pairs`.
-        unsafe { std::slice::from_raw_parts_mut(self.pairs.as_mut_ptr().cast(), self.len) }
+        // SAFETY: as in `deref`, with the unique borrow of `bytes`.
+        unsafe { std::slice::from_raw_parts_mut(self.bytes.as_mut_ptr().add(self.offset).cast(), self.len) }
     }
 }
 
@@ -118,7 +131,7 @@ impl DescriptorImage {
         DescriptorImage {
             width,
             height,
-            data: DescriptorBuffer::new(n, [NEUTRAL; LEN]),
+            data: DescriptorBuffer::zeroed(n),
             du: vec![NEUTRAL; n],
             dv: vec![NEUTRAL; n],
             gx: vec![0; n],
@@ -130,7 +143,8 @@ impl DescriptorImage {
     }
 
     /// Fills the descriptors of `img` (same size as the buffers) on the rows `wanted`
-    /// accepts; the other rows keep what they held.
+    /// accepts; the other rows keep what they held (zeros until first computed, and no
+    /// memory: see [`DescriptorBuffer`]).
     pub fn compute(&mut self, img: &GrayImage, wanted: impl Fn(usize) -> bool + Sync) {
         let (w, h) = (self.width, self.height);
         debug_assert!(img.width == w && img.height == h);
@@ -697,6 +711,22 @@ mod tests {
                     assert_eq!(d.data[y * w + x], expect, "{w}x{h} at ({x}, {y})");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn buffers_start_on_a_cache_line_and_copy_whole() {
+        for len in [0, 1, 2, 7, 1001] {
+            let mut a = DescriptorBuffer::zeroed(len);
+            assert_eq!(a.len(), len);
+            assert!(a.iter().all(|d| *d == [0; LEN]), "a new buffer holds zeros");
+            assert_eq!(a.as_ptr() as usize % ALIGN, 0, "{len} descriptors");
+            for (i, d) in a.iter_mut().enumerate() {
+                *d = std::array::from_fn(|k| (i * 7 + k) as u8);
+            }
+            let b = a.clone();
+            assert_eq!(b.as_ptr() as usize % ALIGN, 0);
+            assert_eq!(&a[..], &b[..]);
         }
     }
 
