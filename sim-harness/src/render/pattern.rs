@@ -96,6 +96,9 @@ pub struct ProjectorImage {
     levels: Vec<f32>,
     /// Values a level holds: `width` times the rows kept.
     stride: usize,
+    /// Whether the light goes sixteen pixels a step: this machine runs AVX-512 (detected
+    /// once, when the image is prepared) and every index into `levels` fits an i32.
+    wide: bool,
 }
 
 impl ProjectorImage {
@@ -125,7 +128,9 @@ impl ProjectorImage {
         stack.build(&values, w.max(1), max_sigma);
         let stride = values.len();
         let levels = stack.levels().concat();
-        ProjectorImage { width: w, height: h, one_row, offset: (b as f32 - 1.0) / 2.0, levels, stride }
+        let wide =
+            cfg!(target_arch = "x86_64") && camplace_estimator::avx512_available() && levels.len() <= i32::MAX as usize;
+        ProjectorImage { width: w, height: h, one_row, offset: (b as f32 - 1.0) / 2.0, levels, stride, wide }
     }
 
     /// Level `k` of the stack.
@@ -225,9 +230,9 @@ impl ProjectorImage {
     #[inline(always)]
     pub fn add_light_wide(&self, scale: f32, run: LightRun<'_>, out: &mut [f32]) -> usize {
         #[cfg(target_arch = "x86_64")]
-        if camplace_estimator::avx512_available() && self.levels.len() <= i32::MAX as usize {
-            // SAFETY: AVX-512 F, BW, DQ and VL were just detected; the variant is the
-            // image's own.
+        if self.wide {
+            // SAFETY: `wide` says AVX-512 F, BW, DQ and VL were detected and the indices fit
+            // an i32; the variant is the image's own.
             return unsafe {
                 if self.one_row {
                     self.add_light_avx512::<true>(scale, run, out)
@@ -416,8 +421,7 @@ pub struct LightRun<'a> {
 impl<'a> LightRun<'a> {
     /// The run from pixel `k` on.
     pub fn from(self, k: usize) -> LightRun<'a> {
-        let blur = if self.blur.is_empty() { self.blur } else { &self.blur[k..] };
-        LightRun { base: &self.base[k..], proj: &self.proj[k..], uv: &self.uv[k..], blur }
+        self.span(k..self.base.len())
     }
 
     /// The pixels `span` of the run.

@@ -77,7 +77,7 @@ pub(super) fn remap_shots(
 
 /// Resamples `entries` into `row` one pixel at a time: the reference the vector path
 /// equals.
-pub(super) fn remap_pixels(src: &[u8], raw_w: usize, entries: &[RemapEntry], row: &mut [u8]) {
+fn remap_pixels(src: &[u8], raw_w: usize, entries: &[RemapEntry], row: &mut [u8]) {
     for (o, e) in row.iter_mut().zip(entries) {
         if e.index == OUTSIDE {
             *o = 0;
@@ -100,7 +100,7 @@ pub(super) fn remap_pixels(src: &[u8], raw_w: usize, entries: &[RemapEntry], row
 /// step whose reads might pass the end of a source (a lane within a row and 3 bytes of it)
 /// and the row's last pixels go one at a time; the shortest source bounds the reads of all.
 #[cfg(target_arch = "x86_64")]
-pub(super) fn remap_row_wide(
+fn remap_row_wide(
     _proof: crate::cpu::Avx512,
     srcs: &[&[u8]],
     raw_w: usize,
