@@ -29,7 +29,7 @@ fn main() -> ExitCode {
                     break;
                 }
             }
-            eprintln!("error: {}", msg.join(": "));
+            cli::output::note(format_args!("error: {}\n", msg.join(": ")));
             ExitCode::from(2)
         }
     }

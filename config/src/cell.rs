@@ -404,6 +404,7 @@ impl Cell {
     pub(crate) fn validate_tray(&self) -> Result<(), Error> {
         let tr = &self.tray;
         unit("tray.albedo", tr.albedo)?;
+        crate::realism::check_gloss("tray", tr.specular, tr.roughness)?;
         if tr.kind == TrayKind::Mesh {
             // A mesh tray with no slots is allowed: it is found empty.
             load_mesh_checked("tray.mesh", &tr.mesh)?;
@@ -443,6 +444,7 @@ impl Cell {
         }
         let it = &self.items;
         unit("items.albedo", it.albedo)?;
+        crate::realism::check_gloss("items", it.specular, it.roughness)?;
         positive("items.size", &it.size)?;
         if it.kind == ItemsKind::Mesh {
             load_mesh_checked("items.mesh", &it.mesh)?;
@@ -465,12 +467,8 @@ impl Cell {
             }
         }
         let s = &self.sensor;
-        if s.camera_resolution.iter().any(|&v| !(16..=8192).contains(&v)) {
-            return Err(Error::value(
-                "sensor.camera_resolution",
-                "expected [width, height] between 16 and 8192 pixels",
-            ));
-        }
+        let [cw, ch] = s.camera_resolution;
+        crate::check_image_size("sensor.camera_resolution", cw, ch, crate::BYTES_PER_CAMERA_PIXEL, 1)?;
         angle_open("sensor.camera_hfov", s.camera_hfov, 1.0, 170.0)?;
         if !s.camera_k.is_empty() {
             let k = &s.camera_k;
@@ -486,14 +484,12 @@ impl Cell {
                     "expected [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0, or [] for one from camera_hfov",
                 ));
             }
+            crate::check_focal_px("sensor.camera_k", "fx", k[0][0], cw)?;
+            crate::check_focal_px("sensor.camera_k", "fy", k[1][1], ch)?;
         }
         check_camera_dist(s)?;
-        if s.projector_resolution.iter().any(|&v| !(16..=8192).contains(&v)) {
-            return Err(Error::value(
-                "sensor.projector_resolution",
-                "expected [width, height] between 16 and 8192 pixels",
-            ));
-        }
+        let [pw, ph] = s.projector_resolution;
+        crate::check_image_size("sensor.projector_resolution", pw, ph, crate::BYTES_PER_PROJECTOR_PIXEL, 1)?;
         angle_open("sensor.projector_hfov", s.projector_hfov, 1.0, 170.0)?;
         if !(s.projector_gain.is_finite() && (0.0..=10.0).contains(&s.projector_gain)) {
             return Err(Error::value(
@@ -822,48 +818,16 @@ fn is_distortion_free(dist: &[f64; 5]) -> bool {
     dist.iter().all(|&d| d == 0.0)
 }
 
-/// The largest size of a distortion coefficient: real lenses stay well below it.
-const MAX_DISTORTION_COEFFICIENT: f64 = 10.0;
-
-/// `camera_dist` must be finite, and the distortion one-to-one over the image: along every
-/// ray out to the image's corners the distorted radius keeps growing, or the renderer could
-/// not map pixels back to rays.
+/// `camera_dist`, checked as every camera's distortion is (finite, one-to-one over the image).
 fn check_camera_dist(s: &Sensor) -> Result<(), Error> {
-    let d = s.camera_dist;
-    if !d.iter().all(|v| v.is_finite() && v.abs() <= MAX_DISTORTION_COEFFICIENT) {
-        return Err(Error::value(
-            "sensor.camera_dist",
-            format!("expected [k1, k2, p1, p2, k3], finite numbers within ±{MAX_DISTORTION_COEFFICIENT}, got {d:?}"),
-        ));
-    }
-    if is_distortion_free(&d) {
-        return Ok(());
-    }
-    // The half diagonal of the image in normalised coordinates, with a margin for the
-    // principal point and the tangential terms.
-    let [w, h] = s.camera_resolution.map(f64::from);
-    let fx =
-        if s.camera_k.len() == 3 { s.camera_k[0][0] } else { (w / 2.0) / (s.camera_hfov.to_radians() / 2.0).tan() };
+    let [w, h] = s.camera_resolution;
+    let fx = if s.camera_k.len() == 3 {
+        s.camera_k[0][0]
+    } else {
+        (f64::from(w) / 2.0) / (s.camera_hfov.to_radians() / 2.0).tan()
+    };
     let fy = if s.camera_k.len() == 3 { s.camera_k[1][1] } else { fx };
-    let r_max = 1.5 * ((w / fx).powi(2) + (h / fy).powi(2)).sqrt() / 2.0;
-    let [k1, k2, _, _, k3] = d;
-    let steps = 200;
-    for i in 0..=steps {
-        let r = r_max * i as f64 / steps as f64;
-        let r2 = r * r;
-        // d/dr of r (1 + k1 r^2 + k2 r^4 + k3 r^6).
-        let slope = 1.0 + 3.0 * k1 * r2 + 5.0 * k2 * r2 * r2 + 7.0 * k3 * r2 * r2 * r2;
-        if slope <= 0.05 {
-            return Err(Error::value(
-                "sensor.camera_dist",
-                format!(
-                    "expected a distortion that is one-to-one over the image, but its radial part folds back at {:.0} % of the image's half diagonal",
-                    100.0 * r / (r_max / 1.5)
-                ),
-            ));
-        }
-    }
-    Ok(())
+    crate::check_distortion("sensor.camera_dist", &s.camera_dist, w, h, fx, fy)
 }
 
 fn angle_open(key: &str, v: f64, lo: f64, hi: f64) -> Result<(), Error> {

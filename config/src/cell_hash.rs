@@ -187,7 +187,7 @@ impl Cell {
 
 fn mesh_hash(key: &'static str, path: &Path) -> Result<MeshHash, Error> {
     let bytes =
-        crate::formats::read::read_bounded(path, crate::formats::read::MAX_DATA_BYTES).map_err(|e| e.under_key(key))?;
+        crate::formats::read::read_bounded(path, crate::formats::read::FileKind::Data).map_err(|e| e.under_key(key))?;
     Ok(MeshHash { key, path: path.to_path_buf(), hash: ContentHash::of(&bytes) })
 }
 

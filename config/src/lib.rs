@@ -2,6 +2,7 @@
 //! interchange formats of docs/architecture.md §3. This crate is the leaf: it knows
 //! nothing of the estimator or the simulator, only what the user writes and reads.
 
+mod camera_checks;
 mod cell;
 mod cell_hash;
 mod error;
@@ -11,9 +12,15 @@ mod pose;
 mod raster;
 mod realism;
 mod rig;
+#[cfg(test)]
+mod same_checks_tests;
 mod trays;
 mod truth;
 
+pub use camera_checks::{
+    check_distortion, check_focal_px, check_image_size, check_mounting, BYTES_PER_CAMERA_PIXEL,
+    BYTES_PER_PROJECTOR_PIXEL, MEMORY_BUDGET_BYTES, MIN_IMAGE_SIDE,
+};
 pub use cell::{
     Cell, EstimatorParams, EstimatorPreset, Items, ItemsKind, Lighting, Metrics, PhaseParams, ReconstructionParams,
     Robot, Scenarios, Sensor, StereoParams, Table, Tray, TrayKind, WorkVolume, DEFAULT_CELL_TOML, MAX_ITERATIONS,
@@ -25,12 +32,16 @@ pub use formats::dataset::{frame_name, image_name, is_image_name, DATASET_FILES,
 pub use formats::mesh::{decode_obj, decode_stl, load_mesh, Mesh};
 pub use formats::pfm::{decode_pfm, encode_pfm, read_pfm, write_pfm};
 pub use formats::ply::{decode_ply, encode_cloud, read_cloud, read_ply, write_cloud, PlyCloud, PlyData};
-pub use formats::png::{read_gray, write_gray, write_rgb, Gray};
-pub use formats::{is_temp_file_name, remove_stale_temp_files, write_atomic};
+pub use formats::png::{decode_gray, read_gray, read_image_size, write_gray, write_rgb, Gray};
+pub use formats::read::{
+    open_checked, read_bounded, read_text, FileKind, MAX_DATA_BYTES, MAX_IMAGE_FILE_BYTES, MAX_IMAGE_PIXELS,
+    MAX_MODEL_BYTES, MAX_TEXT_BYTES,
+};
+pub use formats::{is_temp_file_name, remove_stale_temp_files, temp_path_for, write_atomic};
 pub use placement::{Placement, Vergence, MAX_DISTANCE_MM, PARAMETERS};
 pub use pose::{check_rigid, ROTATION_TOLERANCE};
 pub use raster::{FloatImage, GrayImage, Image};
 pub use realism::{CalibrationError, Effect, Effects, Focus, Occluder, Optics, MAX_ROUGHNESS, MIN_ROUGHNESS};
 pub use rig::{CameraFile, RectifiedFile, RigFile, MAX_IMAGE_SIDE};
-pub use trays::{TrayEntry, MAX_TRAYS};
+pub use trays::{reserved_tray_name, TrayEntry, MAX_TRAYS, STUDY_FILE_ENDINGS, STUDY_FOLDER_NAMES};
 pub use truth::{LightingTruth, TruthFile};

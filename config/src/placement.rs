@@ -146,14 +146,36 @@ impl Placement {
     }
 
     /// Reads `r=605,alpha=32,baseline=81,vergence=3.5` (any subset, any order) over `self`.
+    /// An empty field (`r=605,,alpha=32`, a trailing comma, `r=`) and a parameter given twice
+    /// are refused: either would leave unsaid which value was meant.
     pub fn with_overrides(&self, text: &str) -> Result<Placement, Error> {
         let mut p = *self;
-        for part in text.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        let mut seen: Vec<&str> = Vec::new();
+        for part in text.split(',').map(str::trim) {
+            if part.is_empty() {
+                return Err(Error::value(
+                    "placement",
+                    format!(
+                        "expected name=value fields separated by single commas, found an empty field in \"{text}\""
+                    ),
+                ));
+            }
             let (name, value) = part
                 .split_once('=')
                 .ok_or_else(|| Error::value("placement", format!("expected name=value, got \"{part}\"")))?;
             let name = name.trim();
             let value = value.trim();
+            if name.is_empty() || value.is_empty() {
+                let key = if name.is_empty() { "placement".to_string() } else { format!("placement.{name}") };
+                return Err(Error::value(key, format!("expected name=value with both given, got \"{part}\"")));
+            }
+            if seen.contains(&name) {
+                return Err(Error::value(
+                    format!("placement.{name}"),
+                    format!("given twice in \"{text}\"; give each parameter once"),
+                ));
+            }
+            seen.push(name);
             let number = || {
                 value.parse::<f64>().map_err(|e| {
                     Error::value(format!("placement.{name}"), format!("expected a number, got \"{value}\""))
@@ -243,6 +265,24 @@ mod tests {
         assert_eq!(e.key(), "placement.height");
         let e = base().with_overrides("vergence=left").unwrap_err();
         assert_eq!(e.key(), "placement.vergence");
+    }
+
+    #[test]
+    fn a_parameter_twice_or_an_empty_field_is_refused() {
+        for (text, key) in [
+            ("r=605,r=700", "placement.r"),
+            ("r=605,alpha=30,alpha=30", "placement.alpha"),
+            ("r=605,,alpha=30", "placement"),
+            ("r=605,", "placement"),
+            (",r=605", "placement"),
+            ("", "placement"),
+            ("r=", "placement.r"),
+            ("=605", "placement"),
+        ] {
+            let e = base().with_overrides(text).unwrap_err();
+            assert_eq!(e.key(), key, "{text:?}: {e}");
+        }
+        assert!(base().with_overrides(" r = 605 , alpha=30 ").is_ok());
     }
 
     #[test]

@@ -192,11 +192,10 @@ impl Cell {
         ]
     }
 
-    /// Checks `[optics]`, `[calibration_error]`, `[occluder]` and the materials' gloss.
+    /// Checks `[optics]`, `[calibration_error]`, `[occluder]` and the table's gloss (the
+    /// tray's and the items' are checked with the rest of each tray, listed or not).
     pub(crate) fn validate_realism(&self) -> Result<(), Error> {
-        for (name, specular, roughness) in self.materials() {
-            check_gloss(name, specular, roughness)?;
-        }
+        check_gloss("table", self.table.specular, self.table.roughness)?;
         let o = &self.optics;
         for (key, f) in [
             ("optics.camera_focal_length", o.camera_focal_length),
@@ -262,7 +261,8 @@ const MAX_F_NUMBER: f64 = 64.0;
 pub const MIN_ROUGHNESS: f64 = 0.02;
 pub const MAX_ROUGHNESS: f64 = 1.0;
 
-fn check_gloss(name: &str, specular: f64, roughness: f64) -> Result<(), Error> {
+/// Checks a material's `specular` and `roughness`, naming them under `name`.
+pub(crate) fn check_gloss(name: &str, specular: f64, roughness: f64) -> Result<(), Error> {
     unit(&format!("{name}.specular"), specular)?;
     if !(roughness.is_finite() && (MIN_ROUGHNESS..=MAX_ROUGHNESS).contains(&roughness)) {
         return Err(Error::value(

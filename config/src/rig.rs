@@ -5,7 +5,28 @@
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
+use crate::camera_checks::{
+    check_distortion, check_focal_px, check_image_size, check_mounting, BYTES_PER_CAMERA_PIXEL,
+    BYTES_PER_PROJECTOR_PIXEL, MEMORY_BUDGET_BYTES,
+};
 use crate::Error;
+
+/// A rectified canvas's buffers (per canvas pixel, the same cost as a camera pixel) within
+/// the memory budget.
+fn check_image_size_any(key: &str, width: u32, height: u32) -> Result<(), Error> {
+    let estimate = u64::from(width) * u64::from(height) * BYTES_PER_CAMERA_PIXEL;
+    if estimate > MEMORY_BUDGET_BYTES {
+        return Err(Error::value(
+            key,
+            format!(
+                "a {width} x {height} canvas would need about {:.1} GB of buffers, past the memory budget of {:.1} GB",
+                estimate as f64 / 1e9,
+                MEMORY_BUDGET_BYTES as f64 / 1e9
+            ),
+        ));
+    }
+    Ok(())
+}
 
 /// One camera (or the projector): intrinsics, distortion and pose in the world.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -62,8 +83,8 @@ impl RigFile {
 
     /// Checks every camera (size, K, distortion, pose) and the baseline.
     pub fn check(&self) -> Result<(), Error> {
-        self.left.check("left")?;
-        self.right.check("right")?;
+        self.left.check("left", BYTES_PER_CAMERA_PIXEL)?;
+        self.right.check("right", BYTES_PER_CAMERA_PIXEL)?;
         let baseline = (0..3)
             .map(|r| self.right.t_world_camera[r][3] - self.left.t_world_camera[r][3])
             .map(|d| d * d)
@@ -78,7 +99,7 @@ impl RigFile {
             ));
         }
         if let Some(p) = &self.projector {
-            p.check("projector")?;
+            p.check("projector", BYTES_PER_PROJECTOR_PIXEL)?;
         }
         if let Some(r) = &self.rectified {
             r.check()?;
@@ -101,49 +122,50 @@ impl RigFile {
 /// can be triangulated (stereo rigs are tens of millimetres apart and more).
 pub const MIN_BASELINE_MM: f64 = 1.0;
 
-/// The largest image side a `rig.json` may give, pixels: buffers are sized from it.
-pub const MAX_IMAGE_SIDE: u32 = 16384;
+pub use crate::camera_checks::MAX_IMAGE_SIDE;
 
-fn check_size(key: &str, width: u32, height: u32) -> Result<(), Error> {
-    if width == 0 || height == 0 || width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
-        return Err(Error::value(
-            format!("{key}.width"),
-            format!("expected an image size from 1 to {MAX_IMAGE_SIDE} pixels a side, got {width} x {height}"),
-        ));
-    }
-    Ok(())
-}
-
-fn check_k(key: &str, k: &[[f64; 3]; 3]) -> Result<(), Error> {
-    if !(k.iter().flatten().all(|v| v.is_finite())
-        && k[0][0] > 0.0
-        && k[1][1] > 0.0
-        && k[1][0] == 0.0
-        && k[2] == [0.0, 0.0, 1.0])
-    {
+fn check_k(key: &str, k: &[[f64; 3]; 3], width: u32, height: u32) -> Result<(), Error> {
+    if !(k.iter().flatten().all(|v| v.is_finite()) && k[1][0] == 0.0 && k[2] == [0.0, 0.0, 1.0]) {
         return Err(Error::value(
             format!("{key}.K"),
             "expected [[fx, s, cx], [0, fy, cy], [0, 0, 1]] of finite numbers with fx, fy > 0",
         ));
     }
-    Ok(())
+    check_focal_px(&format!("{key}.K"), "fx", k[0][0], width)?;
+    check_focal_px(&format!("{key}.K"), "fy", k[1][1], height)
 }
 
 impl CameraFile {
-    fn check(&self, key: &str) -> Result<(), Error> {
-        check_size(key, self.width, self.height)?;
-        check_k(key, &self.k)?;
-        if self.dist.iter().any(|v| !v.is_finite()) {
-            return Err(Error::value(format!("{key}.dist"), "expected five finite numbers k1 k2 p1 p2 k3"));
-        }
-        crate::pose::check_rigid(&self.t_world_camera).map_err(|m| Error::value(format!("{key}.T_world_camera"), m))
+    /// The physical checks of the cell's sensor, the same functions: the size within the
+    /// memory budget, the focal lengths, a distortion one-to-one over the image, a rigid
+    /// pose whose centre is within the cell's reach, above the table, looking down.
+    fn check(&self, key: &str, bytes_per_pixel: u64) -> Result<(), Error> {
+        check_image_size(&format!("{key}.width"), self.width, self.height, bytes_per_pixel, 1)?;
+        check_k(key, &self.k, self.width, self.height)?;
+        check_distortion(&format!("{key}.dist"), &self.dist, self.width, self.height, self.k[0][0], self.k[1][1])?;
+        let pose = format!("{key}.T_world_camera");
+        crate::pose::check_rigid(&self.t_world_camera).map_err(|m| Error::value(&pose, m))?;
+        check_mounting(&pose, &self.t_world_camera)
     }
 }
 
 impl RectifiedFile {
     fn check(&self) -> Result<(), Error> {
-        check_size("rectified", self.width, self.height)?;
-        check_k("rectified", &self.k)?;
+        // The canvas may be up to twice the camera image a side.
+        let sides = 1..=2 * MAX_IMAGE_SIDE;
+        if !(sides.contains(&self.width) && sides.contains(&self.height)) {
+            return Err(Error::value(
+                "rectified.width",
+                format!(
+                    "expected a canvas from 1 to {} pixels a side, got {} x {}",
+                    2 * MAX_IMAGE_SIDE,
+                    self.width,
+                    self.height
+                ),
+            ));
+        }
+        check_image_size_any("rectified.width", self.width, self.height)?;
+        check_k("rectified", &self.k, self.width, self.height)?;
         if !(self.baseline.is_finite() && self.baseline > 0.0) {
             return Err(Error::value("rectified.baseline", "expected a positive distance in mm"));
         }
@@ -161,7 +183,13 @@ mod tests {
             height: 480,
             k: [[800.0, 0.0, 319.5], [0.0, 800.0, 239.5], [0.0, 0.0, 1.0]],
             dist: [0.0; 5],
-            t_world_camera: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]],
+            // 600 mm above the table, looking straight down.
+            t_world_camera: [
+                [1.0, 0.0, 0.0, 0.0],
+                [0.0, -1.0, 0.0, 0.0],
+                [0.0, 0.0, -1.0, 600.0],
+                [0.0, 0.0, 0.0, 1.0],
+            ],
         }
     }
 
@@ -208,6 +236,28 @@ mod tests {
         assert!(with_left(|c| c.width = 1 << 20).starts_with("left.width: "));
         assert!(with_left(|c| c.k[0][2] = f64::INFINITY).contains("left.K"));
         assert!(with_left(|c| c.dist[4] = f64::NAN).contains("left.dist"));
+    }
+
+    #[test]
+    fn the_sensors_physical_checks_apply_naming_the_key() {
+        let e = with_left(|c| c.k[0][0] = 1e-300);
+        assert!(e.starts_with("left.K: fx = ") && e.contains("field of view"), "{e}");
+        let e = with_left(|c| c.k[1][1] = -3.0);
+        assert!(e.starts_with("left.K: fy = "), "{e}");
+        let e = with_left(|c| c.t_world_camera[2][3] = -513.0);
+        assert!(e.starts_with("left.T_world_camera: ") && e.contains("above the table"), "{e}");
+        let e = with_left(|c| c.t_world_camera[0][3] = 1e200);
+        assert!(e.starts_with("left.T_world_camera: ") && e.contains("within"), "{e}");
+        let e = with_left(|c| c.dist = [-3.0, 0.0, 0.0, 0.0, 0.0]);
+        assert!(e.starts_with("left.dist: ") && e.contains("one-to-one"), "{e}");
+        let e = with_left(|c| (c.width, c.height) = (8192, 8192));
+        assert!(e.starts_with("left.width: 8192 x 8192") && e.contains("budget"), "{e}");
+        let e = with_left(|c| {
+            // Turned half way round about x: looking up from above the table.
+            c.t_world_camera[1][1] = 1.0;
+            c.t_world_camera[2][2] = 1.0;
+        });
+        assert!(e.contains("point down"), "{e}");
     }
 
     #[test]

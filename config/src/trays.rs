@@ -13,6 +13,47 @@ use crate::{Cell, Error, Items, Tray, TrayKind};
 /// The most trays a cell may list.
 pub const MAX_TRAYS: usize = 16;
 
+/// Names a study folder gives its own entries beside the trays' folders (the joint search,
+/// the tolerances, the report, the lock, a tray folder's method folders and files): a tray
+/// named so would mix its results with them.
+pub const STUDY_FOLDER_NAMES: &[&str] = &[
+    "all-trays",
+    "tolerance",
+    "models",
+    "one-shot",
+    "phase-12",
+    "report.html",
+    "recommended.json",
+    "best_preview.png",
+    "settings.json",
+    "results.jsonl",
+    "results.rejected.jsonl",
+    "summary.json",
+    "summary.csv",
+    "sweep.json",
+    "tolerance.json",
+    "optimize.json",
+    "study.lock",
+];
+
+/// Endings of the files a study writes (reports, plots, tables, the lock): no tray name
+/// ends so, so no tray folder can be taken for one of them.
+pub const STUDY_FILE_ENDINGS: &[&str] = &[".html", ".json", ".jsonl", ".csv", ".png", ".svg", ".md", ".lock", ".model"];
+
+/// Why `name` cannot name a tray's folder in a study, if it cannot.
+pub fn reserved_tray_name(name: &str) -> Option<String> {
+    let lower = name.to_ascii_lowercase();
+    if STUDY_FOLDER_NAMES.contains(&lower.as_str()) {
+        return Some(format!(
+            "\"{name}\" is a name the study folder uses for its own files; give the tray another name"
+        ));
+    }
+    STUDY_FILE_ENDINGS
+        .iter()
+        .find(|e| lower.ends_with(*e))
+        .map(|e| format!("\"{name}\" ends like a file the study writes ({e}); give the tray another name"))
+}
+
 /// One tray of a cell's list, with the items its slots hold. Written as in the cell file:
 /// the name and the tray's keys side by side, the items as a table.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -206,6 +247,9 @@ pub(crate) fn parse_trays(
             }
             None => folder_name_of(&entry.tray),
         };
+        if let Some(why) = reserved_tray_name(&entry.name) {
+            return Err(Error::value(format!("{key}.name"), why));
+        }
         if entries.iter().any(|e| e.name == entry.name) {
             return Err(Error::value(
                 format!("{key}.name"),
@@ -298,6 +342,17 @@ mod tests {
             ("trays = [1]\n", "trays[0]"),
             ("[[trays]]\nname = \"a\"\n[[trays]]\nname = \"a\"\n", "trays[1].name"),
             ("[[trays]]\n[[trays]]\n", "trays[1].name"),
+            ("[[trays]]\nname = \"all-trays\"\n", "trays[0].name"),
+            ("[[trays]]\nname = \"tolerance\"\n", "trays[0].name"),
+            ("[[trays]]\nname = \"report.html\"\n", "trays[0].name"),
+            ("[[trays]]\nname = \"Study.LOCK\"\n", "trays[0].name"),
+            ("[[trays]]\nname = \"a.svg\"\n", "trays[0].name"),
+            ("[[trays]]\nroughness = 0.0\n", "trays[0].roughness"),
+            ("[[trays]]\nspecular = nan\n", "trays[0].specular"),
+            (
+                "[[trays]]\nname = \"a\"\n[[trays]]\nname = \"b\"\n[trays.items]\nroughness = 5.0\n",
+                "trays[1].items.roughness",
+            ),
             ("[[trays]]\nname = \"../up\"\n", "trays[0].name"),
             ("[[trays]]\nname = 4\n", "trays[0].name"),
             ("[[trays]]\ncolour = 3\n", "trays[0].colour"),

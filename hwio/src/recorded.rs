@@ -42,7 +42,8 @@ impl RecordedSource {
         let mut named = Vec::new();
         for entry in entries {
             let entry = entry.map_err(|e| Error::io(&frames_dir, &e))?;
-            if entry.path().is_dir() {
+            // A name starting with '.' is a frame still being written (or left by a kill).
+            if entry.path().is_dir() && !entry.file_name().to_string_lossy().starts_with('.') {
                 named.push((entry.file_name().to_string_lossy().into_owned(), entry.path()));
             }
         }
@@ -177,21 +178,148 @@ impl FrameSource for RecordedSource {
 
 pub use camplace_config::image_name;
 
-/// Writes `frames` as the next frame of the dataset `root` (`frames/NNNN/`, the first number
-/// not yet taken) and returns its folder; with `rig`, copies that calibration to the
-/// dataset's `rig.json` when it has none yet.
+/// The largest frame number a dataset takes: frames are numbered on, never wrapped round.
+pub const MAX_FRAME_NUMBER: u64 = 99_999_999;
+
+/// Writes `frames` as the next frame of the dataset `root` (`frames/NNNN/`, one past the
+/// highest number there) and returns its folder; with `rig`, copies that calibration to the
+/// dataset's `rig.json` when it has none yet. The frame is written into a temporary folder
+/// and renamed whole, so a kill leaves no half frame; a frame that does not match the
+/// dataset (its rig, its frames' shot count and image size) and a number past
+/// [`MAX_FRAME_NUMBER`] are refused before anything is written.
 pub fn append_frame(root: &Path, frames: &Frames, rig: Option<&Path>) -> Result<PathBuf> {
     let all = root.join("frames");
-    let next = match std::fs::read_dir(&all) {
+    let mut highest: Option<(u64, PathBuf)> = None;
+    match std::fs::read_dir(&all) {
         Ok(entries) => {
-            entries.flatten().filter_map(|e| e.file_name().to_str()?.parse::<u64>().ok()).max().map_or(0, |n| n + 1)
+            for entry in entries {
+                let entry = entry.map_err(|e| Error::io(&all, &e))?;
+                let name = entry.file_name().to_string_lossy().into_owned();
+                if name.starts_with('.') || !entry.path().is_dir() {
+                    continue;
+                }
+                if !name.is_empty() && name.bytes().all(|b| b.is_ascii_digit()) {
+                    let n = name.parse::<u64>().ok().filter(|&n| n <= MAX_FRAME_NUMBER).ok_or_else(|| {
+                        Error::format(
+                            &entry.path(),
+                            format!("a frame number past {MAX_FRAME_NUMBER}, the largest a dataset takes; start a new dataset"),
+                        )
+                    })?;
+                    if highest.as_ref().is_none_or(|(h, _)| n > *h) {
+                        highest = Some((n, entry.path()));
+                    }
+                }
+            }
         }
-        Err(_) => 0,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => return Err(Error::io(&all, &e)),
+    }
+    let next = match &highest {
+        None => 0,
+        Some((n, path)) => n.checked_add(1).filter(|&n| n <= MAX_FRAME_NUMBER).ok_or_else(|| {
+            Error::format(
+                path,
+                format!("frame {n} is the last a dataset takes ({MAX_FRAME_NUMBER}); start a new dataset"),
+            )
+        })?,
     };
+    check_frame_fits(root, frames, rig, highest.as_ref().map(|(_, p)| p.as_path()))?;
     let dir = all.join(camplace_config::frame_name(next));
-    write_shots(&dir, frames)?;
+    write_whole(&dir, frames)?;
     copy_rig(root, rig)?;
     Ok(dir)
+}
+
+/// Refuses a frame that does not match the dataset `root`: its images' sizes against the
+/// dataset's `rig.json` (or `rig` when the dataset has none yet), `rig` against the
+/// dataset's own, and its shot count and sizes against the frame in `earlier`.
+fn check_frame_fits(root: &Path, frames: &Frames, rig: Option<&Path>, earlier: Option<&Path>) -> Result<()> {
+    let size = |img: &GrayImage| (img.width, img.height);
+    let (Some(left), Some(right)) = (frames.left.first(), frames.right.first()) else {
+        return Err(Error::new(ErrorKind::Format, "the source gave a frame without images"));
+    };
+    let (left_size, right_size) = (size(left), size(right));
+    if frames.left.iter().any(|i| size(i) != left_size) || frames.right.iter().any(|i| size(i) != right_size) {
+        return Err(Error::new(ErrorKind::Format, "the source gave a frame whose shots differ in size"));
+    }
+    let dataset_rig = root.join("rig.json");
+    let given = rig.map(RigFile::load).transpose()?;
+    let own = if dataset_rig.exists() { Some(RigFile::load(&dataset_rig)?) } else { None };
+    if let Some((r, path)) = own.as_ref().map(|r| (r, dataset_rig.as_path())).or(given.as_ref().zip(rig)) {
+        for (side, cam, got) in [("left", &r.left, left_size), ("right", &r.right, right_size)] {
+            let want = (cam.width as usize, cam.height as usize);
+            if got != want {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "{side}.width: the frame's {side} images are {}x{}, the rig's {side} camera {}x{}; a dataset holds frames of one rig",
+                        got.0, got.1, want.0, want.1
+                    ),
+                ));
+            }
+        }
+    }
+    if let Some(earlier) = earlier {
+        let shots = detect_shots(earlier)?;
+        if shots != frames.shots() {
+            return Err(Error::format(
+                earlier,
+                format!(
+                    "holds {shots} shot(s) per side, the new frame {}; a dataset holds frames of one method",
+                    frames.shots()
+                ),
+            ));
+        }
+        for (side, got) in [("left", left_size), ("right", right_size)] {
+            let path = earlier.join(image_name(side, 0, shots));
+            let had = camplace_config::read_image_size(&path)?;
+            if had != got {
+                return Err(Error::format(
+                    &path,
+                    format!(
+                        "{}x{} pixels, the new frame's {side} images {}x{}; a dataset holds frames of one size",
+                        had.0, had.1, got.0, got.1
+                    ),
+                ));
+            }
+        }
+    }
+    if let (Some(given), Some(own), Some(path)) = (&given, &own, rig) {
+        // The cameras and projector; `rectified` is what reconstruction added since.
+        if (&given.left, &given.right, &given.projector) != (&own.left, &own.right, &own.projector) {
+            return Err(Error::format(
+                path,
+                format!("differs from the dataset's {}; a dataset holds frames of one rig", dataset_rig.display()),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Writes `frames` into a temporary folder beside `dir` and renames it to `dir` whole;
+/// a `dir` already there is never replaced.
+fn write_whole(dir: &Path, frames: &Frames) -> Result<()> {
+    if dir.exists() {
+        return Err(Error::format(dir, "already there; a frame is never written over"));
+    }
+    let parent = dir.parent().unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, &e))?;
+    camplace_config::remove_stale_temp_files(parent)?;
+    let tmp = camplace_config::temp_path_for(dir);
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, &e))?;
+    }
+    let written = write_shots(&tmp, frames).and_then(|()| {
+        // The folder's entries made durable before it takes its name.
+        if let Ok(f) = std::fs::File::open(&tmp) {
+            let _ = f.sync_all();
+        }
+        std::fs::rename(&tmp, dir).map_err(|e| Error::io(dir, &e))
+    });
+    if written.is_err() {
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+    written
 }
 
 /// Writes `frames` as the dataset `root`'s `background/` (the empty cell, which `run` and
@@ -208,13 +336,14 @@ pub fn write_table_view(root: &Path, frames: &Frames, rig: Option<&Path>) -> Res
     write_once(root, "table", "a table view", frames, rig)
 }
 
-/// Writes `frames` into `root/name/` unless that folder exists.
+/// Writes `frames` into `root/name/` (whole, as [`append_frame`] does) unless that folder exists.
 fn write_once(root: &Path, name: &str, what: &str, frames: &Frames, rig: Option<&Path>) -> Result<PathBuf> {
     let dir = root.join(name);
     if dir.exists() {
         return Err(Error::format(&dir, format!("already holds {what}; remove the folder first to capture a new one")));
     }
-    write_shots(&dir, frames)?;
+    check_frame_fits(root, frames, rig, None)?;
+    write_whole(&dir, frames)?;
     copy_rig(root, rig)?;
     Ok(dir)
 }
@@ -239,7 +368,7 @@ fn copy_rig(root: &Path, rig: Option<&Path>) -> Result<()> {
     if let Some(rig) = rig {
         let to = root.join("rig.json");
         if !to.exists() {
-            std::fs::copy(rig, &to).map_err(|e| Error::io(rig, &e))?;
+            camplace_config::write_atomic(&to, camplace_config::read_text(rig)?.as_bytes())?;
         }
     }
     Ok(())

@@ -40,6 +40,7 @@ pub use seeds::noise_key;
 pub use study::ablation::{ablate, ablation_markdown, AblationRow};
 pub use study::folder::open_folder;
 pub use study::grid::{Axis, Grid};
+pub use study::lock::{lock_folder, FolderLock, LOCK_FILE};
 pub use study::merge::merge;
 pub use study::one_placement::{acceptance_summary, evaluate_placement};
 pub use study::optimize::{SearchParameter, SearchPlan};

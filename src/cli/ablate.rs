@@ -45,10 +45,12 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     };
     let seed = a.scene.seed(&cell);
     let placements = [("recommended".to_string(), placement), ("weak".to_string(), weak)];
+    // The whole run holds the folder: a second run on it is refused naming this one.
+    let _lock = camplace_sim::lock_folder(&a.out)?;
     let rows = ablate(&a.out, &cell, &placements, method, seed, scenarios)?;
     let text = ablation_markdown(&rows);
     let path = a.out.join("ablation.md");
     camplace_config::write_atomic(&path, text.as_bytes())?;
-    println!("{method}, seed {seed}, {scenarios} scenarios per row\n\n{text}\nwritten to {}", path.display());
+    outln!("{method}, seed {seed}, {scenarios} scenarios per row\n\n{text}\nwritten to {}", path.display());
     Ok(ExitCode::SUCCESS)
 }

@@ -43,8 +43,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let s = acceptance_summary(a.out.as_deref(), &cell, &placement, a.scene.method, seed, scenarios)?;
     let low = s.success_interval[0];
     let pass = low >= a.min_success;
-    println!("{placement} ({}, seed {seed}): {}", a.scene.method, s.line());
-    println!(
+    outln!("{placement} ({}, seed {seed}): {}", a.scene.method, s.line());
+    outln!(
         "{}: lower 95 % bound {:.1} % {} the required {:.1} %",
         if pass { "PASS" } else { "FAIL" },
         100.0 * low,

@@ -67,11 +67,17 @@ fn parse_board_in_world(text: &str) -> anyhow::Result<Isometry3<f64>> {
     ))
 }
 
-/// One stereo pair of the board: where it came from and its images.
-struct Pair {
+/// The most board views `calibrate` takes: the joint refinement's time grows with the
+/// square of the view count (about 0.3 s at 100 views on one core).
+pub const MAX_CALIBRATION_VIEWS: usize = 100;
+
+/// One stereo pair of the board: where it came from, its image size and the corners found
+/// in each image (or why the whole board was not found there).
+struct FoundPair {
     name: String,
     folder: PathBuf,
-    images: [GrayImage; 2],
+    size: (usize, usize),
+    corners: [Result<Vec<nalgebra::Point2<f64>>, String>; 2],
 }
 
 /// Runs `camplace calibrate`.
@@ -85,6 +91,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let mut folders: Vec<PathBuf> = std::fs::read_dir(&frames)
         .with_context(|| format!("{}: cannot list the board views (frames/NNNN/)", frames.display()))?
         .flatten()
+        .filter(|e| !e.file_name().to_string_lossy().starts_with('.'))
         .map(|e| e.path())
         .filter(|p| p.is_dir())
         .collect();
@@ -96,41 +103,41 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             table.display()
         );
     }
+    if folders.len() > MAX_CALIBRATION_VIEWS {
+        bail!(
+            "{}: {} board views, expected at most {MAX_CALIBRATION_VIEWS} (the joint refinement's time grows with the square of the view count; 20 to 40 views spread over the image calibrate well)",
+            frames.display(),
+            folders.len()
+        );
+    }
     folders.push(table.clone());
-    let pairs: Vec<Pair> = folders.iter().map(|f| read_pair(&a.images, f)).collect::<anyhow::Result<_>>()?;
-    let (width, height) = (pairs[0].images[0].width, pairs[0].images[0].height);
-    for p in &pairs {
-        for (side, image) in ["left", "right"].iter().zip(&p.images) {
-            if (image.width, image.height) != (width, height) {
-                bail!(
-                    "{}: {}x{} pixels, expected {width}x{height} as {}",
-                    p.folder.join(format!("{side}.png")).display(),
-                    image.width,
-                    image.height,
-                    pairs[0].folder.join("left.png").display()
-                );
-            }
+    // One view at a time: its images are read, searched for the board's corners and dropped,
+    // so only the corners of every view are held (and a worker's pair at a time).
+    let found: Vec<FoundPair> =
+        folders.par_iter().map(|f| find_pair(&a.images, f, &board)).collect::<anyhow::Result<_>>()?;
+    let (width, height) = found[0].size;
+    for p in &found {
+        if p.size != (width, height) {
+            bail!(
+                "{}: {}x{} pixels, expected {width}x{height} as {}",
+                p.folder.join("left.png").display(),
+                p.size.0,
+                p.size.1,
+                found[0].folder.join("left.png").display()
+            );
         }
     }
-    // Per pair and side, the corners, or why the whole board was not found there.
-    let found: Vec<[Result<Vec<nalgebra::Point2<f64>>, String>; 2]> = pairs
-        .par_iter()
-        .map(|p| {
-            [0, 1].map(|side| {
-                find_board_corners(&p.images[side], &board)
-                    .map_err(|e| format!("{}/{}.png: {e}", p.name, ["left", "right"][side]))
-            })
-        })
-        .collect();
-    let table_name = pairs.last().map(|p| p.name.clone()).unwrap_or_default();
+    let table_name = found.last().map(|p| p.name.clone()).unwrap_or_default();
     let mut views = Vec::new();
     let mut names = Vec::new();
-    for (p, [left, right]) in pairs.iter().zip(found) {
+    let mut not_in_view = Vec::new();
+    for p in found {
+        let [left, right] = p.corners;
         // A board wholly in one image only still calibrates that camera (the cameras share
         // only the middle of their views, and the distortion is largest outside it).
         for side in [&left, &right] {
             if let Err(e) = side {
-                println!("not in view: {e}");
+                not_in_view.push(format!("not in view: {e}"));
             }
         }
         if left.is_err() && right.is_err() {
@@ -140,7 +147,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             continue;
         }
         views.push(BoardView { left: left.ok(), right: right.ok() });
-        names.push(p.name.clone());
+        names.push(p.name);
     }
     if views.len() < MIN_CALIBRATION_VIEWS {
         bail!(
@@ -152,7 +159,6 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let started = std::time::Instant::now();
     let cal = calibrate_stereo(&board, &views, width, height).with_context(|| a.images.display().to_string())?;
     let seconds = started.elapsed().as_secs_f64();
-    print_views(&cal, &names);
     let table_index = names.len() - 1;
     if cal.views[table_index].dropped {
         bail!("{table_name}: the table view's corners do not fit the calibration; capture it again");
@@ -164,14 +170,19 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let file = rig.to_file();
     file.check().map_err(|e| anyhow::anyhow!("the calibrated rig: {e}"))?;
     file.save(&a.out)?;
+    // Printed once rig.json is written: a reader that stops early loses nothing.
+    for line in &not_in_view {
+        outln!("{line}");
+    }
+    print_views(&cal, &names);
     let b = rig.baseline();
-    println!(
+    outln!(
         "calibrated from {} views in {seconds:.3} s: reprojection RMS {:.3} px, baseline {b:.2} mm; wrote {}",
         cal.views.iter().filter(|v| !v.dropped).count(),
         cal.rms_px,
         a.out.display()
     );
-    println!(
+    outln!(
         "k3: {}",
         if cal.k3_estimated {
             "refined (freeing it lowered the error beyond what noise explains)"
@@ -181,7 +192,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     );
     for (side, c) in [("left", &rig.left), ("right", &rig.right)] {
         let d = c.dist;
-        println!(
+        outln!(
             "{side:<5} fx {:.2} fy {:.2} cx {:.2} cy {:.2}  k1 {:.5} k2 {:.5} p1 {:.6} p2 {:.6} k3 {:.5}",
             c.k[(0, 0)],
             c.k[(1, 1)],
@@ -197,26 +208,40 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The pair in `folder` (`left.png` + `right.png`), named relative to `root`.
-fn read_pair(root: &Path, folder: &Path) -> anyhow::Result<Pair> {
-    let read = |side: &str| -> anyhow::Result<GrayImage> {
-        let g = camplace_config::read_gray(&folder.join(format!("{side}.png")))?;
+/// The pair in `folder` (`left.png` + `right.png`), named relative to `root`: both images
+/// read and searched for the board, then dropped. Two images of one pair must have one size.
+fn find_pair(root: &Path, folder: &Path, board: &CalibrationBoard) -> anyhow::Result<FoundPair> {
+    let name = folder.strip_prefix(root).unwrap_or(folder).display().to_string();
+    let mut size = None;
+    let mut corners = Vec::with_capacity(2);
+    for side in ["left", "right"] {
+        let path = folder.join(format!("{side}.png"));
+        let g = camplace_config::read_gray(&path)?;
+        let here = (g.width, g.height);
+        match size {
+            None => size = Some(here),
+            Some((w, h)) if here != (w, h) => {
+                bail!("{}: {}x{} pixels, expected {w}x{h} as left.png beside it", path.display(), here.0, here.1)
+            }
+            Some(_) => {}
+        }
         let mut image = GrayImage::default();
         image.reset(g.width, g.height, 0);
         image.data = g.data;
-        Ok(image)
-    };
-    let name = folder.strip_prefix(root).unwrap_or(folder).display().to_string();
-    Ok(Pair { name, folder: folder.to_path_buf(), images: [read("left")?, read("right")?] })
+        corners.push(find_board_corners(&image, board).map_err(|e| format!("{name}/{side}.png: {e}")));
+    }
+    let right = corners.pop().expect("two sides");
+    let left = corners.pop().expect("two sides");
+    Ok(FoundPair { name, folder: folder.to_path_buf(), size: size.expect("two sides"), corners: [left, right] })
 }
 
 /// Each view's reprojection error, the dropped ones marked.
 fn print_views(cal: &StereoCalibration, names: &[String]) {
-    println!("{:<14} {:>9} {:>9}", "view", "left px", "right px");
+    outln!("{:<14} {:>9} {:>9}", "view", "left px", "right px");
     let px = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
     for v in &cal.views {
         let mark = if v.dropped { "  dropped: its error stands out" } else { "" };
-        println!("{:<14} {:>9} {:>9}{mark}", names[v.index], px(v.rms_left_px), px(v.rms_right_px));
+        outln!("{:<14} {:>9} {:>9}{mark}", names[v.index], px(v.rms_left_px), px(v.rms_right_px));
     }
 }
 

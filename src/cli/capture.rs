@@ -95,7 +95,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             append_frame(&a.out, &frames, rig.as_deref())?
         };
         captured += 1;
-        println!(
+        outln!(
             "captured {} ({} shot(s) per side, source frame {}) into {} at {:.1} s",
             info.name,
             frames.left.len(),
@@ -108,10 +108,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         bail!("--source {}: the source gave no frame", a.source);
     }
     if captured < a.count {
-        eprintln!("note: the source ended after {captured} of {} frames", a.count);
+        noteln!("note: the source ended after {captured} of {} frames", a.count);
     }
     if rig.is_none() && !a.out.join("rig.json").exists() {
-        eprintln!("note: {} has no rig.json yet; calibrate the rig and copy it there (or pass --rig)", a.out.display());
+        noteln!("note: {} has no rig.json yet; calibrate the rig and copy it there (or pass --rig)", a.out.display());
     }
     Ok(ExitCode::SUCCESS)
 }

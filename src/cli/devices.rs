@@ -24,6 +24,6 @@ pub fn run(_a: Args) -> anyhow::Result<ExitCode> {
         }
         bail!(why);
     }
-    print!("{list}");
+    out!("{list}");
     Ok(ExitCode::SUCCESS)
 }

@@ -50,13 +50,13 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let points: Vec<Point3<f32>> = cloud.points.iter().map(|p| Point3::from(*p)).collect();
     let mut estimator = Estimator::new(&cell, &rig, model, Method::OneShot)?;
     let pose = estimator.process_cloud(&points).with_context(|| path.display().to_string())?;
-    println!("{}", FrameRecord::new(path.display().to_string(), &pose).to_line());
+    outln!("{}", FrameRecord::new(path.display().to_string(), &pose).to_line());
     Ok(ExitCode::SUCCESS)
 }
 
 fn dataset(cell: &camplace_config::Cell, model: Model, dir: &Path) -> anyhow::Result<ExitCode> {
     let (records, method) = estimate_dataset(cell, model, dir)?;
     let summary = Summary::from_records(&records);
-    println!("{} frames ({method}): {}; wrote {}", records.len(), summary.line(), dir.join("poses.jsonl").display());
+    outln!("{} frames ({method}): {}; wrote {}", records.len(), summary.line(), dir.join("poses.jsonl").display());
     Ok(ExitCode::SUCCESS)
 }

@@ -34,9 +34,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let method = a.run.method();
     let scenarios = check_scenarios(a.scenarios)?;
     let shard = a.run.shard()?;
+    // The whole run holds the folder: a second run on it is refused naming this one.
+    let _lock = camplace_sim::lock_folder(&a.out)?;
     let summary = evaluate_placement(&a.out, &cell, &placement, method, seed, scenarios, shard)?;
     let part =
         if shard.is_whole() { String::new() } else { format!(" (shard {shard}: {} scenes here)", summary.frames) };
-    println!("{placement} ({method}, seed {seed}){part}: {}", summary.line());
+    outln!("{placement} ({method}, seed {seed}){part}: {}", summary.line());
     Ok(ExitCode::SUCCESS)
 }

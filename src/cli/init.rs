@@ -22,6 +22,6 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         bail!("{}: already exists; pass --force to overwrite it", a.path.display());
     }
     camplace_config::write_atomic(&a.path, DEFAULT_CELL_TOML.as_bytes())?;
-    println!("wrote {}", a.path.display());
+    outln!("wrote {}", a.path.display());
     Ok(ExitCode::SUCCESS)
 }

@@ -29,6 +29,6 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if n == 0 {
         bail!("{}: no study results found to merge (expected settings.json and results.jsonl)", a.dirs[0].display());
     }
-    println!("merged {} folders: {n} scenes into {}", a.dirs.len(), a.out.display());
+    outln!("merged {} folders: {n} scenes into {}", a.dirs.len(), a.out.display());
     Ok(ExitCode::SUCCESS)
 }

@@ -1,5 +1,8 @@
 //! The subcommands and their flags; one module per subcommand.
 
+#[macro_use]
+pub mod output;
+
 mod ablate;
 mod accept;
 mod calibrate;
@@ -84,7 +87,12 @@ pub fn dispatch() -> anyhow::Result<ExitCode> {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         // --help and --version print as clap shows them.
-        Err(e) if !e.use_stderr() => e.exit(),
+        Err(e) if !e.use_stderr() => {
+            if let Err(io) = e.print() {
+                output::stdout_failed(&io);
+            }
+            std::process::exit(e.exit_code())
+        }
         // A bad flag: one line, exit code 2 like every other bad input.
         Err(e) => anyhow::bail!("{}", one_line(&e.to_string())),
     };

@@ -38,7 +38,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         camplace_config::write_cloud(path, &model_points(&model), None).with_context(|| path.display().to_string())?;
     }
     let points: usize = model.views.iter().map(|v| v.points.len()).sum();
-    println!(
+    outln!(
         "model at {placement} ({}): {} features, {} views, {points} ICP points; wrote {}",
         a.scene.method,
         model.feature_points.len(),

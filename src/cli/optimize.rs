@@ -61,7 +61,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             "evaluations_to_within_1pct": run.evaluations_to_within_1pct,
             "best_value": run.best_value,
         });
-        println!("{line}");
+        outln!("{line}");
         return Ok(ExitCode::SUCCESS);
     }
     if a.run.shard.is_some() || a.run.shards.is_some() {
@@ -76,6 +76,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if names.windows(2).any(|w| w[0] == w[1]) {
         bail!("--params: expected each parameter once");
     }
+    // The whole run holds the folder: a second run on it is refused naming this one.
+    let _lock = camplace_sim::lock_folder(out)?;
     let plan = SearchPlan {
         parameters: a.params.clone(),
         budget: a.budget.unwrap_or(100) as usize,
@@ -86,7 +88,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     };
     let outcome = optimize(out, &cell, &base, a.run.method(), seed, &plan, "optimize")?;
     let best = outcome.best();
-    println!(
+    outln!(
         "best of {} evaluations, re-evaluated on fresh scenarios: {}: {}; wrote {}",
         outcome.history.len(),
         best.placement,

@@ -44,7 +44,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             let limits = if file.exists() {
                 Some(read_tolerance(&file)?)
             } else {
-                eprintln!("note: {} has none: the study measured no tolerances (a --quick preview?)", file.display());
+                noteln!("note: {} has none: the study measured no tolerances (a --quick preview?)", file.display());
                 None
             };
             (plan, limits)
@@ -59,9 +59,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         bail!("--placement: the plan comes from the study or tolerance.json ({plan}); leave --placement out");
     }
     let p = built.placement;
-    println!("as built ({}): {}", a.rig.display(), short(&p));
-    println!("planned: {}", short(&plan));
-    println!("{:<10} {:>12} {:>12} {:>12} {:>16}", "parameter", "as built", "planned", "difference", "tolerance");
+    outln!("as built ({}): {}", a.rig.display(), short(&p));
+    outln!("planned: {}", short(&plan));
+    outln!("{:<10} {:>12} {:>12} {:>12} {:>16}", "parameter", "as built", "planned", "difference", "tolerance");
     let mut outside = Vec::new();
     for (name, unit, got, want) in [
         ("r", "mm", p.r, plan.r),
@@ -81,24 +81,26 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             None => "not measured".to_string(),
         };
         let digits = if unit == "mm" { 1 } else { 2 };
-        println!(
+        outln!(
             "{name:<10} {:>8.digits$} {unit:<3} {:>8.digits$} {unit:<3} {:>+8.digits$} {unit:<3} {verdict:>16}",
-            got, want, diff
+            got,
+            want,
+            diff
         );
     }
-    println!("toe-in: left {:.2} deg, right {:.2} deg", built.toe_in[0], built.toe_in[1]);
+    outln!("toe-in: left {:.2} deg, right {:.2} deg", built.toe_in[0], built.toe_in[1]);
     match built.aim_point {
-        Some([x, y]) => println!(
+        Some([x, y]) => outln!(
             "aim: {:.2} deg off the table centre; the rig looks at ({x:.1}, {y:.1}) mm on the table",
             built.aim_error
         ),
         None => {
-            println!("aim: {:.2} deg off the table centre; the rig does not look down at the table", built.aim_error)
+            outln!("aim: {:.2} deg off the table centre; the rig does not look down at the table", built.aim_error)
         }
     }
-    println!("baseline slope: {:.2} deg from level", built.baseline_tilt);
+    outln!("baseline slope: {:.2} deg from level", built.baseline_tilt);
     if let Some(t) = &limits {
-        println!(
+        outln!(
             "tolerances: success within {:.0} points of {:.1} % at the plan ({} scenes, {} method)",
             100.0 * t.margin,
             100.0 * t.nominal.success_rate,
@@ -109,7 +111,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if outside.is_empty() {
         Ok(ExitCode::SUCCESS)
     } else {
-        println!("outside its tolerance: {}", outside.join(", "));
+        outln!("outside its tolerance: {}", outside.join(", "));
         Ok(ExitCode::from(1))
     }
 }
@@ -127,7 +129,7 @@ fn short(p: &Placement) -> String {
 }
 
 fn read_tolerance(path: &Path) -> anyhow::Result<ToleranceReport> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let text = camplace_config::read_text(path)?;
     serde_json::from_str(&text)
         .with_context(|| format!("{}: expected the tolerance.json camplace tolerance or study writes", path.display()))
 }

@@ -88,7 +88,7 @@ mod shown {
         let (w, h) = projector.size();
         let [pw, ph] = cell.sensor.projector_resolution;
         if (w, h) != (pw, ph) {
-            eprintln!(
+            noteln!(
                 "note: the monitor is {w}x{h} but the cell's projector is {pw}x{ph}; the pattern is shown \
                  at the top-left pixel for pixel (set the projector to its native resolution)"
             );
@@ -104,7 +104,7 @@ mod shown {
         let stop = Arc::new(AtomicBool::new(false));
         let on_signal = stop.clone();
         ctrlc::set_handler(move || on_signal.store(true, Ordering::SeqCst)).context("Ctrl-C handler")?;
-        eprintln!("showing {} pattern(s) ({}); Ctrl-C ends", patterns.len(), a.method);
+        noteln!("showing {} pattern(s) ({}); Ctrl-C ends", patterns.len(), a.method);
         // A single pattern is redrawn now and then, which also repairs an expose.
         let hold = if patterns.len() == 1 { 100 } else { a.settle_ms };
         'shown: loop {
@@ -129,7 +129,7 @@ mod shown {
     ) -> anyhow::Result<ExitCode> {
         let frame = projector.capture(source.as_mut(), patterns, a.settle_ms, a.skip)?;
         let dir = append_frame(out, &frame, a.rig.as_deref())?;
-        println!("captured {} pattern(s) ({}) into {}", patterns.len(), a.method, dir.display());
+        outln!("captured {} pattern(s) ({}) into {}", patterns.len(), a.method, dir.display());
         Ok(ExitCode::SUCCESS)
     }
 }

@@ -52,7 +52,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (cell, _) = a.cell.load()?;
     if let Some(dir) = &a.dataset {
         let d = reconstruct_dataset(&cell, dir)?;
-        println!(
+        outln!(
             "reconstructed {} frames ({}), {:.0} points per frame on average, into {}",
             d.frames,
             d.method,
@@ -76,7 +76,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             runs: a.runs,
         };
         let d = match_rectified(&cell, left, right, &pair, out)?;
-        println!(
+        outln!(
             "disparity {:.1} % valid, median {:.1} ms over {} runs; wrote {}",
             100.0 * d.valid_fraction,
             d.median_ms,
@@ -87,7 +87,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     let rig = a.rig.as_ref().context("--rig: expected the rig.json of the pair (or --rectified)")?;
     let d = reconstruct_pair(&cell, rig, &a.left, &a.right, out)?;
-    println!("{} points, {:.1} ms; wrote {}", d.points, d.ms, out.display());
+    outln!("{} points, {:.1} ms; wrote {}", d.points, d.ms, out.display());
     Ok(ExitCode::SUCCESS)
 }
 

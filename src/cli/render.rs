@@ -50,7 +50,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if let Some(text) = &a.board {
         let board = super::calibrate::parse_board(text)?;
         render_board_views(&a.out, &cell, &placement, &board, a.views as usize, seed)?;
-        println!(
+        outln!(
             "rendered {} views of a {text} board and the table view at {placement} (seed {seed}) into {}",
             a.views,
             a.out.display()
@@ -59,7 +59,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     if !a.dataset {
         render_scene(&a.out, &cell, &placement, a.scene.method, seed, a.scenario)?;
-        println!(
+        outln!(
             "rendered scenario {} of seed {seed} at {placement} ({}) into {}",
             a.scenario,
             a.scene.method,
@@ -71,7 +71,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     render_dataset(&a.out, &cell, &placement, a.scene.method, seed, a.count)?;
     let replaced =
         if removed > 0 { format!(" (the {removed} files of the dataset there removed first)") } else { String::new() };
-    println!(
+    outln!(
         "rendered {} scenarios of seed {seed} at {placement} ({}) into {}{replaced}",
         a.count,
         a.scene.method,

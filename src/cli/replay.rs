@@ -42,18 +42,12 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let summary = Summary::from_records(&records);
     let poses = a.dataset.join("poses.jsonl");
     if summary.scored == 0 {
-        println!("{} frames ({method}): {}; wrote {}", records.len(), summary.line(), poses.display());
+        outln!("{} frames ({method}): {}; wrote {}", records.len(), summary.line(), poses.display());
         return Ok(ExitCode::SUCCESS);
     }
     let path = a.dataset.join(DATASET_SUMMARY);
     let json = serde_json::to_string_pretty(&summary).context("summary")?;
     write_atomic(&path, format!("{json}\n").as_bytes())?;
-    println!(
-        "{} frames ({method}): {}; wrote {} and {}",
-        records.len(),
-        summary.line(),
-        poses.display(),
-        path.display()
-    );
+    outln!("{} frames ({method}): {}; wrote {} and {}", records.len(), summary.line(), poses.display(), path.display());
     Ok(ExitCode::SUCCESS)
 }

@@ -123,7 +123,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let method = method_for(opened.source.shots());
     let estimator = estimator_for(&cell, model, &rig, &opened.rig_path, method, opened.background.as_ref())?;
     if opened.background.is_none() {
-        eprintln!("note: no background to remove (give --background DIR with the empty cell's images)");
+        noteln!("note: no background to remove (give --background DIR with the empty cell's images)");
     }
 
     let deployment = Deployment::new(opened.source, opened.when_behind, estimator)
@@ -168,14 +168,14 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             Ok(())
         },
     )?;
-    eprintln!("{}", stats.report());
+    noteln!("{}", stats.report());
     let summary = Summary::from_records(&records);
     if summary.scored > 0 {
-        eprintln!("{}", summary.line());
+        noteln!("{}", summary.line());
     }
     if let Some((dir, name)) = &plot {
         if let Some(saved) = write_latency_plot(dir, name, &stats.frames, frame_budget_ms(method))? {
-            eprintln!("latency plot: {} and {}", saved.svg.display(), saved.png.display());
+            noteln!("latency plot: {} and {}", saved.svg.display(), saved.png.display());
         }
     }
     Ok(ExitCode::SUCCESS)

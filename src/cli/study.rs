@@ -55,10 +55,12 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         Some(m) => vec![m],
         None => vec![Method::OneShot, Method::Phase12],
     };
+    // The whole run holds the folder: a second run on it is refused naming this one.
+    let _lock = camplace_sim::lock_folder(&a.out)?;
     let request = StudyRequest { out: &a.out, cell: &cell, seed, preset: &preset, paper: a.paper, methods, shard };
-    match run_study(&request, started, |line| println!("{line}"))? {
-        Some(report) => println!("wrote {} ({:.0} s)", report.display(), started.elapsed().as_secs_f64()),
-        None => println!(
+    match run_study(&request, started, |line| outln!("{line}"))? {
+        Some(report) => outln!("wrote {} ({:.0} s)", report.display(), started.elapsed().as_secs_f64()),
+        None => outln!(
             "shard {shard} of the sweeps done into {}; merge the parts, then run camplace study on the merged folder",
             a.out.display()
         ),

@@ -84,7 +84,7 @@ pub fn check_scenarios(n: u64) -> anyhow::Result<u64> {
 /// The recommended placement and its method from a study folder's `recommended.json`.
 pub fn recommended(dir: &Path) -> anyhow::Result<(Placement, Method)> {
     let path = dir.join("recommended.json");
-    let text = std::fs::read_to_string(&path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let text = camplace_config::read_text(&path)?;
     let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
     let Some(p) = v["placement"].as_str() else {
         bail!(

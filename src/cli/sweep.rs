@@ -42,6 +42,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let scenarios = check_scenarios(a.scenarios)?;
     let grid = Grid { x: a.x.clone(), y: a.y.clone() };
     let shard = a.run.shard()?;
+    // The whole run holds the folder: a second run on it is refused naming this one.
+    let _lock = camplace_sim::lock_folder(&a.out)?;
     let r = sweep(&a.out, &cell, &base, a.run.method(), seed, &grid, scenarios, shard, "sweep")?;
     report(&a.out, &r, shard);
     Ok(ExitCode::SUCCESS)
@@ -51,11 +53,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
 pub fn report(dir: &Path, r: &SweepResult, shard: Shard) {
     match (r.best, r.complete) {
         (Some(b), true) => {
-            println!("best cell {}: {}; wrote {}", r.rows[b].placement, r.rows[b].summary.line(), dir.display())
+            outln!("best cell {}: {}; wrote {}", r.rows[b].placement, r.rows[b].summary.line(), dir.display())
         }
         _ if !shard.is_whole() => {
-            println!("shard {shard} done into {}; join the parts with camplace merge", dir.display())
+            outln!("shard {shard} done into {}; join the parts with camplace merge", dir.display())
         }
-        _ => println!("sweep incomplete in {}", dir.display()),
+        _ => outln!("sweep incomplete in {}", dir.display()),
     }
 }

@@ -71,9 +71,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         max_steps: a.steps,
         parameters,
     };
+    // The whole run holds the folder: a second run on it is refused naming this one.
+    let _lock = camplace_sim::lock_folder(&a.out)?;
     let report = measure_tolerance(&a.out, trays, &request)?;
     let plots = write_tolerance_plots(&a.out, &report)?;
-    println!("{}", report.table());
-    println!("wrote {} ({} plots)", a.out.join("tolerance.json").display(), plots.len());
+    outln!("{}", report.table());
+    outln!("wrote {} ({} plots)", a.out.join("tolerance.json").display(), plots.len());
     Ok(ExitCode::SUCCESS)
 }

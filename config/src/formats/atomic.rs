@@ -52,7 +52,16 @@ pub(crate) fn temp_file_writer(file_name: &str) -> Option<u32> {
     digits.parse().ok()
 }
 
-/// Removes, from `dir` itself (not its sub-folders), the temporary files of atomic writes
+/// The temporary name (in the same folder) a whole folder is written under by this
+/// process before it is renamed to `path`: `.NAME.camplace-tmp-PID`, so readers skip it
+/// and [`remove_stale_temp_files`] removes it once its writer is gone.
+pub fn temp_path_for(path: &Path) -> PathBuf {
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    dir.join(format!(".{name}{TEMP_MARK}{}", std::process::id()))
+}
+
+/// Removes, from `dir` itself (not its sub-folders), the temporary files (and folders) of atomic writes
 /// whose writer is gone: a process that no longer runs, or one with this process's id (this
 /// process has no write in flight when it opens a folder, so such a file is an earlier
 /// process's whose id came round again). Call it before writing into the folder. Returns
@@ -69,9 +78,8 @@ pub fn remove_stale_temp_files(dir: &Path) -> Result<Vec<PathBuf>, Error> {
         let entry = entry.map_err(|e| Error::io(dir, &e))?;
         let Some(pid) = temp_file_writer(&entry.file_name().to_string_lossy()) else { continue };
         let path = entry.path();
-        if !path.is_file() {
-            continue;
-        }
+        // A folder so named is a whole-folder write's (a captured frame) in the making.
+        let is_dir = entry.file_type().is_ok_and(|t| t.is_dir());
         let stale = if proc_fs {
             pid == std::process::id() || !Path::new("/proc").join(pid.to_string()).exists()
         } else {
@@ -79,7 +87,8 @@ pub fn remove_stale_temp_files(dir: &Path) -> Result<Vec<PathBuf>, Error> {
             modified.elapsed().unwrap_or_default() > STALE_WITHOUT_PROC
         };
         if stale {
-            match std::fs::remove_file(&path) {
+            let removed_now = if is_dir { std::fs::remove_dir_all(&path) } else { std::fs::remove_file(&path) };
+            match removed_now {
                 Ok(()) => removed.push(path),
                 Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
                 Err(e) => return Err(Error::io(&path, &e)),

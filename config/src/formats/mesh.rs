@@ -15,7 +15,7 @@ pub struct Mesh {
 /// Loads a mesh by extension (`.stl`, `.obj`, `.ply`).
 pub fn load_mesh(path: &Path) -> Result<Mesh, Error> {
     let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
-    let bytes = super::read::read_bounded(path, super::read::MAX_DATA_BYTES)?;
+    let bytes = super::read::read_bounded(path, super::read::FileKind::Data)?;
     let mesh = match ext.as_str() {
         "stl" => decode_stl(&bytes),
         "obj" => decode_obj(&bytes),

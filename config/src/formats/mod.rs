@@ -14,4 +14,4 @@ pub(crate) mod ply;
 pub(crate) mod png;
 pub(crate) mod read;
 
-pub use atomic::{is_temp_file_name, remove_stale_temp_files, write_atomic};
+pub use atomic::{is_temp_file_name, remove_stale_temp_files, temp_path_for, write_atomic};

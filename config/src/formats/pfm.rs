@@ -25,7 +25,7 @@ pub fn write_pfm(path: &Path, width: usize, height: usize, data: &[f32]) -> Resu
 
 /// Reads a PFM; a three-channel file is reduced to its first channel.
 pub fn read_pfm(path: &Path) -> Result<FloatImage, Error> {
-    let bytes = super::read::read_bounded(path, super::read::MAX_DATA_BYTES)?;
+    let bytes = super::read::read_bounded(path, super::read::FileKind::Data)?;
     decode_pfm(&bytes).map_err(|e| e.in_file(path))
 }
 

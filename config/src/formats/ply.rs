@@ -60,7 +60,7 @@ pub fn read_cloud(path: &Path) -> Result<PlyCloud, Error> {
 
 /// Reads a PLY file.
 pub fn read_ply(path: &Path) -> Result<PlyData, Error> {
-    let bytes = super::read::read_bounded(path, super::read::MAX_DATA_BYTES)?;
+    let bytes = super::read::read_bounded(path, super::read::FileKind::Data)?;
     decode_ply(&bytes).map_err(|e| e.in_file(path))
 }
 

@@ -2,6 +2,7 @@
 
 use std::path::Path;
 
+use super::read::{read_bounded, FileKind, MAX_IMAGE_PIXELS};
 use crate::{Error, ErrorKind};
 
 /// A grey image read from a file: width, height and row-major pixels.
@@ -12,12 +13,54 @@ pub struct Gray {
     pub data: Vec<u8>,
 }
 
-/// Reads a PNG (or any image the `image` crate decodes) as 8-bit grey.
+/// Reads a PNG (or any image the `image` crate decodes) as 8-bit grey. The file is read
+/// within [`FileKind::Image`]'s budget and its header's size checked against
+/// [`MAX_IMAGE_PIXELS`] before a pixel is decoded, so a small file that would decode to a
+/// huge image is refused for what it would take.
 pub fn read_gray(path: &Path) -> Result<Gray, Error> {
-    let bytes = super::read::read_bounded(path, super::read::MAX_DATA_BYTES)?;
-    let img = image::load_from_memory(&bytes).map_err(|e| {
+    let bytes = read_bounded(path, FileKind::Image)?;
+    decode_gray(&bytes).map_err(|e| e.in_file(path))
+}
+
+/// The width and height of an image file from its header alone (the file checked as
+/// [`read_gray`] checks it, no pixel decoded).
+pub fn read_image_size(path: &Path) -> Result<(usize, usize), Error> {
+    let (file, _) = super::read::open_checked(path, FileKind::Image)?;
+    let reader = image::ImageReader::new(std::io::BufReader::new(file))
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, &e))?;
+    let (w, h) = reader.into_dimensions().map_err(|e| {
         Error::new(ErrorKind::Format, "", format!("not a readable image: {e}")).in_file(path).with_source(e)
     })?;
+    Ok((w as usize, h as usize))
+}
+
+/// Decodes image bytes as 8-bit grey within the pixel budget (see [`read_gray`]).
+pub fn decode_gray(bytes: &[u8]) -> Result<Gray, Error> {
+    use image::ImageDecoder;
+    let unreadable =
+        |e: image::ImageError| Error::new(ErrorKind::Format, "", format!("not a readable image: {e}")).with_source(e);
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| Error::format(format!("not a readable image: {e}")))?;
+    let mut limits = image::Limits::default();
+    // A decoded colour image at the pixel budget, 16 bits a channel, and its grey copy.
+    limits.max_alloc = Some(MAX_IMAGE_PIXELS * 8 + MAX_IMAGE_PIXELS);
+    reader.limits(limits);
+    let decoder = reader.into_decoder().map_err(unreadable)?;
+    let (w, h) = decoder.dimensions();
+    let pixels = u64::from(w) * u64::from(h);
+    if pixels > MAX_IMAGE_PIXELS {
+        return Err(Error::new(
+            ErrorKind::Value,
+            "",
+            format!(
+                "{w} x {h} pixels ({:.0} MB decoded), expected at most {MAX_IMAGE_PIXELS} pixels (8192 x 8192) before it is decoded",
+                pixels as f64 * f64::from(decoder.color_type().bytes_per_pixel()) / 1e6
+            ),
+        ));
+    }
+    let img = image::DynamicImage::from_decoder(decoder).map_err(unreadable)?;
     let g = img.to_luma8();
     Ok(Gray { width: g.width() as usize, height: g.height() as usize, data: g.into_raw() })
 }
@@ -79,5 +122,36 @@ mod tests {
         std::fs::write(&p, b"hello").unwrap();
         let e = read_gray(&p).unwrap_err();
         assert!(e.to_string().contains("b.png"), "{e}");
+    }
+
+    /// A grey PNG of `w` x `h` black pixels, small on disk however large it decodes.
+    fn black_png(w: u32, h: u32) -> Vec<u8> {
+        let mut out = Vec::new();
+        let mut enc = png::Encoder::new(&mut out, w, h);
+        enc.set_color(png::ColorType::Grayscale);
+        enc.set_compression(png::Compression::High);
+        let mut writer = enc.write_header().unwrap();
+        let mut stream = writer.stream_writer().unwrap();
+        let row = vec![0u8; w as usize];
+        for _ in 0..h {
+            std::io::Write::write_all(&mut stream, &row).unwrap();
+        }
+        stream.finish().unwrap();
+        writer.finish().unwrap();
+        out
+    }
+
+    #[test]
+    fn an_image_past_the_pixel_budget_is_refused_from_its_header() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("bomb.png");
+        let bytes = black_png(16384, 16384);
+        assert!(bytes.len() < 2 << 20, "a bomb is small on disk: {}", bytes.len());
+        std::fs::write(&p, &bytes).unwrap();
+        let e = read_gray(&p).unwrap_err().to_string();
+        assert!(e.contains("bomb.png") && e.contains("16384 x 16384") && e.contains("at most"), "{e}");
+        // One within the budget decodes.
+        let small = black_png(64, 32);
+        assert_eq!(decode_gray(&small).unwrap().data, vec![0u8; 64 * 32]);
     }
 }

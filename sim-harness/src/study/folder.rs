@@ -5,6 +5,7 @@ use std::path::Path;
 
 use camplace_config::{remove_stale_temp_files, Cell};
 
+use super::lock::lock_folder;
 use super::results::ResultsStore;
 use super::settings::RunSettings;
 use crate::render::Method;
@@ -15,10 +16,10 @@ pub const MODELS_FOLDER: &str = "models";
 
 /// Creates `dir`, checks (or writes) its settings, removes stale temporary files from it and
 /// its model cache, and opens its results file. A folder that holds results but no
-/// `settings.json` is refused: nothing says what they were computed for.
+/// `settings.json` is refused: nothing says what they were computed for. The folder is
+/// locked first ([`lock_folder`]): a folder another run works in is refused naming it.
 pub fn open_folder(dir: &Path, cell: &Cell, method: Method, seed: u64) -> Result<ResultsStore> {
-    std::fs::create_dir_all(dir)
-        .map_err(|e| Error::Other(format!("{}: cannot create the folder: {e}", dir.display())))?;
+    let _lock = lock_folder(dir)?;
     for d in [dir.to_path_buf(), dir.join(MODELS_FOLDER)] {
         remove_stale_temp_files(&d)?;
     }

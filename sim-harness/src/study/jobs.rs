@@ -145,7 +145,7 @@ impl<'a> JobEvaluator<'a> {
             .collect();
         let path = dir.join(name);
         let origin = model_origin(self.cell, placement, self.method, seed)?;
-        if let Ok(bytes) = std::fs::read(&path) {
+        if let Ok(bytes) = camplace_config::read_bounded(&path, camplace_config::FileKind::Model) {
             if let Ok(model) = Model::from_bytes(&bytes) {
                 match &model.origin {
                     Some(o) if *o == origin => return Ok(model),

@@ -42,12 +42,72 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<usize> {
             )));
         }
     }
+    check_out(dirs, out, &leaves)?;
+    // Held while the merged folders are written: no run may work in them meanwhile.
+    let _lock = super::lock::lock_folder(out)?;
     let mut total = 0;
     for (rel, sources) in leaves {
         let sources: Vec<PathBuf> = sources.iter().map(|d| d.join(&rel)).collect();
         total += merge_leaf(&sources, &out.join(&rel))?;
     }
     Ok(total)
+}
+
+/// Refuses an `--out` that would mix or lose data: one that is, holds or lies in a folder
+/// merged (a merge never writes into its inputs), one holding results without the settings
+/// they were computed with, and one holding study folders laid out unlike the inputs (a
+/// study tree where one study folder is merged, or the reverse). Nothing is written first.
+fn check_out(dirs: &[PathBuf], out: &Path, leaves: &BTreeMap<PathBuf, Vec<PathBuf>>) -> Result<()> {
+    let out_abs = absolute(out);
+    for d in dirs {
+        let d_abs = absolute(d);
+        if out_abs.starts_with(&d_abs) || d_abs.starts_with(&out_abs) {
+            return Err(Error::Other(format!(
+                "--out {}: is, holds or lies in {}, a folder being merged; a merge never writes into its inputs: give a new folder",
+                out.display(),
+                d.display()
+            )));
+        }
+    }
+    if !out.exists() {
+        return Ok(());
+    }
+    for rel in leaves.keys() {
+        let here = out.join(rel);
+        if here.join("results.jsonl").exists() && !here.join("settings.json").exists() {
+            return Err(Error::Other(format!(
+                "--out {}: holds results (results.jsonl) without the settings they were computed with (settings.json); give a new folder",
+                here.display()
+            )));
+        }
+    }
+    for rel in study_folders(out, Path::new(""))? {
+        if !leaves.contains_key(&rel) {
+            let (what, expected) = if rel.as_os_str().is_empty() {
+                ("is a study folder", "a folder of study folders")
+            } else {
+                ("holds the study folder", "laid out like the inputs")
+            };
+            return Err(Error::Other(format!(
+                "--out {}: {what} {}, not {expected} (a study tree and a study folder cannot be merged into one another); give a new folder",
+                out.display(),
+                out.join(&rel).display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// `path` made absolute with its links resolved, as far as it exists.
+fn absolute(path: &Path) -> PathBuf {
+    if let Ok(p) = path.canonicalize() {
+        return p;
+    }
+    match (path.parent(), path.file_name()) {
+        (Some(parent), Some(name)) if !parent.as_os_str().is_empty() => absolute(parent).join(name),
+        (_, Some(name)) => std::env::current_dir().map(|d| d.join(name)).unwrap_or_else(|_| path.to_path_buf()),
+        _ => path.to_path_buf(),
+    }
 }
 
 /// The study folders at or below `dir`, relative to it (`""` for `dir` itself); a study
@@ -77,7 +137,8 @@ fn merge_leaf(dirs: &[PathBuf], out: &Path) -> Result<usize> {
     let mut sweep = None;
     let mut lines: BTreeMap<_, ResultLine> = BTreeMap::new();
     let mut sources: Vec<PathBuf> = dirs.to_vec();
-    if out.join("settings.json").exists() && !sources.iter().any(|s| same(s, out)) {
+    // An earlier merge's folder keeps its scenes (check_out made sure it is no input).
+    if out.join("settings.json").exists() {
         sources.push(out.to_path_buf());
     }
     let rejected_to = out.join(REJECTED_FILE);
@@ -149,11 +210,4 @@ fn merge_leaf(dirs: &[PathBuf], out: &Path) -> Result<usize> {
         write_summary_csv(&out.join("summary.csv"), &rows)?;
     }
     Ok(joined.len())
-}
-
-fn same(a: &Path, b: &Path) -> bool {
-    match (a.canonicalize(), b.canonicalize()) {
-        (Ok(x), Ok(y)) => x == y,
-        _ => a == b,
-    }
 }

@@ -12,6 +12,7 @@ pub mod findings;
 pub mod folder;
 pub mod grid;
 pub mod jobs;
+pub mod lock;
 pub mod merge;
 pub mod one_placement;
 pub mod optimize;

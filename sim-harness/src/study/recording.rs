@@ -16,8 +16,7 @@ use crate::{Error, Result};
 
 /// Reads a model file.
 pub fn load_model(path: &Path) -> Result<Model> {
-    let bytes =
-        std::fs::read(path).map_err(|e| Error::Other(format!("{}: cannot read the model: {e}", path.display())))?;
+    let bytes = camplace_config::read_bounded(path, camplace_config::FileKind::Model)?;
     Model::from_bytes(&bytes).map_err(|e| Error::Other(format!("{}: not a usable model file: {e}", path.display())))
 }
 

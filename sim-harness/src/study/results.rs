@@ -71,20 +71,25 @@ impl SceneKey {
 pub struct ResultsStore {
     file: Option<(PathBuf, Mutex<File>)>,
     lines: Mutex<HashMap<SceneKey, ResultLine>>,
+    /// The hold on the file's folder while the store is open.
+    _lock: Option<super::lock::FolderLock>,
 }
 
 impl ResultsStore {
     /// Results kept in memory only (an acceptance test without an output folder).
     pub fn in_memory() -> ResultsStore {
-        ResultsStore { file: None, lines: Mutex::new(HashMap::new()) }
+        ResultsStore { file: None, lines: Mutex::new(HashMap::new()), _lock: None }
     }
 
     /// Opens (or creates) `path`, reading the lines already there. A last line without
     /// its newline is what a kill mid-write leaves: it is cut off and its scene redone. A
     /// complete line that is not a result line (a damaged disk block, a hand edit) is moved
     /// to [`REJECTED_FILE`] beside it, said in one line on stderr, and its scene redone.
-    /// A scene found twice keeps its first line.
+    /// A scene found twice keeps its first line. The folder is locked while the store is
+    /// open: another process's run on it is refused (see [`super::lock`]).
     pub fn open(path: &Path) -> Result<ResultsStore> {
+        let folder = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let lock = super::lock::lock_folder(folder)?;
         let mut lines = HashMap::new();
         if path.exists() {
             let read = read_results(path)?;
@@ -100,7 +105,11 @@ impl ResultsStore {
             .append(true)
             .open(path)
             .map_err(|e| Error::Other(format!("{}: cannot open for appending: {e}", path.display())))?;
-        Ok(ResultsStore { file: Some((path.to_path_buf(), Mutex::new(file))), lines: Mutex::new(lines) })
+        Ok(ResultsStore {
+            file: Some((path.to_path_buf(), Mutex::new(file))),
+            lines: Mutex::new(lines),
+            _lock: Some(lock),
+        })
     }
 
     /// Whether the scene is done.
@@ -158,10 +167,56 @@ pub const REJECTED_FILE: &str = "results.rejected.jsonl";
 pub struct ReadResults {
     /// The result lines, in file order.
     pub lines: Vec<ResultLine>,
-    /// The complete lines that are not result lines: (1-based line number, the line's bytes).
+    /// The complete lines that are not result lines: (1-based line number, the line's bytes;
+    /// of a line longer than [`MAX_RESULT_LINE_BYTES`], its first that many).
     pub rejected: Vec<(usize, Vec<u8>)>,
-    /// The bytes of the good lines, each with its newline.
-    kept: Vec<u8>,
+}
+
+/// The longest line a results file holds, bytes: a scene's record is about a kilobyte, so
+/// a longer line is damage, set aside without being held whole.
+pub const MAX_RESULT_LINE_BYTES: usize = 1 << 20;
+
+/// Reads `path` line by line, each complete line (without its newline, cut at
+/// [`MAX_RESULT_LINE_BYTES`]) handed to `each` with its 1-based number; returns the bytes
+/// of complete lines (a torn last line, with no newline, is not handed on).
+fn each_line(path: &Path, mut each: impl FnMut(usize, &[u8])) -> Result<u64> {
+    use std::io::{BufRead, Read};
+    let (file, _) = camplace_config::open_checked(path, camplace_config::FileKind::Data)?;
+    let cannot = |e: std::io::Error| Error::Other(format!("{}: cannot read: {e}", path.display()));
+    let mut reader = std::io::BufReader::new(file);
+    let (mut line, mut complete, mut number) = (Vec::new(), 0u64, 0usize);
+    loop {
+        line.clear();
+        let n = (&mut reader).take(MAX_RESULT_LINE_BYTES as u64 + 1).read_until(b'\n', &mut line).map_err(cannot)?;
+        if n == 0 {
+            return Ok(complete);
+        }
+        let mut length = n as u64;
+        let mut ended = line.last() == Some(&b'\n');
+        if !ended && n > MAX_RESULT_LINE_BYTES {
+            // Too long to be a record: skip to its end without holding it.
+            line.truncate(MAX_RESULT_LINE_BYTES);
+            let mut rest = Vec::new();
+            loop {
+                rest.clear();
+                let m = (&mut reader).take(1 << 16).read_until(b'\n', &mut rest).map_err(cannot)?;
+                length += m as u64;
+                if m == 0 || rest.last() == Some(&b'\n') {
+                    ended = m != 0;
+                    break;
+                }
+            }
+        }
+        if !ended {
+            return Ok(complete);
+        }
+        if line.last() == Some(&b'\n') {
+            line.pop();
+        }
+        number += 1;
+        complete += length;
+        each(number, &line);
+    }
 }
 
 impl ReadResults {
@@ -187,29 +242,25 @@ pub fn parse_line(bytes: &[u8]) -> std::result::Result<ResultLine, String> {
 /// Reads a results file: every complete line, the good ones parsed and the damaged ones set
 /// apart; a torn last line (no newline: a kill mid-write) is cut off the file.
 pub fn read_results(path: &Path) -> Result<ReadResults> {
-    let bytes = std::fs::read(path).map_err(|e| Error::Other(format!("{}: cannot read: {e}", path.display())))?;
-    let complete = bytes.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
-    if complete < bytes.len() {
+    let mut out = ReadResults::default();
+    let complete = each_line(path, |n, line| {
+        if line.iter().all(u8::is_ascii_whitespace) {
+            return;
+        }
+        match parse_line(line) {
+            Ok(parsed) => out.lines.push(parsed),
+            Err(_) => out.rejected.push((n, line.to_vec())),
+        }
+    })?;
+    let length =
+        std::fs::metadata(path).map_err(|e| Error::Other(format!("{}: cannot read: {e}", path.display())))?.len();
+    if complete < length {
         let f = OpenOptions::new()
             .write(true)
             .open(path)
             .map_err(|e| Error::Other(format!("{}: cannot repair a torn last line: {e}", path.display())))?;
-        f.set_len(complete as u64)
+        f.set_len(complete)
             .map_err(|e| Error::Other(format!("{}: cannot repair a torn last line: {e}", path.display())))?;
-    }
-    let mut out = ReadResults::default();
-    for (n, line) in bytes[..complete].split(|&b| b == b'\n').enumerate() {
-        if line.iter().all(u8::is_ascii_whitespace) {
-            continue;
-        }
-        match parse_line(line) {
-            Ok(parsed) => {
-                out.lines.push(parsed);
-                out.kept.extend_from_slice(line);
-                out.kept.push(b'\n');
-            }
-            Err(_) => out.rejected.push((n + 1, line.to_vec())),
-        }
     }
     Ok(out)
 }
@@ -237,7 +288,16 @@ pub fn append_rejected(to: &Path, read: &ReadResults) -> Result<()> {
 fn set_rejected_aside(path: &Path, read: &ReadResults) -> Result<()> {
     let to = path.with_file_name(REJECTED_FILE);
     append_rejected(&to, read)?;
-    camplace_config::write_atomic(path, &read.kept)?;
+    // The good lines as they were, read again (only a damaged file pays for this).
+    let rejected: std::collections::HashSet<usize> = read.rejected.iter().map(|(n, _)| *n).collect();
+    let mut kept = Vec::new();
+    each_line(path, |n, line| {
+        if !rejected.contains(&n) && !line.iter().all(u8::is_ascii_whitespace) {
+            kept.extend_from_slice(line);
+            kept.push(b'\n');
+        }
+    })?;
+    camplace_config::write_atomic(path, &kept)?;
     let became = format!("moved to {}; their scenes will be computed again", to.display());
     eprintln!("{}", read.rejected_note(path, &became));
     Ok(())

@@ -79,8 +79,7 @@ impl RunSettings {
         if !path.exists() {
             return Ok(None);
         }
-        let text = std::fs::read_to_string(&path)
-            .map_err(|e| Error::Other(format!("{}: cannot read: {e}", path.display())))?;
+        let text = camplace_config::read_text(&path)?;
         let s = serde_json::from_str(&text).map_err(|e| {
             Error::Other(format!(
                 "{}: expected the settings of a study folder (cell, method, seed): {e}",

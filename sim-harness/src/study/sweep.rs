@@ -42,8 +42,7 @@ pub fn load_sweep(dir: &Path) -> Result<Option<(Grid, u64, Placement)>> {
     if !path.exists() {
         return Ok(None);
     }
-    let text =
-        std::fs::read_to_string(&path).map_err(|e| Error::Other(format!("{}: cannot read: {e}", path.display())))?;
+    let text = camplace_config::read_text(&path)?;
     let v = serde_json::from_str(&text).map_err(|e| {
         Error::Other(format!("{}: expected a sweep's grid, scenario count and base placement: {e}", path.display()))
     })?;
