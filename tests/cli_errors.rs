@@ -216,7 +216,7 @@ fn endless_files_and_empty_budgets_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let cases: [(&[&str], &[&str]); 4] = [
-        (&["render", "--cell", "/dev/zero", "--out", "o"], &["/dev/zero", "at most"]),
+        (&["render", "--cell", "/dev/zero", "--out", "o"], &["/dev/zero", "regular file"]),
         (&["optimize", "--budget", "0", "--out", "o"], &["--budget"]),
         (&["optimize", "--test-function", "branin", "--budget", "100000000"], &["--budget"]),
         (&["optimize", "--top", "0", "--out", "o"], &["--top"]),

@@ -68,15 +68,15 @@ fn parse_board_in_world(text: &str) -> anyhow::Result<Isometry3<f64>> {
 }
 
 /// The most board views `calibrate` takes: the joint refinement's time grows with the
-/// square of the view count (about 0.3 s at 100 views on one core).
+/// square of the view count.
 pub const MAX_CALIBRATION_VIEWS: usize = 100;
 
-/// One stereo pair of the board: where it came from, its image size and the corners found
-/// in each image (or why the whole board was not found there).
+/// One stereo pair of the board: where it came from, its images' sizes and the corners
+/// found in each image (or why the whole board was not found there).
 struct FoundPair {
     name: String,
     folder: PathBuf,
-    size: (usize, usize),
+    sizes: [(usize, usize); 2],
     corners: [Result<Vec<nalgebra::Point2<f64>>, String>; 2],
 }
 
@@ -115,16 +115,18 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     // so only the corners of every view are held (and a worker's pair at a time).
     let found: Vec<FoundPair> =
         folders.par_iter().map(|f| find_pair(&a.images, f, &board)).collect::<anyhow::Result<_>>()?;
-    let (width, height) = found[0].size;
+    let (width, height) = found[0].sizes[0];
     for p in &found {
-        if p.size != (width, height) {
-            bail!(
-                "{}: {}x{} pixels, expected {width}x{height} as {}",
-                p.folder.join("left.png").display(),
-                p.size.0,
-                p.size.1,
-                found[0].folder.join("left.png").display()
-            );
+        for (side, size) in ["left", "right"].iter().zip(p.sizes) {
+            if size != (width, height) {
+                bail!(
+                    "{}: {}x{} pixels, expected {width}x{height} as {}",
+                    p.folder.join(format!("{side}.png")).display(),
+                    size.0,
+                    size.1,
+                    found[0].folder.join("left.png").display()
+                );
+            }
         }
     }
     let table_name = found.last().map(|p| p.name.clone()).unwrap_or_default();
@@ -209,22 +211,15 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
 }
 
 /// The pair in `folder` (`left.png` + `right.png`), named relative to `root`: both images
-/// read and searched for the board, then dropped. Two images of one pair must have one size.
+/// read and searched for the board, then dropped.
 fn find_pair(root: &Path, folder: &Path, board: &CalibrationBoard) -> anyhow::Result<FoundPair> {
     let name = folder.strip_prefix(root).unwrap_or(folder).display().to_string();
-    let mut size = None;
+    let mut sizes = [(0, 0); 2];
     let mut corners = Vec::with_capacity(2);
-    for side in ["left", "right"] {
+    for (i, side) in ["left", "right"].into_iter().enumerate() {
         let path = folder.join(format!("{side}.png"));
         let g = camplace_config::read_gray(&path)?;
-        let here = (g.width, g.height);
-        match size {
-            None => size = Some(here),
-            Some((w, h)) if here != (w, h) => {
-                bail!("{}: {}x{} pixels, expected {w}x{h} as left.png beside it", path.display(), here.0, here.1)
-            }
-            Some(_) => {}
-        }
+        sizes[i] = (g.width, g.height);
         let mut image = GrayImage::default();
         image.reset(g.width, g.height, 0);
         image.data = g.data;
@@ -232,7 +227,7 @@ fn find_pair(root: &Path, folder: &Path, board: &CalibrationBoard) -> anyhow::Re
     }
     let right = corners.pop().expect("two sides");
     let left = corners.pop().expect("two sides");
-    Ok(FoundPair { name, folder: folder.to_path_buf(), size: size.expect("two sides"), corners: [left, right] })
+    Ok(FoundPair { name, folder: folder.to_path_buf(), sizes, corners: [left, right] })
 }
 
 /// Each view's reprojection error, the dropped ones marked.

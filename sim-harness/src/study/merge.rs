@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use camplace_config::remove_stale_temp_files;
 
-use super::results::{append_rejected, read_results, write_lines, ResultLine, ResultsStore, REJECTED_FILE};
+use super::results::{append_rejected, read_results_unchanged, write_lines, ResultLine, ResultsStore, REJECTED_FILE};
 use super::settings::RunSettings;
 use super::summary::Summary;
 use super::sweep::load_sweep;
@@ -43,8 +43,6 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<usize> {
         }
     }
     check_out(dirs, out, &leaves)?;
-    // Held while the merged folders are written: no run may work in them meanwhile.
-    let _lock = super::lock::lock_folder(out)?;
     let mut total = 0;
     for (rel, sources) in leaves {
         let sources: Vec<PathBuf> = sources.iter().map(|d| d.join(&rel)).collect();
@@ -158,12 +156,16 @@ fn merge_leaf(dirs: &[PathBuf], out: &Path) -> Result<usize> {
                 }
             }
         }
+    }
+    // The settings agree: the output is held (created if new) while it is read and written.
+    let _lock = super::lock::lock_folder(out)?;
+    for d in &sources {
         if sweep.is_none() {
             sweep = load_sweep(d)?;
         }
         let path = d.join("results.jsonl");
         if path.exists() {
-            let read = read_results(&path)?;
+            let read = read_results_unchanged(&path)?;
             if !read.rejected.is_empty() {
                 rejected.push((path, read.clone()));
             }

@@ -242,6 +242,16 @@ pub fn parse_line(bytes: &[u8]) -> std::result::Result<ResultLine, String> {
 /// Reads a results file: every complete line, the good ones parsed and the damaged ones set
 /// apart; a torn last line (no newline: a kill mid-write) is cut off the file.
 pub fn read_results(path: &Path) -> Result<ReadResults> {
+    read_results_with(path, true)
+}
+
+/// Reads a results file as [`read_results`] does but leaves it as it is: a torn last line
+/// is only left out (`merge` reads its inputs so and never writes into them).
+pub fn read_results_unchanged(path: &Path) -> Result<ReadResults> {
+    read_results_with(path, false)
+}
+
+fn read_results_with(path: &Path, repair: bool) -> Result<ReadResults> {
     let mut out = ReadResults::default();
     let complete = each_line(path, |n, line| {
         if line.iter().all(u8::is_ascii_whitespace) {
@@ -254,7 +264,7 @@ pub fn read_results(path: &Path) -> Result<ReadResults> {
     })?;
     let length =
         std::fs::metadata(path).map_err(|e| Error::Other(format!("{}: cannot read: {e}", path.display())))?.len();
-    if complete < length {
+    if repair && complete < length {
         let f = OpenOptions::new()
             .write(true)
             .open(path)
