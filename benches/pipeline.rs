@@ -1,6 +1,7 @@
 //! Bench of the whole deployed pipeline, camera to pose: one rendered one-shot stereo frame
 //! at the paper's optimum, with the model built at that placement; and the pose stages alone
-//! (down-sampling, normals, features, matching, RANSAC, ICP) on that frame's world cloud.
+//! (down-sampling, normals, features, matching, RANSAC, ICP) on that frame's world cloud;
+//! and the verification of that frame's pose alone (`pose/verify`).
 
 use std::hint::black_box;
 
@@ -33,4 +34,8 @@ pub fn benches(c: &mut Criterion) {
     let cloud = estimator.reconstruction().cloud.points.clone();
     group.bench_function("pose_from_cloud", |b| b.iter(|| estimator.process_cloud(black_box(&cloud)).expect("valid")));
     group.finish();
+    // The last frame run was the cloud of the one-shot frame: its pose verified again.
+    let pose = estimator.process_cloud(&cloud).expect("valid");
+    eprintln!("pose/verify: {:?}", pose.verification);
+    c.bench_function("pose/verify", |b| b.iter(|| estimator.verify(black_box(&pose.t_world_tray))));
 }

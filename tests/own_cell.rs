@@ -292,6 +292,25 @@ fn the_report_opens_in_a_browser_with_every_image_and_the_summary_numbers() {
         let row = keyed(&dom, &format!("tray:{}", t["name"].as_str().unwrap()));
         assert!(row.starts_with(&format!("{} %", pct(&t["success_rate"]))), "{row} against {t}");
     }
+    // The verified figures of the recommended method, as recommended.json carries them, and
+    // each method's precision-recall curve.
+    let v = &rec["verification"];
+    let m = rec["method"].as_str().unwrap();
+    let row = keyed(&dom, &format!("{m}:verified_success_rate"));
+    assert!(
+        row.starts_with(&format!("{} %", pct(&v["verified_success_rate"])))
+            && row.contains(&format!("({} of {})", v["verified_successes"], v["scored"])),
+        "{row} against {v}"
+    );
+    let row = keyed(&dom, &format!("{m}:wrong_accepted_share"));
+    assert!(
+        row.starts_with(&format!("{} %", pct(&v["wrong_accepted_share"])))
+            && row.contains(&format!("({} of {})", v["wrong_accepted"], v["accepted"])),
+        "{row} against {v}"
+    );
+    assert_eq!(keyed(&dom, &format!("{m}:wrong_accepted_upper")), format!("{} %", pct(&v["wrong_accepted_upper"])));
+    assert_eq!(keyed(&dom, &format!("{m}:threshold")), format!("{:.3}", v["threshold"].as_f64().unwrap()));
+    assert!(dom.contains("precision against recall"), "no precision-recall curve on the page");
     // And the first screen as a person sees it.
     let shot = dir.path().join("first_screen.png");
     let o = run(&[&format!("--screenshot={}", shot.display())]);

@@ -22,3 +22,4 @@ mod reconstruct_errors;
 mod study;
 mod study_folder;
 mod tolerance;
+mod verify;

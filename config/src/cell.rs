@@ -237,11 +237,12 @@ pub enum EstimatorPreset {
 }
 
 /// The keys the paper preset sets, and to what (the feature radius from SRes).
-fn paper_preset_keys(surface_resolution: f64) -> [(&'static str, toml::Value); 3] {
+fn paper_preset_keys(surface_resolution: f64) -> [(&'static str, toml::Value); 4] {
     [
         ("ransac_sample", toml::Value::Integer(3)),
         ("feature_radius", toml::Value::Float(10.0 * surface_resolution)),
         ("turn_check", toml::Value::Boolean(false)),
+        ("verify", toml::Value::Boolean(false)),
     ]
 }
 
@@ -282,7 +283,7 @@ fn apply_preset(merged: &mut toml::Table, user: &toml::Table) -> Result<(), Erro
 #[serde(deny_unknown_fields)]
 pub struct EstimatorParams {
     /// "ours" (the keys as given) or "paper": the paper's estimator, which sets
-    /// `ransac_sample`, `feature_radius` and `turn_check` (see [`EstimatorPreset`]).
+    /// `ransac_sample`, `feature_radius`, `turn_check` and `verify` (see [`EstimatorPreset`]).
     pub preset: EstimatorPreset,
     pub surface_resolution: f64,
     /// Radius of the neighbourhood a normal is fitted to, mm.
@@ -309,6 +310,15 @@ pub struct EstimatorParams {
     pub icp_trim: f64,
     /// Whether the pose turned by quarter turns is scored too (beyond the paper).
     pub turn_check: bool,
+    /// Whether the verification may reject a found pose (beyond the paper; its score is
+    /// computed either way).
+    pub verify: bool,
+    /// The verification threshold of a model that carries none (a model file older than
+    /// format 4, or one built without measuring it), in [0, 1].
+    pub verify_threshold: f64,
+    /// The largest share of wrong poses among the accepted ones the threshold is chosen
+    /// for, in (0, 1).
+    pub verify_max_wrong: f64,
     pub seed: u64,
     /// Fill states the model builder captures per viewpoint, full to empty evenly apart
     /// (at most slots + 1, every state).
@@ -676,6 +686,13 @@ impl Cell {
         unit("estimator.edge_similarity", e.edge_similarity)?;
         angle_open("estimator.table_tilt", e.table_tilt, 0.0, 90.0)?;
         unit("estimator.min_inlier_share", e.min_inlier_share)?;
+        unit("estimator.verify_threshold", e.verify_threshold)?;
+        if !(e.verify_max_wrong.is_finite() && e.verify_max_wrong > 0.0 && e.verify_max_wrong < 1.0) {
+            return Err(Error::value(
+                "estimator.verify_max_wrong",
+                format!("expected a share above 0 and below 1, got {}", e.verify_max_wrong),
+            ));
+        }
         // Distances a spatial index is built with: far beyond the tray they gather the whole
         // cloud in one cell and a frame takes minutes.
         for (key, v) in [

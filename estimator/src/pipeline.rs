@@ -8,7 +8,8 @@
 //! the closest view, and last the turn check: a tray is nearly symmetric under a half turn
 //! (a square one under quarter turns too), so the pose turned by 90°, 180° and 270° about
 //! the tray's z axis is scored too and the one whose whole tray explains most of the scene
-//! is kept.
+//! is kept. Last, the verification scores the pose against the scene cloud and gives it a
+//! verdict (`pose/verify.rs`).
 //!
 //! Allocation policy: `Estimator::new` sizes every buffer for a full camera frame; a frame
 //! larger than any seen before may grow one once, after which `process` allocates nothing.
@@ -21,7 +22,7 @@ use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
 use crate::{
     Correspondence, Error, ErrorKind, FeatureExtractor, FeatureMatcher, GrayImage, Icp, IcpResult, Method, Model,
-    Ransac, RansacResult, Reconstruction, Reconstructor, Result, Rig,
+    Ransac, RansacResult, Reconstruction, Reconstructor, Result, Rig, Verification, Verifier,
 };
 
 /// Time spent in each stage of the last frame, ms (zero for stages a frame skipped).
@@ -46,17 +47,19 @@ pub struct StageTimings {
     pub ransac_ms: f64,
     /// Point-to-plane ICP.
     pub icp_ms: f64,
+    /// The verification of the pose.
+    pub verify_ms: f64,
     /// The whole frame.
     pub total_ms: f64,
 }
 
 impl StageTimings {
     /// The stages' names in pipeline order, as [`StageTimings::by_stage`] gives their times.
-    pub const STAGES: [&'static str; 9] =
-        ["rectify", "disparity", "cloud", "downsample", "normals", "features", "matching", "ransac", "icp"];
+    pub const STAGES: [&'static str; 10] =
+        ["rectify", "disparity", "cloud", "downsample", "normals", "features", "matching", "ransac", "icp", "verify"];
 
     /// Each stage's time in pipeline order (the whole frame not included), ms.
-    pub fn by_stage(&self) -> [f64; 9] {
+    pub fn by_stage(&self) -> [f64; 10] {
         [
             self.rectify_ms,
             self.disparity_ms,
@@ -67,6 +70,7 @@ impl StageTimings {
             self.matching_ms,
             self.ransac_ms,
             self.icp_ms,
+            self.verify_ms,
         ]
     }
 }
@@ -76,6 +80,8 @@ impl StageTimings {
 pub struct PoseEstimate {
     /// Whether a pose passed RANSAC's checks; when false the pose is meaningless.
     pub found: bool,
+    /// The verification's score and verdict; only an accepted pose may be handed on.
+    pub verification: Verification,
     /// Tray frame -> world frame, after ICP.
     pub t_world_tray: Isometry3<f64>,
     /// RANSAC inliers of the closest view's ICP cloud.
@@ -98,6 +104,7 @@ impl Default for PoseEstimate {
     fn default() -> Self {
         PoseEstimate {
             found: false,
+            verification: Verification::default(),
             t_world_tray: Isometry3::identity(),
             inliers: 0,
             timings: StageTimings::default(),
@@ -124,6 +131,7 @@ struct Stages {
     correspondences: Vec<Correspondence>,
     ransac: Ransac,
     icp: Icp,
+    verifier: Verifier,
 }
 
 /// The tray-pose estimator of one rig and model, with every buffer it needs.
@@ -171,7 +179,9 @@ impl Estimator {
             disparity: crate::FloatImage::new(w, h, f32::INFINITY),
             ..Reconstruction::default()
         };
+        let verifier = Verifier::for_model(&params, &model);
         let stages = Stages {
+            verifier,
             features: FeatureExtractor::new(&params, pixels)?,
             ransac: Ransac::new(&params, Arc::clone(&model))?,
             icp: Icp::new(&params, Arc::clone(&model))?,
@@ -243,6 +253,28 @@ impl Estimator {
             let mut out = self.stages.run(points)?;
             out.timings.total_ms = ms(start);
             Ok(out)
+        })
+    }
+
+    /// The verification's settings in force (the threshold the model carries, or the
+    /// cell's when it carries none).
+    pub fn verifier(&self) -> &Verifier {
+        &self.stages.verifier
+    }
+
+    /// The verification of `t_world_tray` against the last frame's scene cloud, as the
+    /// frame's own verification ran (for benches and diagnosis of other poses).
+    pub fn verify(&self, t_world_tray: &Isometry3<f64>) -> Verification {
+        rayon::scope(|_| {
+            let s = &self.stages;
+            s.verifier.verify(
+                &s.model,
+                &s.icp,
+                s.ransac.scene_grid(),
+                s.features.cloud(),
+                &s.sensor_position,
+                t_world_tray,
+            )
         })
     }
 
@@ -364,6 +396,17 @@ impl Stages {
         out.found = true;
         out.inliers = out.ransac.inliers;
         out.t_world_tray = if refined { out.icp.t_world_tray } else { coarse };
+
+        let t = Instant::now();
+        out.verification = self.verifier.verify(
+            &self.model,
+            &self.icp,
+            self.ransac.scene_grid(),
+            self.features.cloud(),
+            &self.sensor_position,
+            &out.t_world_tray,
+        );
+        out.timings.verify_ms = ms(t);
         Ok(out)
     }
 }

@@ -42,7 +42,7 @@ pub use study::folder::open_folder;
 pub use study::grid::{Axis, Grid};
 pub use study::lock::{lock_folder, FolderLock, LOCK_FILE};
 pub use study::merge::merge;
-pub use study::one_placement::{acceptance_summary, evaluate_placement};
+pub use study::one_placement::{acceptance_summary, evaluate_placement, measure_verification};
 pub use study::optimize::{SearchParameter, SearchPlan};
 pub use study::placement_search::optimize;
 pub use study::placement_study::{run_study, tolerance_dir, Preset, StudyRequest};
@@ -56,4 +56,5 @@ pub use study::tolerance::{
     measure_tolerance, AxisTolerance, ToleranceCorner, TolerancePoint, ToleranceReport, ToleranceRequest, WalkEnd,
     TOLERANCE_STEPS,
 };
+pub use study::verified::{clopper_pearson_upper, precision_recall, Scored, VerifiedSummary};
 pub use study::{median, score, Evaluator, FrameRecord, Score, Summary};

@@ -1,5 +1,7 @@
 //! `camplace accept`: the acceptance test of one placement. It passes when the lower
-//! Wilson bound of the success rate reaches the required rate: exit 0 on pass, 1 on fail.
+//! Wilson bound of the success rate reaches the required rate and, with `--max-wrong`, the
+//! upper 95 % bound of the wrong poses among the verified ones stays within it: exit 0 on
+//! pass, 1 on fail.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -21,8 +23,12 @@ pub struct Args {
     #[command(flatten)]
     scene: SceneArgs,
     /// Required success rate, 0..1: the lower end of the 95 % interval must reach it.
+    #[arg(long, required_unless_present = "max_wrong")]
+    min_success: Option<f64>,
+    /// Largest share of wrong poses among the accepted ones, 0..1: the one-sided 95 % upper
+    /// bound (Clopper–Pearson) at the threshold chosen from these scenes must stay within it.
     #[arg(long)]
-    min_success: f64,
+    max_wrong: Option<f64>,
     /// Scenarios 0..N-1 of the seed.
     #[arg(long, default_value_t = 250)]
     scenarios: u64,
@@ -33,23 +39,43 @@ pub struct Args {
 
 /// Runs `camplace accept`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    if !(0.0..=1.0).contains(&a.min_success) {
-        bail!("--min-success: expected a rate between 0 and 1 (e.g. 0.95), got {}", a.min_success);
+    if let Some(m) = a.min_success.filter(|m| !(0.0..=1.0).contains(m)) {
+        bail!("--min-success: expected a rate between 0 and 1 (e.g. 0.95), got {m}");
+    }
+    if let Some(w) = a.max_wrong.filter(|w| !(w.is_finite() && *w > 0.0 && *w < 1.0)) {
+        bail!("--max-wrong: expected a share above 0 and below 1 (e.g. 0.005), got {w}");
     }
     let (mut cell, mut placement) = a.cell.load()?;
     a.installed.apply(&mut cell, &mut placement)?;
     let seed = a.scene.seed(&cell);
     let scenarios = check_scenarios(a.scenarios)?;
     let s = acceptance_summary(a.out.as_deref(), &cell, &placement, a.scene.method, seed, scenarios)?;
-    let low = s.success_interval[0];
-    let pass = low >= a.min_success;
     outln!("{placement} ({}, seed {seed}): {}", a.scene.method, s.line());
-    outln!(
-        "{}: lower 95 % bound {:.1} % {} the required {:.1} %",
-        if pass { "PASS" } else { "FAIL" },
-        100.0 * low,
-        if pass { "reaches" } else { "is below" },
-        100.0 * a.min_success
-    );
+    let mut pass = true;
+    if let Some(min) = a.min_success {
+        let low = s.success_interval[0];
+        let ok = low >= min;
+        outln!(
+            "{}: lower 95 % bound {:.1} % {} the required {:.1} %",
+            if ok { "PASS" } else { "FAIL" },
+            100.0 * low,
+            if ok { "reaches" } else { "is below" },
+            100.0 * min
+        );
+        pass &= ok;
+    }
+    if let Some(max) = a.max_wrong {
+        // No scored pose at all is no evidence, so it fails.
+        let upper = s.verification.map_or(1.0, |v| v.wrong_accepted_upper);
+        let ok = upper <= max;
+        outln!(
+            "{}: upper 95 % bound of wrong poses among the accepted {:.2} % {} the allowed {:.2} %",
+            if ok { "PASS" } else { "FAIL" },
+            100.0 * upper,
+            if ok { "is within" } else { "exceeds" },
+            100.0 * max
+        );
+        pass &= ok;
+    }
     Ok(if pass { ExitCode::SUCCESS } else { ExitCode::from(1) })
 }

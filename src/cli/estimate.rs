@@ -3,7 +3,7 @@
 
 use anyhow::Context;
 use camplace_config::RigFile;
-use camplace_estimator::{Estimator, Method, Model, Rig};
+use camplace_estimator::{Estimator, Method, Model, Rig, Verifier};
 use camplace_sim::{estimate_dataset, load_model, load_model_for, FrameRecord, Summary};
 use nalgebra::Point3;
 use std::path::{Path, PathBuf};
@@ -55,8 +55,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
 }
 
 fn dataset(cell: &camplace_config::Cell, model: Model, dir: &Path) -> anyhow::Result<ExitCode> {
+    let threshold = Verifier::for_model(&cell.estimator, &model).threshold_in_force();
     let (records, method) = estimate_dataset(cell, model, dir)?;
-    let summary = Summary::from_records(&records);
+    let summary = Summary::from_records(&records).verified_at(&records, threshold, cell.estimator.verify_max_wrong);
     outln!("{} frames ({method}): {}; wrote {}", records.len(), summary.line(), dir.join("poses.jsonl").display());
     Ok(ExitCode::SUCCESS)
 }

@@ -6,6 +6,7 @@
 use anyhow::Context;
 use camplace_config::write_atomic;
 use camplace_config::Cell;
+use camplace_estimator::Verifier;
 use camplace_sim::{estimate_dataset, load_model, load_model_for, Summary, DATASET_SUMMARY};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -38,8 +39,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         }
         None => (Cell::default(), load_model(&a.model)?),
     };
+    let threshold = Verifier::for_model(&cell.estimator, &model).threshold_in_force();
     let (records, method) = estimate_dataset(&cell, model, &a.dataset)?;
-    let summary = Summary::from_records(&records);
+    let summary = Summary::from_records(&records).verified_at(&records, threshold, cell.estimator.verify_max_wrong);
     let poses = a.dataset.join("poses.jsonl");
     if summary.scored == 0 {
         outln!("{} frames ({method}): {}; wrote {}", records.len(), summary.line(), poses.display());

@@ -71,8 +71,8 @@ struct RunLine<'a> {
     latency_ms: f64,
     /// CPU time of the process while the frame was estimated (every thread), ms.
     cpu_ms: f64,
-    /// The tray's pose in the robot's base frame, when the cell has a `[robot]` and a pose
-    /// was found (row-major 4 × 4, mm).
+    /// The tray's pose in the robot's base frame, when the cell has a `[robot]` and the
+    /// verification accepted the pose (row-major 4 × 4, mm).
     #[serde(rename = "T_robot_tray", skip_serializing_if = "Option::is_none")]
     t_robot_tray: Option<[[f64; 4]; 4]>,
     #[serde(flatten)]
@@ -121,6 +121,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         None => load_model(&a.model)?,
     };
     let method = method_for(opened.source.shots());
+    let threshold = camplace_estimator::Verifier::for_model(&cell.estimator, &model).threshold_in_force();
+    let max_wrong = cell.estimator.verify_max_wrong;
     let estimator = estimator_for(&cell, model, &rig, &opened.rig_path, method, opened.background.as_ref())?;
     if opened.background.is_none() {
         noteln!("note: no background to remove (give --background DIR with the empty cell's images)");
@@ -154,7 +156,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 latency_ms: e.timing.latency_ms,
                 cpu_ms: e.timing.cpu_ms,
                 t_robot_tray: robot
-                    .filter(|_| e.record.found)
+                    .filter(|_| e.record.accepted())
                     .map(|r| isometry_to_rows(&(r * isometry_from_rows(&e.record.t_world_tray)))),
                 record: &e.record,
             };
@@ -169,7 +171,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         },
     )?;
     noteln!("{}", stats.report());
-    let summary = Summary::from_records(&records);
+    let summary = Summary::from_records(&records).verified_at(&records, threshold, max_wrong);
     if summary.scored > 0 {
         noteln!("{}", summary.line());
     }

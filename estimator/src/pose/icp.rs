@@ -114,6 +114,8 @@ pub struct Icp {
     /// Every view's points merged at the surface resolution, tray frame, and their grid.
     whole_points: Vec<Point3<f32>>,
     whole: NearestGrid,
+    /// The bounding box of `whole_points`, tray frame.
+    whole_bounds: (Point3<f32>, Point3<f32>),
 }
 
 impl std::fmt::Debug for Icp {
@@ -145,6 +147,8 @@ impl Icp {
         let all: Vec<Point3<f32>> = model.views.iter().flat_map(|v| v.points.iter().copied()).collect();
         let mut whole_points = Vec::new();
         crate::Downsampler::new().downsample(&all, model.surface_resolution, &mut whole_points)?;
+        let first = whole_points.first().copied().unwrap_or_else(Point3::origin);
+        let whole_bounds = whole_points.iter().fold((first, first), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
         // The grids are independent: built side by side, each the same whatever the threads.
         let (grids, whole) = rayon::join(
             || {
@@ -163,6 +167,7 @@ impl Icp {
             model,
             whole_points,
             whole,
+            whole_bounds,
             iterations: params.icp_iterations,
             max_distance: params.icp_max_distance as f32,
             trim: params.icp_trim as f32,
@@ -311,6 +316,70 @@ impl Icp {
                 count
             })
             .sum()
+    }
+}
+
+impl Icp {
+    /// Scene points (world frame) the whole tray explains at `a` but not at `b`, and at `b`
+    /// but not at `a` ([`Icp::explained`]'s test): where two nearly symmetric poses differ,
+    /// only these points tell them apart.
+    pub fn explained_apart(
+        &self,
+        scene_points: &[Point3<f32>],
+        a: &Isometry3<f64>,
+        b: &Isometry3<f64>,
+        reach: f32,
+    ) -> (u32, u32) {
+        let (pa, pb) = (a.inverse().cast::<f32>(), b.inverse().cast::<f32>());
+        let reach2 = reach * reach;
+        let near = |q: Point3<f32>| {
+            self.whole.lookup(&q).is_some_and(|item| (q - self.whole_points[item as usize]).norm_squared() <= reach2)
+        };
+        scene_points
+            .par_chunks(CHUNK)
+            .map(|chunk| {
+                let (mut only_a, mut only_b) = (0u32, 0u32);
+                for p in chunk {
+                    let (in_a, in_b) = (near(pa * p), near(pb * p));
+                    only_a += u32::from(in_a && !in_b);
+                    only_b += u32::from(in_b && !in_a);
+                }
+                (only_a, only_b)
+            })
+            .reduce(|| (0, 0), |x, y| (x.0 + y.0, x.1 + y.1))
+    }
+
+    /// Scene points (world frame) inside the whole tray's bounding box at `t_world_tray`
+    /// grown by `reach`, and how many of those the tray explains as [`Icp::explained`]
+    /// counts them: (explained, inside). Scene points beside the tray are no evidence
+    /// either way; inside its box, each is either the tray's surface or something where the
+    /// model says there is free space.
+    pub fn explained_near(
+        &self,
+        scene_points: &[Point3<f32>],
+        t_world_tray: &Isometry3<f64>,
+        reach: f32,
+    ) -> (u32, u32) {
+        let pose = t_world_tray.inverse().cast::<f32>();
+        let reach2 = reach * reach;
+        let grow = Vector3::repeat(reach);
+        let (lo, hi) = (self.whole_bounds.0 - grow, self.whole_bounds.1 + grow);
+        scene_points
+            .par_chunks(CHUNK)
+            .map(|chunk| {
+                let (mut explained, mut inside) = (0u32, 0u32);
+                for p in chunk {
+                    let q = pose * p;
+                    if !(0..3).all(|a| q[a] >= lo[a] && q[a] <= hi[a]) {
+                        continue;
+                    }
+                    inside += 1;
+                    let Some(item) = self.whole.lookup(&q) else { continue };
+                    explained += u32::from((q - self.whole_points[item as usize]).norm_squared() <= reach2);
+                }
+                (explained, inside)
+            })
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
     }
 }
 

@@ -1,16 +1,18 @@
 //! From feature matches to the tray's pose: the tray model, prerejective RANSAC for the
 //! coarse pose, point-to-plane ICP to refine it, the rigid fit both use, and the quality
-//! metrics of an estimate against the truth.
+//! metrics of an estimate against the truth, and the verification of the pose found.
 
 mod icp;
 mod kabsch;
 mod metrics;
 mod model;
 mod ransac;
+mod verify;
 
 pub use icp::{Icp, IcpResult};
 pub use metrics::{correct_matches, pose_errors, PoseErrors};
 #[cfg(any(test, feature = "testing"))]
 pub(crate) use model::DESCRIPTOR_LEN;
-pub use model::{Model, ModelOrigin, ModelView, MODEL_FORMAT_VERSION};
+pub use model::{Model, ModelOrigin, ModelVerification, ModelView, MODEL_FORMAT_VERSION};
 pub use ransac::{Ransac, RansacResult};
+pub use verify::{Verdict, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS, RESTING_HEIGHT_MM, RESTING_TILT_DEG};

@@ -11,11 +11,13 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use crate::error::{Error, ErrorKind, Result};
 use crate::features::{quantise, QUANTISATION_STEPS};
 
-/// Version of the binary layout written by [`Model::to_bytes`]. Version 3 stores points as
+/// Version of the binary layout written by [`Model::to_bytes`]. Version 4 added the `VRFY`
+/// section (the verification threshold measured in simulation). Version 3 stores points as
 /// 16-bit multiples of a power-of-two step, normals in 16-bit octahedral coordinates and
 /// descriptors as the bytes the matcher compares; version 2 added the `ORIG` section.
-/// Versions 1 and 2 (everything `f32`) still read; version 1 has no origin.
-pub const MODEL_FORMAT_VERSION: u32 = 3;
+/// Versions 1 to 3 still read (1 and 2 hold everything as `f32`, 1 has no origin); they
+/// carry no verification threshold, so the cell's `estimator.verify_threshold` applies.
+pub const MODEL_FORMAT_VERSION: u32 = 4;
 
 /// First bytes of every model file.
 pub const MODEL_MAGIC: [u8; 8] = *b"CPLMODEL";
@@ -41,6 +43,27 @@ pub struct Model {
     /// What the model was built from; `None` for a model of unknown origin (a version 1
     /// file, a test fixture).
     pub origin: Option<ModelOrigin>,
+    /// The verification threshold measured in simulation for this model; `None` when it was
+    /// not measured (a file older than version 4, a test fixture).
+    pub verification: Option<ModelVerification>,
+}
+
+/// The verification threshold a model carries and what it was measured on, so that the
+/// deployed estimator applies exactly what simulation measured.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ModelVerification {
+    /// Scores at or above this are accepted, in [0, 1].
+    pub threshold: f32,
+    /// The largest share of wrong poses among the accepted ones it was chosen for.
+    pub max_wrong: f32,
+    /// Scenes simulated.
+    pub scenes: u32,
+    /// Of them, poses accepted at the threshold.
+    pub accepted: u32,
+    /// Of those, wrong ones (outside the success limits).
+    pub wrong_accepted: u32,
+    /// One-sided 95 % upper bound (Clopper–Pearson) of the wrong share among accepted poses.
+    pub wrong_upper: f32,
 }
 
 /// What a model was built from, so that a model of another tray or cell can be refused.
@@ -76,6 +99,10 @@ const TAG_FEAT: [u8; 4] = *b"FEAT";
 const TAG_VIEW: [u8; 4] = *b"VIEW";
 const TAG_SYMM: [u8; 4] = *b"SYMM";
 const TAG_ORIG: [u8; 4] = *b"ORIG";
+const TAG_VRFY: [u8; 4] = *b"VRFY";
+/// The `VRFY` payload of a measured threshold: threshold, max wrong, upper bound (f32) and
+/// scenes, accepted, wrong accepted (u32).
+const VERIFICATION_BYTES: usize = 6 * 4;
 /// Longest text an `ORIG` section may hold in one field.
 const MAX_ORIGIN_TEXT: usize = 4096;
 /// Magic, version and body length.
@@ -138,6 +165,21 @@ impl Model {
         if let Some(s) = self.symmetries_deg.iter().find(|s| !s.is_finite()) {
             return bad(format!("expected finite symmetry angles, found {s}"));
         }
+        if let Some(v) = &self.verification {
+            let share = |x: f32| (0.0..=1.0).contains(&x);
+            if !(share(v.threshold) && share(v.max_wrong) && share(v.wrong_upper)) {
+                return bad(format!(
+                    "expected the verification's threshold, max wrong and upper bound in [0, 1], found {}, {} and {}",
+                    v.threshold, v.max_wrong, v.wrong_upper
+                ));
+            }
+            if v.accepted > v.scenes || v.wrong_accepted > v.accepted {
+                return bad(format!(
+                    "expected wrong accepted <= accepted <= scenes in the verification, found {} <= {} <= {}",
+                    v.wrong_accepted, v.accepted, v.scenes
+                ));
+            }
+        }
         Ok(())
     }
 
@@ -155,7 +197,7 @@ impl Model {
         best.0
     }
 
-    /// The model in its binary file layout (little endian), format version 3:
+    /// The model in its binary file layout (little endian), format version 4:
     /// magic `CPLMODEL`, format version (u32), body length (u64), body, CRC-32 of all before.
     /// The body is tagged sections, each `tag[4] length(u64) payload`: `HEAD` (surface
     /// resolution f32, feature, view and symmetry counts u32), `FEAT` (the step s f32, then
@@ -164,7 +206,9 @@ impl Model {
     /// f32×3, point count u32, step f32, then per point i16×3 and i16×2 as in `FEAT`),
     /// `SYMM` (angles f32, deg) and `ORIG` (empty for an unknown origin, else the cell hash
     /// and the tray hash, 32 bytes each, the seed u64, then the tray, method and placement
-    /// as u32 length and UTF-8 text). Each step is the power of two that fits the section's
+    /// as u32 length and UTF-8 text) and `VRFY` (empty when no threshold was measured, else
+    /// the threshold, the max wrong share and the upper bound as f32, then the scenes, the
+    /// accepted and the wrong accepted poses as u32). Each step is the power of two that fits the section's
     /// largest coordinate into i16: 1/64 mm or finer for anything within 500 mm of the
     /// tray's origin. Versions 1 and 2 held every number as f32.
     ///
@@ -175,7 +219,7 @@ impl Model {
         self.encode(MODEL_FORMAT_VERSION)
     }
 
-    /// The layout of format `version` (1 to 3); versions 1 and 2 for tests of old files.
+    /// The layout of format `version` (1 to 4); versions 1 to 3 for tests of old files.
     fn encode(&self, version: u32) -> Vec<u8> {
         let compact = version >= 3;
         let (feature_bytes, point_bytes, step_bytes) =
@@ -183,11 +227,14 @@ impl Model {
         let view_bytes: usize = self.views.iter().map(|v| 12 + 16 + step_bytes + v.points.len() * point_bytes).sum();
         let origin = self.origin.as_ref().map(encode_origin).unwrap_or_default();
         let origin_bytes = if version >= 2 { 12 + origin.len() } else { 0 };
+        let verification_len = if self.verification.is_some() { VERIFICATION_BYTES } else { 0 };
+        let verification_bytes = if version >= 4 { 12 + verification_len } else { 0 };
         let body_len = (12 + 16)
             + (12 + step_bytes + self.feature_points.len() * feature_bytes)
             + view_bytes
             + (12 + 4 * self.symmetries_deg.len())
-            + origin_bytes;
+            + origin_bytes
+            + verification_bytes;
         let mut out = Vec::with_capacity(PREAMBLE_LEN + body_len + 4);
         out.extend_from_slice(&MODEL_MAGIC);
         out.extend_from_slice(&version.to_le_bytes());
@@ -242,6 +289,17 @@ impl Model {
         if version >= 2 {
             section(&mut out, TAG_ORIG, origin.len());
             out.extend_from_slice(&origin);
+        }
+        if version >= 4 {
+            section(&mut out, TAG_VRFY, verification_len);
+            if let Some(v) = &self.verification {
+                for x in [v.threshold, v.max_wrong, v.wrong_upper] {
+                    put_f32(&mut out, x);
+                }
+                for n in [v.scenes, v.accepted, v.wrong_accepted] {
+                    put_u32(&mut out, n);
+                }
+            }
         }
         let crc = crc32(&out);
         put_u32(&mut out, crc);
@@ -356,16 +414,29 @@ impl Model {
         let symmetries_deg = (0..n_symmetries).map(|_| symm.f32("symmetry")).collect::<Result<Vec<_>>>()?;
         symm.finish()?;
         let origin = if version >= 2 { decode_origin(r.section(TAG_ORIG)?)? } else { None };
+        let verification = if version >= 4 { decode_verification(r.section(TAG_VRFY)?)? } else { None };
         if r.remaining() != 0 {
-            let last = if version >= 2 { "ORIG" } else { "SYMM" };
+            let last = match version {
+                4.. => "VRFY",
+                2 | 3 => "ORIG",
+                _ => "SYMM",
+            };
             return Err(err(format!(
                 "expected the body to end after section {last}, found {} more bytes",
                 r.remaining()
             )));
         }
 
-        let model =
-            Model { surface_resolution, feature_points, feature_normals, descriptors, views, symmetries_deg, origin };
+        let model = Model {
+            surface_resolution,
+            feature_points,
+            feature_normals,
+            descriptors,
+            views,
+            symmetries_deg,
+            origin,
+            verification,
+        };
         model.validate()?;
         // A model is what the current format holds, whichever version it was read from: an
         // older file's points and normals are rounded as version 3 rounds them, so it gives
@@ -424,6 +495,21 @@ fn decode_origin(mut s: Reader<'_>) -> Result<Option<ModelOrigin>> {
     let placement = text("the placement")?;
     s.finish()?;
     Ok(Some(ModelOrigin { cell_hash, tray, tray_hash, method, seed, placement }))
+}
+
+/// The `VRFY` section: empty when no threshold was measured.
+fn decode_verification(mut s: Reader<'_>) -> Result<Option<ModelVerification>> {
+    if s.remaining() == 0 {
+        return Ok(None);
+    }
+    let threshold = s.f32("the verification threshold")?;
+    let max_wrong = s.f32("the verification's max wrong share")?;
+    let wrong_upper = s.f32("the verification's upper bound")?;
+    let scenes = s.u32("the verification's scenes")?;
+    let accepted = s.u32("the verification's accepted poses")?;
+    let wrong_accepted = s.u32("the verification's wrong accepted poses")?;
+    s.finish()?;
+    Ok(Some(ModelVerification { threshold, max_wrong, scenes, accepted, wrong_accepted, wrong_upper }))
 }
 
 /// The power of two (mm) that fits every coordinate of `points` into i16 steps, at least
@@ -669,6 +755,14 @@ mod tests {
                 seed,
                 placement: "r=605,alpha=32,baseline=81,vergence=3.5".to_string(),
             }),
+            verification: seed.is_multiple_of(2).then_some(ModelVerification {
+                threshold: 0.625,
+                max_wrong: 0.005,
+                scenes: 300,
+                accepted: 280,
+                wrong_accepted: 1,
+                wrong_upper: 0.0166,
+            }),
         }
     }
 
@@ -701,8 +795,8 @@ mod tests {
             normals(&g.normals, &v.normals);
         }
         assert_eq!(
-            (got.surface_resolution, &got.symmetries_deg, &got.origin),
-            (m.surface_resolution, &m.symmetries_deg, &m.origin)
+            (got.surface_resolution, &got.symmetries_deg, &got.origin, &got.verification),
+            (m.surface_resolution, &m.symmetries_deg, &m.origin, &m.verification)
         );
     }
 
@@ -717,8 +811,11 @@ mod tests {
             assert_eq!((&twice.feature_points, &twice.descriptors), (&once.feature_points, &once.descriptors));
             assert!(twice.views.iter().zip(&once.views).all(|(a, b)| a.points == b.points));
             assert_close(&twice, &m);
-            // Versions 1 and 2 hold every number as written, and read as version 3 holds them.
-            assert_eq!(Model::from_bytes(&m.encode(2)).unwrap(), once);
+            // Versions 1 and 2 hold every number as written, and read as version 3 holds them;
+            // versions before 4 carry no verification threshold.
+            let without = Model { verification: None, ..once.clone() };
+            assert_eq!(Model::from_bytes(&m.encode(2)).unwrap(), without);
+            assert_eq!(Model::from_bytes(&m.encode(3)).unwrap(), without);
         }
     }
 
@@ -788,7 +885,7 @@ mod tests {
 
     #[test]
     fn a_version_1_file_reads_without_an_origin() {
-        let m = Model { origin: None, ..small_model(6) };
+        let m = Model { origin: None, verification: None, ..small_model(6) };
         let v1 = m.encode(1);
         assert_eq!(Model::from_bytes(&v1).unwrap(), Model::from_bytes(&m.to_bytes()).unwrap());
         for len in 0..v1.len() {
@@ -802,7 +899,9 @@ mod tests {
     fn a_damaged_origin_is_an_error_or_another_origin_never_a_panic() {
         let bytes = small_model(7).to_bytes();
         let end = bytes.len() - 4;
-        let orig = end - 12 - encode_origin(small_model(7).origin.as_ref().unwrap()).len();
+        // An empty `VRFY` section (no threshold measured) follows `ORIG`.
+        assert!(small_model(7).verification.is_none());
+        let orig = end - 12 - 12 - encode_origin(small_model(7).origin.as_ref().unwrap()).len();
         assert_eq!(&bytes[orig..orig + 4], b"ORIG");
         let mut rng = ChaCha8Rng::seed_from_u64(11);
         let mut failures = 0;
@@ -896,10 +995,27 @@ mod tests {
         let mut b = small_model(4).to_bytes();
         b[8..12].copy_from_slice(&7u32.to_le_bytes());
         let e = Model::from_bytes(&b).unwrap_err();
-        assert!(e.to_string().contains("version 1 to 3") && e.to_string().contains("version 7"), "{e}");
+        assert!(e.to_string().contains("version 1 to 4") && e.to_string().contains("version 7"), "{e}");
         let mut b = small_model(4).to_bytes();
         b.push(0);
         assert_eq!(Model::from_bytes(&b).unwrap_err().kind(), ErrorKind::Model);
+    }
+
+    /// A threshold out of [0, 1], or counts that contradict each other, are refused.
+    #[test]
+    fn a_verification_out_of_range_is_refused() {
+        let good = small_model(2);
+        assert!(good.validate().is_ok() && good.verification.is_some());
+        let v = good.verification.unwrap();
+        for bad in [
+            ModelVerification { threshold: 1.5, ..v },
+            ModelVerification { wrong_upper: f32::NAN, ..v },
+            ModelVerification { accepted: v.scenes + 1, ..v },
+            ModelVerification { wrong_accepted: v.accepted + 1, ..v },
+        ] {
+            let m = Model { verification: Some(bad), ..good.clone() };
+            assert!(m.validate().unwrap_err().to_string().contains("verification"), "{bad:?}");
+        }
     }
 
     #[test]

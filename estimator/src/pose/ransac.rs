@@ -204,6 +204,11 @@ impl Ransac {
         self.grid.rebuild(scene_points);
     }
 
+    /// The scene index of the last [`Ransac::index_scene`], for the verification.
+    pub(crate) fn scene_grid(&self) -> &SceneGrid {
+        &self.grid
+    }
+
     /// Finds the tray's pose from matches of `scene_keypoints` (indexed by
     /// `Correspondence::scene`) to the model's features, scoring against the scene cloud of
     /// the last [`Ransac::index_scene`]. The result's `found` is false when no hypothesis

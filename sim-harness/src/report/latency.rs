@@ -15,7 +15,7 @@ use crate::Result;
 
 /// Stage colours, in [`StageTimings::STAGES`] order (a qualitative palette: neighbours
 /// differ).
-const STAGE_COLOURS: [RGBColor; 9] = [
+const STAGE_COLOURS: [RGBColor; 10] = [
     RGBColor(141, 211, 199),
     RGBColor(31, 119, 180),
     RGBColor(255, 187, 120),
@@ -25,6 +25,7 @@ const STAGE_COLOURS: [RGBColor; 9] = [
     RGBColor(148, 103, 189),
     RGBColor(255, 127, 14),
     RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
 ];
 
 /// Histogram bins over the latency axis.

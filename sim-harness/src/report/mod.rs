@@ -1,6 +1,6 @@
 //! The study's outputs for people: heat maps of a sweep (the paper's Figures 5 and 6), the
 //! search's convergence (Figure 7), the deployed loop's latency, mounting tolerances, a side and top sketch of the rig with its view
-//! frustums, `summary.csv`, and the self-contained `report.html`. Plots are written as SVG
+//! frustums, the verified poses' figures and precision–recall curves, `summary.csv`, and the self-contained `report.html`. Plots are written as SVG
 //! and PNG with plotters; text needs a TrueType font found on the machine ([`font`]).
 
 pub mod base64;
@@ -15,5 +15,6 @@ pub mod study_report;
 pub mod sweep_panels;
 pub mod table;
 pub mod tolerance_plot;
+pub mod verification;
 
 pub use plot::save_plot;

@@ -77,6 +77,7 @@ pub fn write_report(
                 })
                 .collect();
             answer(&mut page, out, r, seed, preset, &others)?;
+            super::verification::verification_section(&mut page, out, combos, seed)?;
         }
         None => page.paragraph("No placement was checked on fresh scenes, so there is nothing to recommend."),
     }
@@ -411,6 +412,7 @@ fn answer(
         "success_interval": s.success_interval,
         "secondary_measure": "mean correct feature matches per scene",
         "mean_correct_matches": s.mean_correct_matches,
+        "verification": s.verification,
         "tied_candidates": r.tied_candidates,
         "trays": r.cells.iter().zip(&r.per_tray).map(|((n, _), t)| serde_json::json!({
             "name": n, "scenes": t.scored, "successes": t.successes,

@@ -90,6 +90,12 @@ impl std::fmt::Debug for Worker<'_> {
 }
 
 impl Worker<'_> {
+    /// The pose of the last scene, with every count and the verification's evidence, for
+    /// diagnosis.
+    pub fn last_pose(&self) -> &PoseEstimate {
+        &self.pose
+    }
+
     /// Scenario `index` of the study seed: rendered, estimated and scored. The record's
     /// `frame` is the folder name `render --dataset` gives the same scene.
     pub fn scene(&mut self, index: u64) -> Result<FrameRecord> {

@@ -27,6 +27,7 @@ mod summary;
 pub mod sweep;
 pub mod tolerance;
 pub mod tray_set;
+pub mod verified;
 
 pub use evaluate::Evaluator;
 pub use record::{score, FrameRecord, Score};

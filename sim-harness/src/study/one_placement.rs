@@ -1,19 +1,23 @@
 //! One placement over scenarios `0..N` of a seed: into a study folder with its summaries
-//! (`evaluate`, resumable and shardable), or for the acceptance test, into a folder or
-//! memory only.
+//! (`evaluate`, resumable and shardable), for the acceptance test into a folder or memory
+//! only, or to measure the verification threshold a model carries.
 
 use std::path::Path;
 
 use camplace_config::{Cell, Placement};
 
+use super::evaluate::Evaluator;
 use super::folder::{open_folder, MODELS_FOLDER};
 use super::jobs::{shard_jobs, JobEvaluator};
 use super::results::ResultsStore;
 use super::shard::Shard;
 use super::summary::Summary;
+use super::verified::{Scored, VerifiedSummary};
 use crate::render::Method;
 use crate::report::table::{write_summary_csv, write_summary_json, SummaryRow};
+use crate::workers::each_index;
 use crate::Result;
+use camplace_estimator::Model;
 
 /// Runs shard `shard` of the scenes into the study folder `dir` (models cached in
 /// `dir/models`), writes `summary.json` and `summary.csv`, and returns the summary of the
@@ -31,7 +35,8 @@ pub fn evaluate_placement(
     let store = open_folder(dir, cell, method, seed)?;
     let jobs = shard_jobs(&[*placement], seed, scenarios, shard);
     JobEvaluator::new(cell, method, &store).with_model_cache(&dir.join(MODELS_FOLDER)).evaluate(&jobs, "evaluate")?;
-    let summary = Summary::from_records(&store.records(placement, method, seed, scenarios));
+    let records = store.records(placement, method, seed, scenarios);
+    let summary = Summary::from_records(&records).verified(&records, cell.estimator.verify_max_wrong);
     let rows =
         [SummaryRow { placement: placement.to_string(), method: method.to_string(), seed, summary: summary.clone() }];
     write_summary_json(&dir.join("summary.json"), &rows)?;
@@ -59,5 +64,27 @@ pub fn acceptance_summary(
         runner = runner.with_model_cache(&dir.join(MODELS_FOLDER));
     }
     runner.evaluate(&jobs, "accept")?;
-    Ok(Summary::from_records(&store.records(placement, method, seed, scenarios)))
+    let records = store.records(placement, method, seed, scenarios);
+    Ok(Summary::from_records(&records).verified(&records, cell.estimator.verify_max_wrong))
+}
+
+/// The verification threshold of `model` at `placement`, measured on scenarios
+/// `0..scenarios` of `seed` as `evaluate` with the same seed runs them (a model built with
+/// that seed is the one `evaluate` builds, so the two choose the same threshold), and the
+/// figures at it; `None` when no scene was run.
+pub fn measure_verification(
+    cell: &Cell,
+    placement: &Placement,
+    method: Method,
+    seed: u64,
+    model: &Model,
+    scenarios: u64,
+) -> Result<Option<VerifiedSummary>> {
+    if scenarios == 0 {
+        return Ok(None);
+    }
+    let evaluator = Evaluator::with_model(cell, placement, method, seed, model.clone())?;
+    let records = each_index(scenarios as usize, || evaluator.worker(), |worker, i| worker.scene(i as u64))?;
+    let frames: Vec<Scored> = records.iter().filter_map(Scored::of).collect();
+    Ok(VerifiedSummary::choose(&frames, cell.estimator.verify_max_wrong))
 }

@@ -4,7 +4,7 @@
 use camplace_config::Metrics;
 use camplace_estimator::isometry_to_rows;
 use camplace_estimator::{correct_matches, pose_errors};
-use camplace_estimator::{Estimator, PoseEstimate, StageTimings};
+use camplace_estimator::{Estimator, PoseEstimate, StageTimings, Verdict};
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
 
@@ -29,6 +29,9 @@ pub struct Timings {
     pub ransac: f64,
     /// ICP.
     pub icp: f64,
+    /// The verification (absent from files written before it).
+    #[serde(default)]
+    pub verify: f64,
 }
 
 impl From<&StageTimings> for Timings {
@@ -43,13 +46,14 @@ impl From<&StageTimings> for Timings {
             matching: t.matching_ms,
             ransac: t.ransac_ms,
             icp: t.icp_ms,
+            verify: t.verify_ms,
         }
     }
 }
 
 impl Timings {
     /// The stages by name, in pipeline order.
-    pub fn named(&self) -> [(&'static str, f64); 9] {
+    pub fn named(&self) -> [(&'static str, f64); 10] {
         [
             ("rectify", self.rectify),
             ("disparity", self.disparity),
@@ -60,6 +64,7 @@ impl Timings {
             ("matching", self.matching),
             ("ransac", self.ransac),
             ("icp", self.icp),
+            ("verify", self.verify),
         ]
     }
 }
@@ -114,6 +119,15 @@ pub struct FrameRecord {
     pub t_world_tray: [[f64; 4]; 4],
     /// Whether a pose passed RANSAC's checks.
     pub found: bool,
+    /// The verification's score in [0, 1]: the share of the tray's visible surface the
+    /// sensor saw times the share of points in the tray's box the model explains (0 when no
+    /// pose was found). Absent from files written before the verification.
+    #[serde(rename = "score", default, skip_serializing_if = "Option::is_none")]
+    pub verify_score: Option<f32>,
+    /// `accepted` or `rejected: <reason>` (no tray, off the table, poor fit, ambiguous); only
+    /// an accepted pose may be handed on. Absent from files written before the verification.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub verdict: Option<String>,
     /// RANSAC inliers of the closest view.
     pub inliers: u32,
     /// Points of the down-sampled scene cloud.
@@ -143,6 +157,8 @@ impl FrameRecord {
             frame: frame.into(),
             t_world_tray: isometry_to_rows(&pose.t_world_tray),
             found: pose.found,
+            verify_score: Some(pose.verification.score),
+            verdict: Some(pose.verification.verdict.as_str().to_string()),
             inliers: pose.inliers,
             scene_points: pose.scene_points,
             keypoints: pose.keypoints,
@@ -153,6 +169,12 @@ impl FrameRecord {
             ms: pose.timings.total_ms,
             score: None,
         }
+    }
+
+    /// Whether the pose was accepted by the verification (false for a record written
+    /// before it).
+    pub fn accepted(&self) -> bool {
+        self.found && self.verdict.as_deref() == Some(Verdict::Accepted.as_str())
     }
 
     /// The record as one JSON line (without the newline).
@@ -176,7 +198,24 @@ mod tests {
         r.score = Some(Score { position_error_mm: 1.5, rotation_error_deg: 0.25, correct_matches: 40, success: true });
         let line = r.to_line();
         assert!(line.contains("\"success\":true") && line.contains("\"T_world_tray\""), "{line}");
+        assert!(line.contains("\"score\":0.0") && line.contains("\"verdict\":\"rejected: no tray\""), "{line}");
         let back: FrameRecord = serde_json::from_str(&line).unwrap();
         assert_eq!(back, r);
+    }
+
+    /// A line written before the verification (no score, no verdict) still loads, as a pose
+    /// that was not accepted.
+    #[test]
+    fn a_line_without_score_and_verdict_loads() {
+        let pose = PoseEstimate { found: true, inliers: 12, ..Default::default() };
+        let mut r = FrameRecord::new("0003", &pose);
+        r.score = Some(Score { position_error_mm: 1.5, rotation_error_deg: 0.25, correct_matches: 40, success: true });
+        let mut value: serde_json::Value = serde_json::from_str(&r.to_line()).unwrap();
+        let object = value.as_object_mut().unwrap();
+        assert!(object.remove("score").is_some() && object.remove("verdict").is_some());
+        object.get_mut("timings_ms").unwrap().as_object_mut().unwrap().remove("verify");
+        let back: FrameRecord = serde_json::from_value(value).unwrap();
+        assert_eq!((back.verify_score, back.verdict.as_deref(), back.accepted()), (None, None, false));
+        assert_eq!(back.score, r.score);
     }
 }

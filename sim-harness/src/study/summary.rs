@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::record::{FrameRecord, Timings};
+use super::verified::{Scored, VerifiedSummary};
 
 /// z of a two-sided 95 % normal interval.
 const Z95: f64 = 1.959_963_984_540_054;
@@ -35,6 +36,10 @@ pub struct Summary {
     pub median_timings_ms: Timings,
     /// Median whole-frame time, ms.
     pub median_ms: f64,
+    /// The verification's figures at the threshold chosen from these frames (absent when
+    /// no frame has a score and a truth, and from summaries written before it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub verification: Option<VerifiedSummary>,
 }
 
 impl Summary {
@@ -58,6 +63,7 @@ impl Summary {
             matching: stage(|t| t.matching).unwrap_or(0.0),
             ransac: stage(|t| t.ransac).unwrap_or(0.0),
             icp: stage(|t| t.icp).unwrap_or(0.0),
+            verify: stage(|t| t.verify).unwrap_or(0.0),
         };
         Summary {
             frames: records.len(),
@@ -73,7 +79,24 @@ impl Summary {
             mean_correct_matches: mean(&correct),
             median_timings_ms,
             median_ms: median(&records.iter().map(|r| r.ms).collect::<Vec<_>>()).unwrap_or(0.0),
+            verification: None,
         }
+    }
+
+    /// The summary with the verification's figures of `records`: the threshold at which
+    /// wrong poses are at most `max_wrong` of the accepted ones, and the figures at it.
+    pub fn verified(mut self, records: &[FrameRecord], max_wrong: f64) -> Summary {
+        let frames: Vec<Scored> = records.iter().filter_map(Scored::of).collect();
+        self.verification = VerifiedSummary::choose(&frames, max_wrong);
+        self
+    }
+
+    /// The summary with the verification's figures of `records` at `threshold` (the one an
+    /// estimator applied), where [`Summary::verified`] chooses it.
+    pub fn verified_at(mut self, records: &[FrameRecord], threshold: f32, max_wrong: f64) -> Summary {
+        let frames: Vec<Scored> = records.iter().filter_map(Scored::of).collect();
+        self.verification = (!frames.is_empty()).then(|| VerifiedSummary::at(&frames, threshold, max_wrong));
+        self
     }
 
     /// One line for a terminal: rate, interval, errors and time.
@@ -97,7 +120,7 @@ impl Summary {
             opt(self.median_rotation_error_deg, "deg"),
             self.mean_correct_matches.unwrap_or(0.0),
             self.median_ms
-        )
+        ) + &self.verification.map_or(String::new(), |v| format!("; {}", v.line()))
     }
 }
 

@@ -10,6 +10,7 @@ use camplace_config::{Cell, Placement};
 
 use super::folder::open_folder;
 use super::jobs::{shard_jobs, JobEvaluator};
+use super::record::FrameRecord;
 use super::results::ResultsStore;
 use super::shard::Shard;
 use super::summary::Summary;
@@ -55,7 +56,8 @@ impl TraySet {
         for t in &self.trays {
             let label = if self.trays.len() > 1 { format!("{label} {}", t.name) } else { label.to_string() };
             JobEvaluator::new(&t.cell, self.method, &t.store).evaluate(&jobs, &label)?;
-            out.push(Summary::from_records(&t.store.records(placement, self.method, seed, n)));
+            let records = t.store.records(placement, self.method, seed, n);
+            out.push(Summary::from_records(&records).verified(&records, t.cell.estimator.verify_max_wrong));
         }
         Ok(out)
     }
@@ -66,9 +68,21 @@ impl TraySet {
         self.trays[tray].store.outcomes(placement, self.method, seed, n)
     }
 
+    /// The records of `placement` (scenarios `0..n` of `seed`) already in tray `tray`'s
+    /// folder.
+    pub fn tray_records(&self, tray: usize, placement: &Placement, seed: u64, n: u64) -> Vec<FrameRecord> {
+        self.trays[tray].store.records(placement, self.method, seed, n)
+    }
+
     /// The summaries of `placement` already in the folders, without running anything.
     pub fn stored(&self, placement: &Placement, seed: u64, n: u64) -> Vec<Summary> {
-        self.trays.iter().map(|t| Summary::from_records(&t.store.records(placement, self.method, seed, n))).collect()
+        self.trays
+            .iter()
+            .map(|t| {
+                let records = t.store.records(placement, self.method, seed, n);
+                Summary::from_records(&records).verified(&records, t.cell.estimator.verify_max_wrong)
+            })
+            .collect()
     }
 }
 

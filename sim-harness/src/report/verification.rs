@@ -1,0 +1,131 @@
+//! The report's section on verified poses: at each method's best placement, the verified
+//! success (correct and accepted), the wrong poses accepted with their 95 % upper bound,
+//! the correct poses rejected and the threshold, and the precision–recall curve of the
+//! verification's score (SVG and PNG). It reads the fresh scenes' records the study kept;
+//! the figures themselves are `study::verified`'s.
+
+use std::path::Path;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use super::font::FAMILY;
+use super::html::HtmlPage;
+use super::plot::{save_plot, Plot};
+use super::study_report::pct;
+use crate::study::optimize::recheck_seed;
+use crate::study::placement_study::Combination;
+use crate::study::verified::{precision_recall, Scored, VerifiedSummary};
+use crate::Result;
+
+/// The precision–recall curve of one method's best placement.
+#[derive(Debug, Clone, PartialEq)]
+struct PrecisionRecallPlot {
+    title: String,
+    /// (recall, precision, threshold), highest threshold first.
+    curve: Vec<(f64, f64, f32)>,
+    /// The chosen threshold's (recall, precision).
+    chosen: (f64, f64),
+}
+
+impl Plot for PrecisionRecallPlot {
+    fn size(&self) -> (u32, u32) {
+        (560, 380)
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> std::result::Result<(), String> {
+        let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+        let low = self.curve.iter().map(|p| 100.0 * p.1).fold(90.0f64, f64::min).floor();
+        let mut chart = ChartBuilder::on(root)
+            .caption(&self.title, (FAMILY, 18))
+            .margin(12)
+            .x_label_area_size(42)
+            .y_label_area_size(56)
+            .build_cartesian_2d(0f64..100.5f64, low..100.5f64)
+            .map_err(e)?;
+        let whole = |v: &f64| format!("{v:.0}");
+        chart
+            .configure_mesh()
+            .x_label_formatter(&whole)
+            .y_label_formatter(&whole)
+            .x_desc("recall: correct poses accepted, %")
+            .y_desc("precision: accepted poses correct, %")
+            .label_style((FAMILY, 13))
+            .axis_desc_style((FAMILY, 15))
+            .draw()
+            .map_err(e)?;
+        let blue = RGBColor(31, 119, 180);
+        let line = self.curve.iter().map(|p| (100.0 * p.0, 100.0 * p.1));
+        chart.draw_series(LineSeries::new(line, blue.stroke_width(2))).map_err(e)?;
+        let (x, y) = (100.0 * self.chosen.0, 100.0 * self.chosen.1);
+        chart.draw_series([Circle::new((x, y), 5, RED.filled())]).map_err(e)?;
+        Ok(())
+    }
+}
+
+/// The section "Verified poses": a table per method at its best placement and the curve.
+/// Methods whose records carry no score (a folder from before the verification) are left
+/// out, said in a sentence.
+pub fn verification_section(page: &mut HtmlPage, out: &Path, combos: &[Combination], seed: u64) -> Result<()> {
+    page.heading(2, "Verified poses");
+    page.paragraph(
+        "After ICP every pose is verified: its score (0 to 1) is the share of the tray's surface facing the sensor \
+         that the sensor saw, times the share of measured points inside the tray's box that the model explains. A \
+         pose is handed on only when it rests on the table, no unlisted quarter turn explains the data almost as \
+         well, and its score reaches the threshold. The threshold is the lowest score at which wrong poses are at \
+         most the cell's estimator.verify_max_wrong of the accepted ones on these fresh scenes; camplace model \
+         measures it the same way and stores it in the model file. The upper bound is the one-sided 95 % \
+         Clopper–Pearson bound of the wrong share among accepted poses.",
+    );
+    for (k, c) in combos.iter().enumerate() {
+        let Some(top) = c.candidates.first() else { continue };
+        // The lowest tray's scenes, whose summary judges the placement (and is the one
+        // `recommended.json` carries).
+        let lowest = top.per_tray.iter().position(|t| *t == top.summary).unwrap_or(0);
+        let Some(v) = top.summary.verification else {
+            page.paragraph(&format!("{}: its results carry no verification score.", c.name()));
+            continue;
+        };
+        let n = top.summary.scored as u64;
+        let records = c.set.tray_records(lowest, &top.placement, recheck_seed(seed), n);
+        let frames: Vec<Scored> = records.iter().filter_map(Scored::of).collect();
+        page.paragraph(&format!("{} at {} ({}):", c.name(), top.placement, c.set.trays[lowest].name));
+        page.keyed_table(&format!("verification-{k}"), &verified_rows(&c.method.to_string(), &v));
+        let curve = precision_recall(&frames);
+        let at = curve.iter().rev().find(|p| p.2 >= v.threshold).map_or((0.0, 1.0), |p| (p.0, p.1));
+        let plot = PrecisionRecallPlot {
+            title: format!("{} at {}: precision against recall", c.name(), top.placement),
+            curve,
+            chosen: at,
+        };
+        if let Some(saved) = save_plot(&plot, out, &format!("precision_recall_{}", c.method))? {
+            page.svg(&saved.svg)?;
+        }
+    }
+    Ok(())
+}
+
+/// The keyed rows of one method's verified figures, each key `METHOD:FIELD` with the field
+/// of `summary.json`'s `verification`.
+fn verified_rows(method: &str, v: &VerifiedSummary) -> Vec<(String, String, String)> {
+    let rows: Vec<(&str, String, String)> = vec![
+        (
+            "verified_success_rate",
+            format!("verified success (correct and accepted) on {} fresh scenes", v.scored),
+            format!("{} ({} of {})", pct(v.verified_success_rate), v.verified_successes, v.scored),
+        ),
+        (
+            "wrong_accepted_share",
+            "wrong poses among the accepted".into(),
+            format!("{} ({} of {})", pct(v.wrong_accepted_share), v.wrong_accepted, v.accepted),
+        ),
+        ("wrong_accepted_upper", "its 95 % upper bound (Clopper–Pearson)".into(), pct(v.wrong_accepted_upper)),
+        (
+            "correct_rejected_share",
+            "correct poses rejected".into(),
+            format!("{} ({} of {})", pct(v.correct_rejected_share), v.correct_rejected, v.correct),
+        ),
+        ("threshold", "score threshold".into(), format!("{:.3}", v.threshold)),
+    ];
+    rows.into_iter().map(|(key, label, value)| (format!("{method}:{key}"), label, value)).collect()
+}

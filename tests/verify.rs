@@ -1,0 +1,116 @@
+//! The verification end to end on rendered frames: frames without the tray, another tray
+//! under this tray's model and the tray half out of view are each rejected with a reason,
+//! while the tray in plain view is accepted; for the built-in 8-slot tray and for a mesh
+//! tray of the test's own.
+
+use camplace_config::{Cell, TrayKind};
+use camplace_estimator::{Estimator, PoseEstimate, Verdict};
+use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
+use nalgebra::{Point3, Translation3};
+
+use crate::meshes::tray_stl;
+
+const OPTIMUM: &str = "r=605,alpha=32,baseline=81,vergence=3.5";
+
+/// The default cell's tray-8 model at the optimum, an estimator with the background set and
+/// the simulator it was captured with.
+fn setup(cell: &Cell, seed: u64) -> (Simulator, Estimator) {
+    let placement = cell.placement.with_overrides(OPTIMUM).unwrap();
+    let model = build_model(cell, &placement, Method::OneShot, seed).unwrap();
+    let mut sim = Simulator::new(cell, &placement, seed).unwrap();
+    let mut frame = Frame::default();
+    sim.render(&background_scene(cell, seed), Method::OneShot, noise_key(seed, 0, true), &mut frame);
+    let mut estimator = Estimator::new(cell, sim.rig(), model, Method::OneShot).unwrap();
+    estimator.set_background(&frame.left, &frame.right).unwrap();
+    (sim, estimator)
+}
+
+fn rejected(pose: &PoseEstimate, what: &str) {
+    let v = pose.verification;
+    assert!(!v.verdict.accepted(), "{what}: accepted with score {} ({v:?})", v.score);
+    assert!(v.verdict.as_str().starts_with("rejected: "), "{what}: {}", v.verdict);
+    eprintln!("{what}: {} (score {:.3}, coverage {:.3}, explained {:.3})", v.verdict, v.score, v.coverage, v.explained);
+}
+
+/// Renders `cell`'s tray in plain view (at least 3 of 4 accepted), the empty cell, the tray
+/// with its origin at the image's border and `other`'s tray under `cell`'s model: each of
+/// the last three rejected.
+fn rejections(cell: &Cell, other: &Cell, other_name: &str) {
+    let seed = 2;
+    let (mut sim, mut estimator) = setup(cell, seed);
+    let threshold = estimator.verifier().threshold;
+    let mut frame = Frame::default();
+
+    // The tray in plain view: accepted, so the rejections below are the verification's
+    // judgement and not a verifier that rejects everything.
+    let mut accepted = 0;
+    for i in 0..4 {
+        sim.render(&draw_scenario(cell, seed, i).scene(), Method::OneShot, noise_key(seed, i, false), &mut frame);
+        let pose = estimator.process(&frame.left, &frame.right).unwrap();
+        eprintln!("tray in view {i}: {} (score {:.3})", pose.verification.verdict, pose.verification.score);
+        accepted += usize::from(pose.verification.verdict.accepted());
+    }
+    assert!(accepted >= 3, "{accepted} of 4 trays in plain view accepted at threshold {threshold}");
+
+    // The empty cell, under each of three scenarios' light.
+    for i in 1..4 {
+        let empty = draw_scenario(cell, seed, i).scene().background();
+        sim.render(&empty, Method::OneShot, noise_key(seed, i, true), &mut frame);
+        let pose = estimator.process(&frame.left, &frame.right).unwrap();
+        rejected(&pose, &format!("empty cell {i}"));
+    }
+
+    // Half the tray out of view: moved along world y until its origin projects onto the
+    // left image's border, so about half of it lies outside the image.
+    let scenario = draw_scenario(cell, seed, 1);
+    let left = &sim.rig().left;
+    let (width, height) = (left.width as f64, left.height as f64);
+    let outside = |dy: f64| {
+        let p = scenario.t_world_tray.translation.vector + nalgebra::Vector3::new(0.0, dy, 0.0);
+        left.project(&Point3::from(p)).is_none_or(|uv| uv.x <= 0.0 || uv.x >= width || uv.y <= 0.0 || uv.y >= height)
+    };
+    let edge_shift = (0..2000).map(f64::from).find(|&dy| outside(dy)).expect("the tray leaves the image along y");
+    let mut half = scenario.scene();
+    half.t_world_tray = Translation3::new(0.0, edge_shift, 0.0) * half.t_world_tray;
+    sim.render(&half, Method::OneShot, noise_key(seed, 1, false), &mut frame);
+    let pose = estimator.process(&frame.left, &frame.right).unwrap();
+    rejected(&pose, &format!("tray moved {edge_shift} mm along y, half out of view"));
+
+    // The other tray under this tray's model, in four scenarios' poses.
+    let placement = other.placement.with_overrides(OPTIMUM).unwrap();
+    let mut other_sim = Simulator::new(other, &placement, seed).unwrap();
+    for i in 0..4 {
+        let scene = draw_scenario(other, seed, i).scene();
+        other_sim.render(&scene, Method::OneShot, noise_key(seed, i, false), &mut frame);
+        let pose = estimator.process(&frame.left, &frame.right).unwrap();
+        rejected(&pose, &format!("{other_name} scene {i} under this tray's model"));
+    }
+}
+
+#[test]
+fn without_the_tray_the_four_slot_tray_and_half_a_tray_are_rejected() {
+    let cell = Cell::default();
+    let mut other = cell.clone();
+    other.tray.kind = TrayKind::Tray4;
+    rejections(&cell, &other, "tray-4");
+}
+
+/// A mesh tray of this test's own (an open box with a tab, items in four slots), and the
+/// built-in 8-slot tray under its model.
+#[test]
+fn the_same_holds_for_a_mesh_tray() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("own.stl"), tray_stl(200.0, 140.0, 6.0, 8.0, 28.0)).unwrap();
+    let text = "[tray]\nkind = \"mesh\"\nmesh = \"own.stl\"\n\
+                slots = [[-45.0, -30.0, 6.0, 0.0], [45.0, -30.0, 6.0, 0.0], [-45.0, 30.0, 6.0, 0.0], [45.0, 30.0, 6.0, 0.0]]\n";
+    let cell = Cell::from_toml_str(text, dir.path()).unwrap();
+    rejections(&cell, &Cell::default(), "tray-8");
+}
+
+#[test]
+fn every_verdict_reads_back_from_its_text() {
+    for v in [Verdict::Accepted, Verdict::NoTray, Verdict::OffTable, Verdict::Ambiguous, Verdict::PoorFit] {
+        assert_eq!(Verdict::parse(v.as_str()), Some(v));
+        assert_eq!(v.accepted(), v.as_str() == "accepted");
+    }
+}
