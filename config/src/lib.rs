@@ -26,6 +26,7 @@ pub use formats::mesh::{decode_obj, decode_stl, load_mesh, Mesh};
 pub use formats::pfm::{decode_pfm, encode_pfm, read_pfm, write_pfm};
 pub use formats::ply::{decode_ply, encode_cloud, read_cloud, read_ply, write_cloud, PlyCloud, PlyData};
 pub use formats::png::{read_gray, write_gray, write_rgb, Gray};
+pub use formats::read::read_bounded;
 pub use formats::{is_temp_file_name, remove_stale_temp_files, write_atomic};
 pub use placement::{Placement, Vergence, MAX_DISTANCE_MM, PARAMETERS};
 pub use pose::{check_rigid, ROTATION_TOLERANCE};

@@ -99,11 +99,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     println!("baseline slope: {:.2} deg from level", built.baseline_tilt);
     if let Some(t) = &limits {
         println!(
-            "tolerances: success within {:.0} points of {:.1} % at the plan ({} scenes, {} method)",
-            100.0 * t.margin,
+            "tolerances: the edges where success is shown to drop from {:.1} % at the plan ({} method; {})",
             100.0 * t.nominal.success_rate,
-            t.scenarios,
-            t.method
+            t.method,
+            t.test_text()
         );
     }
     if outside.is_empty() {
@@ -127,7 +126,5 @@ fn short(p: &Placement) -> String {
 }
 
 fn read_tolerance(path: &Path) -> anyhow::Result<ToleranceReport> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    serde_json::from_str(&text)
-        .with_context(|| format!("{}: expected the tolerance.json camplace tolerance or study writes", path.display()))
+    Ok(ToleranceReport::load(path)?)
 }
