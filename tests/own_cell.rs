@@ -311,6 +311,46 @@ fn the_report_opens_in_a_browser_with_every_image_and_the_summary_numbers() {
     assert_eq!(keyed(&dom, &format!("{m}:wrong_accepted_upper")), format!("{} %", pct(&v["wrong_accepted_upper"])));
     assert_eq!(keyed(&dom, &format!("{m}:threshold")), format!("{:.3}", v["threshold"].as_f64().unwrap()));
     assert!(dom.contains("precision against recall"), "no precision-recall curve on the page");
+    // Every map's legend states its scale: success on the fixed 0–100 % scale on every map,
+    // the correct matches over their own range, which is the tray's summary.csv's.
+    let svgs: Vec<&str> = dom.split("<svg").skip(1).map(|s| &s[..s.find("</svg>").unwrap_or(s.len())]).collect();
+    let success_maps: Vec<&&str> = svgs.iter().filter(|s| s.contains("success rate, %")).collect();
+    assert_eq!(success_maps.len(), 2, "one success map per tray");
+    for m in &success_maps {
+        assert!(m.contains("fixed 0–100"), "a success map's legend: fixed 0–100");
+    }
+    let mut legends: Vec<String> = svgs
+        .iter()
+        .filter(|s| s.contains("mean correct matches"))
+        .map(|s| {
+            let at = s.find("range ").or_else(|| s.find("uniform: ")).expect("the legend states the range");
+            s[at..at + s[at..].find('<').unwrap()].to_string()
+        })
+        .collect();
+    let mut expected: Vec<String> = ["six-slot", "four-slot"]
+        .iter()
+        .map(|tray| {
+            let csv = std::fs::read_to_string(out.join(tray).join("one-shot/summary.csv")).unwrap();
+            let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+            let column = header.iter().position(|h| *h == "mean_correct_matches").unwrap();
+            // The placement is quoted and holds commas: count columns from the end.
+            let values: Vec<f64> = csv
+                .lines()
+                .skip(1)
+                .filter_map(|l| l.rsplit(',').nth(header.len() - 1 - column).and_then(|v| v.parse().ok()))
+                .collect();
+            let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            if lo == hi {
+                format!("uniform: {lo:.0}")
+            } else {
+                format!("range {lo:.0}–{hi:.0}")
+            }
+        })
+        .collect();
+    legends.sort();
+    expected.sort();
+    assert_eq!(legends, expected, "the correct matches' legends state each tray's range");
     // And the first screen as a person sees it.
     let shot = dir.path().join("first_screen.png");
     let o = run(&[&format!("--screenshot={}", shot.display())]);

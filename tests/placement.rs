@@ -3,6 +3,8 @@
 
 use std::path::Path;
 
+use camplace_sim::{AxisTolerance, TolerancePoint, ToleranceReport, WalkEnd};
+
 use crate::camplace_cmd::{assert_one_line_error, camplace, stderr};
 
 /// The numbers of the "as built" line: r, alpha, baseline, vergence, azimuth.
@@ -12,22 +14,60 @@ fn as_built(stdout: &str) -> Vec<f64> {
     values.split(',').map(|kv| kv.split_once('=').unwrap().1.parse().unwrap()).collect()
 }
 
+/// A point of a tolerance.json: success 1 on 44 scenes, nothing lost.
+fn point(offset: f64) -> TolerancePoint {
+    TolerancePoint {
+        offset,
+        success_rate: 1.0,
+        success_interval: [0.92, 1.0],
+        scenes: 44,
+        lost: 0,
+        gained: 0,
+        p_lower: 1.0,
+    }
+}
+
 /// A tolerance.json around `placement` allowing ±`mm` on r and baseline and ±`deg` on the angles.
 fn tolerance_json(dir: &Path, placement: &str, mm: f64, deg: f64) {
-    let axes: Vec<serde_json::Value> =
-        [("r", mm), ("alpha", deg), ("baseline", mm), ("vergence", deg), ("azimuth", deg)]
-            .iter()
-            .map(|(name, t)| {
-                serde_json::json!({"parameter": name, "unit": "mm", "step": t, "minus": t, "minus_end": "drop",
-                "plus": t, "plus_end": "drop", "points": []})
-            })
-            .collect();
-    let report = serde_json::json!({
-        "placement": placement, "method": "one-shot", "seed": 1, "scenarios": 20, "margin": 0.02,
-        "nominal": {"offset": 0.0, "success_rate": 1.0, "success_interval": [0.83, 1.0]},
-        "axes": axes, "corners": [],
-    });
-    std::fs::write(dir.join("tolerance.json"), report.to_string()).unwrap();
+    let axes = [
+        ("r", mm, "mm"),
+        ("alpha", deg, "deg"),
+        ("baseline", mm, "mm"),
+        ("vergence", deg, "deg"),
+        ("azimuth", deg, "deg"),
+    ]
+    .iter()
+    .map(|&(name, t, unit)| AxisTolerance {
+        parameter: name.to_string(),
+        unit: unit.to_string(),
+        resolution: 1.0,
+        minus: t,
+        minus_end: WalkEnd::Drop,
+        minus_inside: point(-t),
+        minus_outside: Some(point(-t - 1.0)),
+        minus_range: -90.0,
+        plus: t,
+        plus_end: WalkEnd::Drop,
+        plus_inside: point(t),
+        plus_outside: Some(point(t + 1.0)),
+        plus_range: 90.0,
+        points: vec![point(0.0)],
+    })
+    .collect();
+    let report = ToleranceReport {
+        placement: placement.to_string(),
+        method: "one-shot".into(),
+        seed: 1,
+        scenarios: 44,
+        margin: 0.15,
+        level: 0.05,
+        power: 0.81,
+        nominal: point(0.0),
+        axes,
+        corner_fraction: 1.0,
+        corners: Vec::new(),
+    };
+    std::fs::write(dir.join("tolerance.json"), serde_json::to_string_pretty(&report).unwrap()).unwrap();
 }
 
 #[test]
@@ -99,6 +139,31 @@ fn a_bad_rig_or_tolerance_file_is_a_one_line_error() {
     std::fs::write(d.join("tolerance.json"), "[1, 2]").unwrap();
     let o = camplace(d, &["placement", "--rig", "r/rig.json", "--tolerance", "tolerance.json"]);
     assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["tolerance.json", "expected"]);
+    // A tolerance.json is checked before a rig is judged by it.
+    tolerance_json(d, "r=605,alpha=32,baseline=81,vergence=3.5", 20.0, 4.0);
+    let good = std::fs::read_to_string(d.join("tolerance.json")).unwrap();
+    let placement = |file: &str| camplace(d, &["placement", "--rig", "r/rig.json", "--tolerance", file]);
+    for (name, text, must) in [
+        ("trailing.json", format!("{good}\n{{}}"), "trailing characters"),
+        ("negative.json", good.replacen("\"minus\": 20.0", "\"minus\": -20.0", 1), "axes[0].minus"),
+        ("huge_angle.json", good.replacen("\"plus\": 4.0", "\"plus\": 400.0", 1), "axes[1].plus"),
+        ("unit.json", good.replacen("\"unit\": \"deg\"", "\"unit\": \"mm\"", 1), "axes[1].parameter"),
+        ("infinite.json", good.replacen("\"minus\": 20.0", "\"minus\": 1e999", 1), "tolerance.json camplace"),
+        ("unknown.json", good.replacen("\"seed\": 1", "\"seed\": 1, \"extra\": 2", 1), "unknown field"),
+    ] {
+        assert_ne!(text, good, "{name} differs from the good file");
+        std::fs::write(d.join(name), text).unwrap();
+        let o = placement(name);
+        assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &[name, must]);
+    }
+    let o = placement("/dev/zero");
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["/dev/zero", "regular file"]);
+    let huge = std::fs::File::create(d.join("huge.json")).unwrap();
+    huge.set_len(64 << 20).unwrap();
+    let o = placement("huge.json");
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["huge.json", "at most 4194304 bytes"]);
+    let o = placement("tolerance.json");
+    assert!(matches!(o.status.code(), Some(0 | 1)), "the checked file is read: {}", stderr(&o));
     let o = camplace(d, &["placement", "--rig", "r/rig.json", "--study", "nowhere"]);
     assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["nowhere", "recommended.json"]);
 }

@@ -1,6 +1,10 @@
-//! `camplace tolerance` end to end on a small cell: every number in tolerance.json is the
-//! success rate of the scenes its placement left in results.jsonl, each walk ends where its
-//! definition says, the corners are the box's, and a second run resumes without a scene.
+//! `camplace tolerance` end to end on small cells: every number in tolerance.json is the
+//! success of the scenes its placement left in results.jsonl, every point's verdict is the
+//! one-sided paired test against the nominal worked out here from those scenes, each edge
+//! lies between a point inside and one outside a resolution further (or at the range's
+//! end), the corners are the box's, a second run resumes without a scene; and on a cell
+//! whose edge lies inside the walked range the walk finds the edge a walk in single
+//! resolution steps finds.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -9,28 +13,48 @@ use camplace_sim::{ToleranceReport, WalkEnd};
 
 use crate::camplace_cmd::{assert_one_line_error, camplace, stderr};
 
-/// Near the small cell's edge of working (3 of 4 scenes succeed here), so offsets matter.
+/// Near the small cell's edge of working, so offsets matter.
 const PLACEMENT: &str = "r=400,alpha=10,baseline=100,vergence=5";
 
 fn small_cell() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/small_cell.toml").display().to_string()
 }
 
-/// (successes, scenes) per placement, counted from results.jsonl.
-fn counted(path: &Path) -> BTreeMap<String, (usize, usize)> {
+/// Outcomes by scenario per placement, from results.jsonl.
+fn outcomes(path: &Path) -> BTreeMap<String, BTreeMap<u64, bool>> {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let mut out: BTreeMap<String, (usize, usize)> = BTreeMap::new();
+    let mut out: BTreeMap<String, BTreeMap<u64, bool>> = BTreeMap::new();
     for line in text.lines() {
         let v: serde_json::Value = serde_json::from_str(line).unwrap();
-        let entry = out.entry(v["placement"].as_str().unwrap().to_string()).or_default();
-        entry.0 += usize::from(v["success"].as_bool().unwrap());
-        entry.1 += 1;
+        let at = out.entry(v["placement"].as_str().unwrap().to_string()).or_default();
+        at.insert(v["scenario"].as_u64().unwrap(), v["success"].as_bool().unwrap());
     }
     out
 }
 
+/// The one-sided exact McNemar p-value, the slow obvious way: the chance that a fair coin
+/// over `lost + gained` scenes gives at most `gained` to the offset.
+fn p_lower(lost: usize, gained: usize) -> f64 {
+    let m = lost + gained;
+    let choose = |k: usize| (0..k).fold(1.0, |c: f64, i| c * (m - i) as f64 / (i + 1) as f64);
+    (0..=gained).map(choose).sum::<f64>() / 2f64.powi(m as i32)
+}
+
+/// (lost, gained, p) of `at` against `nominal`, scene by scene.
+fn paired(nominal: &BTreeMap<u64, bool>, at: &BTreeMap<u64, bool>) -> (usize, usize, f64) {
+    let lost = nominal.iter().filter(|(i, &s)| s && !at[i]).count();
+    let gained = nominal.iter().filter(|(i, &s)| !s && at[i]).count();
+    (lost, gained, p_lower(lost, gained))
+}
+
+/// `placement` with `parameter` moved by `offset` from `nominal_value`, as camplace writes it.
+fn moved(placement: &str, parameter: &str, nominal_value: f64, offset: f64) -> String {
+    let value = ((nominal_value + offset) * 1e6).round() / 1e6;
+    placement.replace(&format!("{parameter}={nominal_value}"), &format!("{parameter}={value}"))
+}
+
 #[test]
-fn tolerances_are_the_results_walked_out_and_resume_without_a_scene() {
+fn tolerances_are_paired_tests_walked_out_and_resume_without_a_scene() {
     let dir = tempfile::tempdir().unwrap();
     let cell = small_cell();
     let args = [
@@ -40,13 +64,9 @@ fn tolerances_are_the_results_walked_out_and_resume_without_a_scene() {
         "--placement",
         PLACEMENT,
         "--parameters",
-        "alpha,r",
-        "--steps",
-        "2",
+        "alpha,vergence",
         "--scenarios",
-        "3",
-        "--margin",
-        "0.3",
+        "6",
         "--out",
         "tol",
     ];
@@ -55,48 +75,58 @@ fn tolerances_are_the_results_walked_out_and_resume_without_a_scene() {
     let out = String::from_utf8_lossy(&o.stdout).into_owned();
     let json = std::fs::read_to_string(dir.path().join("tol/tolerance.json")).unwrap();
     let report: ToleranceReport = serde_json::from_str(&json).unwrap();
-    let counts = counted(&dir.path().join("tol/results.jsonl"));
-    let rate_at = |placement: &str| {
-        let (k, n) = counts.get(placement).unwrap_or_else(|| panic!("no results at {placement}"));
-        assert_eq!(*n, 3, "{placement}");
-        *k as f64 / *n as f64
+    let scenes = outcomes(&dir.path().join("tol/results.jsonl"));
+    let at = |placement: &str| {
+        let s = scenes.get(placement).unwrap_or_else(|| panic!("no results at {placement}"));
+        assert_eq!(s.len(), 6, "{placement}");
+        s
     };
+    let rate = |s: &BTreeMap<u64, bool>| s.values().filter(|&&v| v).count() as f64 / s.len() as f64;
 
     assert_eq!(report.placement, PLACEMENT);
-    let nominal = rate_at(PLACEMENT);
-    assert_eq!(report.nominal.success_rate, nominal);
-    assert_eq!(report.axes.iter().map(|a| a.parameter.as_str()).collect::<Vec<_>>(), ["r", "alpha"]);
+    let nominal = at(PLACEMENT);
+    assert_eq!(report.nominal.success_rate, rate(nominal));
+    assert_eq!((report.scenarios, report.level), (6, 0.05));
+    assert_eq!(report.axes.iter().map(|a| a.parameter.as_str()).collect::<Vec<_>>(), ["alpha", "vergence"]);
     for axis in &report.axes {
-        let nominal_value = if axis.parameter == "r" { 400.0 } else { 10.0 };
-        let at = |offset: f64| {
-            let from = format!("{}={nominal_value}", axis.parameter);
-            PLACEMENT.replace(&from, &format!("{}={}", axis.parameter, nominal_value + offset))
-        };
-        for p in &axis.points {
-            assert_eq!(p.success_rate, rate_at(&at(p.offset)), "{} {}", axis.parameter, p.offset);
+        let (nominal_value, resolution) = if axis.parameter == "alpha" { (10.0, 1.0) } else { (5.0, 0.25) };
+        assert_eq!(axis.resolution, resolution);
+        let placement_at = |offset: f64| moved(PLACEMENT, &axis.parameter, nominal_value, offset);
+        // Every point: its rate and its paired test against the nominal, from the scenes.
+        for p in axis.points.iter().filter(|p| p.offset != 0.0) {
+            let s = at(&placement_at(p.offset));
+            let (lost, gained, p_value) = paired(nominal, s);
+            assert_eq!(p.success_rate, rate(s), "{} {}", axis.parameter, p.offset);
+            assert_eq!((p.lost, p.gained), (lost, gained), "{} {}", axis.parameter, p.offset);
+            assert!((p.p_lower - p_value).abs() < 1e-12, "{} {}: {} vs {p_value}", axis.parameter, p.offset, p.p_lower);
+            // Offsets are whole resolutions.
+            assert!((p.offset / resolution - (p.offset / resolution).round()).abs() < 1e-9);
         }
-        // Each side by the definition: the furthest step with it and every step before it
-        // within the margin.
-        for (sign, tolerance, end) in [(-1.0, axis.minus, axis.minus_end), (1.0, axis.plus, axis.plus_end)] {
-            let mut expected = 0.0;
-            let mut expected_end = WalkEnd::LastStep;
-            for k in 1..=2 {
-                let offset = sign * axis.step * f64::from(k);
-                if rate_at(&at(offset)) < nominal - 0.3 - 1e-12 {
-                    expected_end = WalkEnd::Drop;
-                    break;
+        for side in axis.sides() {
+            let inside = side.inside;
+            assert_eq!(inside.offset, side.sign * side.tolerance);
+            assert!(inside.p_lower >= 0.05, "{}: the point inside is not shown lower", axis.parameter);
+            match (side.end, side.outside) {
+                (WalkEnd::Drop, Some(out)) => {
+                    assert!(out.p_lower < 0.05, "{}: the point outside is shown lower", axis.parameter);
+                    assert!((out.offset - inside.offset - side.sign * resolution).abs() < 1e-9, "one resolution apart");
                 }
-                expected = offset.abs();
+                (WalkEnd::RangeEnd, None) => {
+                    assert_eq!(inside.offset, side.range, "{}: the range ended the walk", axis.parameter);
+                    let past = moved(PLACEMENT, &axis.parameter, nominal_value, side.range + side.sign * resolution);
+                    let o = camplace(dir.path(), &["evaluate", "--cell", &cell, "--placement", &past, "--out", "x"]);
+                    assert_eq!(o.status.code(), Some(2), "{past} is no placement: {}", stderr(&o));
+                }
+                other => panic!("{}: {other:?}", axis.parameter),
             }
-            assert_eq!((tolerance, end), (expected, expected_end), "{} side {sign}", axis.parameter);
         }
     }
     // The box's corners: every combination of each side's tolerance, each counted.
-    let (r, alpha) = (&report.axes[0], &report.axes[1]);
+    let (alpha, vergence) = (&report.axes[0], &report.axes[1]);
     let mut expected: Vec<[f64; 5]> = Vec::new();
-    for ar in [-alpha.minus, alpha.plus] {
-        for rr in [-r.minus, r.plus] {
-            let offsets = [rr, ar, 0.0, 0.0, 0.0];
+    for v in [-vergence.minus, vergence.plus] {
+        for a in [-alpha.minus, alpha.plus] {
+            let offsets = [0.0, a, 0.0, v, 0.0];
             if !expected.contains(&offsets) {
                 expected.push(offsets);
             }
@@ -108,10 +138,13 @@ fn tolerances_are_the_results_walked_out_and_resume_without_a_scene() {
     expected.sort_by_key(key);
     assert_eq!(got, expected);
     for c in &report.corners {
-        assert_eq!(c.success_rate, rate_at(&c.placement), "{}", c.placement);
+        let s = at(&c.placement);
+        assert_eq!(c.point.success_rate, rate(s), "{}", c.placement);
+        assert_eq!((c.point.lost, c.point.gained), (paired(nominal, s).0, paired(nominal, s).1), "{}", c.placement);
     }
     assert!(out.contains(&format!("tolerance of {PLACEMENT}")), "{out}");
-    for name in ["r", "alpha"] {
+    assert!(out.contains("one-sided exact McNemar"), "{out}");
+    for name in ["alpha", "vergence"] {
         assert!(dir.path().join(format!("tol/tolerance_{name}.svg")).is_file() || stderr(&o).contains("plots skipped"));
     }
 
@@ -123,13 +156,86 @@ fn tolerances_are_the_results_walked_out_and_resume_without_a_scene() {
     assert_eq!(std::fs::read_to_string(dir.path().join("tol/tolerance.json")).unwrap(), json);
 }
 
+/// The small cell with a narrow camera: moving the rig closer soon loses the tray from view.
+const NARROW_CELL: &str =
+    "[sensor]\ncamera_resolution = [320, 240]\ncamera_hfov = 24.0\n\n[estimator]\nransac_iterations = 2000\n";
+
+#[test]
+fn an_edge_inside_the_range_is_found_as_a_walk_in_single_steps_finds_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("narrow.toml"), NARROW_CELL).unwrap();
+    let placement = "r=900,alpha=0,baseline=100,vergence=3";
+    let o = camplace(
+        d,
+        &[
+            "tolerance",
+            "--cell",
+            "narrow.toml",
+            "--placement",
+            placement,
+            "--parameters",
+            "r",
+            "--scenarios",
+            "6",
+            "--out",
+            "tol",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report: ToleranceReport =
+        serde_json::from_str(&std::fs::read_to_string(d.join("tol/tolerance.json")).unwrap()).unwrap();
+    let r = &report.axes[0];
+    assert_eq!(r.minus_end, WalkEnd::Drop, "the edge lies inside the range: {}", report.table());
+    // The oracle: every 5 mm from the nominal inwards, each evaluated on the same scenes
+    // (into the same folder: scenes already there are not run again), until the paired
+    // test first shows a drop.
+    let nominal = outcomes(&d.join("tol/results.jsonl"))[placement].clone();
+    let mut fine_edge = None;
+    for k in 1..=r.minus_range.abs() as u64 / 5 {
+        let p = moved(placement, "r", 900.0, -5.0 * k as f64);
+        let o = camplace(
+            d,
+            &[
+                "evaluate",
+                "--cell",
+                "narrow.toml",
+                "--placement",
+                &p,
+                "--scenarios",
+                "6",
+                "--seed",
+                "1",
+                "--out",
+                "tol",
+            ],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        let (_, _, p_value) = paired(&nominal, &outcomes(&d.join("tol/results.jsonl"))[&p]);
+        if p_value < 0.05 {
+            fine_edge = Some(5.0 * (k - 1) as f64);
+            break;
+        }
+    }
+    let fine_edge = fine_edge.expect("the single-step walk finds a drop");
+    assert!(
+        (r.minus - fine_edge).abs() <= r.resolution,
+        "walk {} mm, single steps {fine_edge} mm: {}",
+        r.minus,
+        report.table()
+    );
+    assert!(fine_edge > 0.0 && fine_edge < 900.0, "an edge inside the range: {fine_edge}");
+}
+
 #[test]
 fn bad_tolerance_flags_are_one_line_errors() {
     let dir = tempfile::tempdir().unwrap();
     for (flag, value, must) in [
         ("--margin", "0", "between 0 and 1"),
         ("--margin", "1.5", "between 0 and 1"),
-        ("--steps", "0", "1 to 100"),
+        ("--corner-fraction", "0", "above 0 and at most 1"),
+        ("--corner-fraction", "1.5", "above 0 and at most 1"),
+        ("--scenarios", "0", "1 to"),
         ("--parameters", "r,height", "unknown parameter \"height\""),
         ("--parameters", ",", "at least one"),
     ] {

@@ -38,6 +38,7 @@ pub use scene::SceneSpec;
 pub use search::test_functions::{run_test_function, test_function};
 pub use seeds::noise_key;
 pub use study::ablation::{ablate, ablation_markdown, AblationRow};
+pub use study::findings::{drop_detection_power, scenes_for_power};
 pub use study::folder::open_folder;
 pub use study::grid::{Axis, Grid};
 pub use study::lock::{lock_folder, FolderLock, LOCK_FILE};
@@ -53,8 +54,8 @@ pub use study::recording::{
 pub use study::shard::Shard;
 pub use study::sweep::sweep;
 pub use study::tolerance::{
-    measure_tolerance, AxisTolerance, ToleranceCorner, TolerancePoint, ToleranceReport, ToleranceRequest, WalkEnd,
-    TOLERANCE_STEPS,
+    measure_tolerance, AxisTolerance, ToleranceCorner, ToleranceParameter, TolerancePoint, ToleranceReport,
+    ToleranceRequest, WalkEnd, TOLERANCE_LEVEL, TOLERANCE_PARAMETERS, TOLERANCE_POWER,
 };
 pub use study::verified::{clopper_pearson_upper, precision_recall, Scored, VerifiedSummary};
 pub use study::{median, score, Evaluator, FrameRecord, Score, Summary};

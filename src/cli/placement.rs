@@ -101,11 +101,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     outln!("baseline slope: {:.2} deg from level", built.baseline_tilt);
     if let Some(t) = &limits {
         outln!(
-            "tolerances: success within {:.0} points of {:.1} % at the plan ({} scenes, {} method)",
-            100.0 * t.margin,
+            "tolerances: the edges where success is shown to drop from {:.1} % at the plan ({} method; {})",
             100.0 * t.nominal.success_rate,
-            t.scenarios,
-            t.method
+            t.method,
+            t.test_text()
         );
     }
     if outside.is_empty() {
@@ -129,7 +128,5 @@ fn short(p: &Placement) -> String {
 }
 
 fn read_tolerance(path: &Path) -> anyhow::Result<ToleranceReport> {
-    let text = camplace_config::read_text(path)?;
-    serde_json::from_str(&text)
-        .with_context(|| format!("{}: expected the tolerance.json camplace tolerance or study writes", path.display()))
+    Ok(ToleranceReport::load(path)?)
 }

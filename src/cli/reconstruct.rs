@@ -2,7 +2,7 @@
 //! dataset, one raw pair with its `rig.json`, or one already rectified pair.
 
 use anyhow::{bail, Context};
-use camplace_sim::{match_rectified, reconstruct_dataset, reconstruct_pair, RectifiedPair};
+use camplace_sim::{match_rectified, reconstruct_dataset, reconstruct_pair, Method, RectifiedPair};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -45,19 +45,27 @@ pub struct Args {
     /// Output folder for a single pair.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// One-shot datasets and raw pairs: match every row, not only every `[stereo] row_step`-th
+    /// one as the estimator does.
+    #[arg(long)]
+    all_rows: bool,
 }
 
 /// Runs `camplace reconstruct`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    let (cell, _) = a.cell.load()?;
+    let (mut cell, _) = a.cell.load()?;
+    if a.all_rows {
+        cell.stereo.row_step = 1;
+    }
     if let Some(dir) = &a.dataset {
         let d = reconstruct_dataset(&cell, dir)?;
         outln!(
-            "reconstructed {} frames ({}), {:.0} points per frame on average, into {}",
+            "reconstructed {} frames ({}), {:.0} points per frame on average, into {}; {}",
             d.frames,
             d.method,
             d.mean_points,
-            dir.display()
+            dir.display(),
+            rows_text(d.method, cell.stereo.row_step)
         );
         return Ok(ExitCode::SUCCESS);
     }
@@ -87,8 +95,27 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     let rig = a.rig.as_ref().context("--rig: expected the rig.json of the pair (or --rectified)")?;
     let d = reconstruct_pair(&cell, rig, &a.left, &a.right, out)?;
-    outln!("{} points, {:.1} ms; wrote {}", d.points, d.ms, out.display());
+    let method = if a.left.len() == 1 { Method::OneShot } else { Method::Phase12 };
+    outln!(
+        "{} points, {:.1} ms; wrote {}; {}",
+        d.points,
+        d.ms,
+        out.display(),
+        rows_text(method, cell.stereo.row_step)
+    );
     Ok(ExitCode::SUCCESS)
+}
+
+/// Which rows `disparity.pfm` covers, in words.
+fn rows_text(method: Method, row_step: u32) -> String {
+    match (method, row_step) {
+        (Method::Phase12, _) | (_, 0 | 1) => "disparity.pfm covers every row".to_string(),
+        (_, n) => format!(
+            "disparity.pfm covers one row in {n} (rows 0, {n}, {} ...) as the estimator matches ([stereo] row_step = {n}); \
+             the rows between are empty (--all-rows matches every row)",
+            2 * n
+        ),
+    }
 }
 
 /// `MIN:MAX` in pixels, 0 <= MIN < MAX (the image bounds MAX, checked once it is read).

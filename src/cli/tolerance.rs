@@ -1,18 +1,19 @@
-//! `camplace tolerance`: how far each placement parameter may be off before the success
-//! rate drops by more than a margin, and the success at the corners of that box; into a
-//! study folder (resumable) with tolerance.json and a plot per parameter.
+//! `camplace tolerance`: how far each placement parameter may be off before its success is
+//! shown to drop (each edge found to the parameter's resolution), and the success at the
+//! corners of that box; into a study folder (resumable) with tolerance.json and a plot per
+//! parameter.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::bail;
-use camplace_sim::{measure_tolerance, write_tolerance_plots, ToleranceRequest, TOLERANCE_STEPS};
+use camplace_sim::{
+    measure_tolerance, scenes_for_power, write_tolerance_plots, ToleranceRequest, TOLERANCE_LEVEL,
+    TOLERANCE_PARAMETERS, TOLERANCE_POWER,
+};
 
 use super::cell_args::{refuse_installed_rig, CellArgs};
 use super::study_args::{check_scenarios, SceneArgs};
-
-/// The most steps a walk may take in one direction.
-const MAX_STEPS: u32 = 100;
 
 /// Flags of `camplace tolerance`.
 #[derive(clap::Args, Debug)]
@@ -21,16 +22,17 @@ pub struct Args {
     cell: CellArgs,
     #[command(flatten)]
     scene: SceneArgs,
-    /// Largest drop of the success rate still tolerated, as a share (0.02: 2 points).
-    #[arg(long, default_value_t = 0.02)]
+    /// The drop of the success rate the scene count is to detect, as a share (0.15: 15
+    /// points); a point is outside when the paired test shows it lower than the nominal.
+    #[arg(long, default_value_t = 0.15)]
     margin: f64,
-    /// Scenarios 0..N-1 of the seed at every placement (the same scenes everywhere).
-    #[arg(long, default_value_t = 50)]
-    scenarios: u64,
-    /// Steps walked out at most in each direction (r 10 mm, alpha 2 deg, baseline 5 mm,
-    /// vergence 0.5 deg, azimuth 5 deg a step).
-    #[arg(long, default_value_t = 6)]
-    steps: u32,
+    /// Scenarios 0..N-1 of the seed at every placement (the same scenes everywhere);
+    /// default: the fewest that catch a drop of the margin with 80 % power.
+    #[arg(long)]
+    scenarios: Option<u64>,
+    /// The share of each found tolerance the corners of the box are placed at (1: the edges).
+    #[arg(long, default_value_t = 1.0)]
+    corner_fraction: f64,
     /// The parameters to walk, comma-separated (the others stay nominal).
     #[arg(long, value_name = "LIST", default_value = "r,alpha,baseline,vergence,azimuth")]
     parameters: String,
@@ -42,16 +44,16 @@ pub struct Args {
 
 /// Runs `camplace tolerance`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    if !(a.margin.is_finite() && a.margin > 0.0 && a.margin < 1.0) {
+        bail!("--margin: expected a share of scenes between 0 and 1 (0.15 is 15 points), got {}", a.margin);
+    }
     // A cell that lists several trays: one placement for all of them, judged by the lowest.
     let (trays, placement) = a.cell.load_trays()?;
     refuse_installed_rig(&trays[0].1, "tolerance")?;
     let seed = a.scene.seed(&trays[0].1);
-    if !(1..=MAX_STEPS).contains(&a.steps) {
-        bail!("--steps: expected 1 to {MAX_STEPS} steps, got {}", a.steps);
-    }
     let mut parameters = Vec::new();
     for name in a.parameters.split(',').map(str::trim).filter(|n| !n.is_empty()) {
-        let Some(i) = TOLERANCE_STEPS.iter().position(|(n, _, _)| *n == name) else {
+        let Some(i) = TOLERANCE_PARAMETERS.iter().position(|p| p.name == name) else {
             bail!("--parameters: unknown parameter \"{name}\", expected some of r, alpha, baseline, vergence, azimuth");
         };
         if !parameters.contains(&i) {
@@ -62,13 +64,23 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         bail!("--parameters: expected at least one of r, alpha, baseline, vergence, azimuth");
     }
     parameters.sort_unstable();
+    let scenarios = match a.scenarios {
+        Some(n) => check_scenarios(n)?,
+        None => match scenes_for_power(a.margin, TOLERANCE_POWER, TOLERANCE_LEVEL) {
+            Some(n) => check_scenarios(n as u64)?,
+            None => bail!(
+                "--margin: a drop of {} needs more than 100000 scenes to be caught; give a larger margin",
+                a.margin
+            ),
+        },
+    };
     let request = ToleranceRequest {
         placement,
         method: a.scene.method,
         seed,
-        scenarios: check_scenarios(a.scenarios)?,
+        scenarios,
         margin: a.margin,
-        max_steps: a.steps,
+        corner_fraction: a.corner_fraction,
         parameters,
     };
     // The whole run holds the folder: a second run on it is refused naming this one.

@@ -22,7 +22,8 @@ use crate::study::findings::{compare_paired, Paired, Verdict};
 use crate::study::grid::{Axis, Grid};
 use crate::study::optimize::recheck_seed;
 use crate::study::placement_study::{tolerance_dir, Combination, Preset, Recommendation, StudyRequest};
-use crate::study::tolerance::{end_text, ToleranceReport, WalkEnd};
+use crate::study::tolerance::{ToleranceReport, WalkEnd};
+use crate::study::tolerance_report::{end_text, offset_text};
 use crate::study::Summary;
 use crate::{Error, Result};
 use camplace_estimator::Camera;
@@ -84,36 +85,64 @@ pub fn write_report(
     if let (Some(t), Some(method)) = (tolerance, recommendation.map(|r| r.method)) {
         page.heading(2, "Mounting tolerances");
         page.paragraph(&format!(
-            "How far each parameter may be off, alone, before success drops by more than {:.0} points from {} at the \
-             recommended placement (the same {} scenes, seed {}, at every offset). Then the lowest success at the \
-             corners of that box, every parameter off at once.",
-            100.0 * t.margin,
+            "How far each parameter may be off, alone, before success is shown to drop from {} at the recommended \
+             placement (seed {}): each side walked out in growing steps and bisected to the parameter's \
+             resolution; {}. \"At least\" only where the parameter's range ended before any point was outside.",
             pct(t.nominal.success_rate),
-            t.scenarios,
-            t.seed
+            t.seed,
+            t.test_text()
         ));
         let rows: Vec<Vec<String>> = t
             .axes
             .iter()
-            .map(|a| {
-                // A walk that took every step without a drop only shows a lower bound.
-                let bound = |end: WalkEnd| if end == WalkEnd::LastStep { "at least " } else { "" };
-                vec![
-                    a.parameter.clone(),
-                    format!("{}−{} {}", bound(a.minus_end), a.minus, a.unit),
-                    format!("{}+{} {}", bound(a.plus_end), a.plus, a.unit),
-                    format!("{} / {}", end_text(a.minus_end), end_text(a.plus_end)),
-                ]
+            .flat_map(|a| {
+                a.sides().map(|side| {
+                    let rate = |p: &crate::study::tolerance::TolerancePoint| {
+                        format!(
+                            "{} ({}–{}) at {}",
+                            pct(p.success_rate),
+                            pct(p.success_interval[0]),
+                            pct(p.success_interval[1]),
+                            offset_text(p.offset)
+                        )
+                    };
+                    let sign = if side.sign < 0.0 { "−" } else { "+" };
+                    let edge = match side.end {
+                        WalkEnd::Drop => format!("{sign}{} {}", side.tolerance, a.unit),
+                        WalkEnd::RangeEnd => format!("at least {sign}{} {}", side.tolerance, a.unit),
+                    };
+                    let outside = match (side.end, side.outside) {
+                        (WalkEnd::Drop, Some(o)) => format!(
+                            "{}; {} scenes lost, {} gained (one-sided p {:.3})",
+                            rate(o),
+                            o.lost,
+                            o.gained,
+                            o.p_lower
+                        ),
+                        _ => format!("none: the range ends at {}", offset_text(side.range)),
+                    };
+                    vec![
+                        a.parameter.clone(),
+                        edge,
+                        format!("{} (resolution {} {})", end_text(side.end), a.resolution, a.unit),
+                        rate(side.inside),
+                        outside,
+                    ]
+                })
             })
             .collect();
-        page.table(&["parameter", "may be lower by", "may be higher by", "walk ended by (lower / higher)"], &rows);
+        page.table(&["parameter", "may be off by", "found by", "just inside", "just outside"], &rows);
         if let Some(w) = t.worst_corner() {
             page.paragraph(&format!(
-                "Worst of the {} corners of this box: {} (95 % interval {}–{}) at {}.",
+                "Worst of the {} corners of this box ({}): {} (95 % interval {}–{}; {} scenes lost and {} gained \
+                 against the nominal) at {}.",
                 t.corners.len(),
-                pct(w.success_rate),
-                pct(w.success_interval[0]),
-                pct(w.success_interval[1]),
+                t.corner_text(),
+                pct(w.point.success_rate),
+                pct(w.point.success_interval[0]),
+                pct(w.point.success_interval[1]),
+                w.point.lost,
+                w.point.gained,
                 w.placement
             ));
         }

@@ -1,13 +1,13 @@
 //! A sweep's outputs from its results: `summary.csv` and `summary.json` (one row per grid
 //! placement) and, once every cell is complete, the four panels of the paper's Figure 5
 //! (success rate, correct matches, position error, rotation error) with the best cell
-//! ringed.
+//! ringed: success on a fixed 0–100 % scale, the others over their own range.
 
 use std::path::Path;
 
 use camplace_config::Placement;
 
-use super::heatmap::HeatMap;
+use super::heatmap::{ColourScale, HeatMap};
 use super::plot::save_plot;
 use super::table::{write_summary_csv, write_summary_json, SummaryRow};
 use crate::render::Method;
@@ -61,21 +61,28 @@ pub fn write_sweep_outputs(
             "r" | "baseline" => format!("{name}, mm"),
             _ => format!("{name}, deg"),
         };
-        let panel = |title: &str, decimals: usize, pick: &dyn Fn(&Summary) -> Option<f64>| HeatMap {
-            title: format!("{title} ({method})"),
-            x_label: unit(&grid.x.name),
-            y_label: unit(&grid.y.name),
-            xs: grid.x.values(),
-            ys: grid.y.values(),
-            values: rows.iter().map(|r| pick(&r.summary)).collect(),
-            best,
-            decimals,
-        };
+        // Success on one fixed scale on every map, so a colour reads as the same rate.
+        let success = ColourScale::Fixed { lo: 0.0, hi: 100.0 };
+        let panel =
+            |title: &str, decimals: usize, scale: ColourScale, pick: &dyn Fn(&Summary) -> Option<f64>| HeatMap {
+                title: format!("{title} ({method})"),
+                x_label: unit(&grid.x.name),
+                y_label: unit(&grid.y.name),
+                xs: grid.x.values(),
+                ys: grid.y.values(),
+                values: rows.iter().map(|r| pick(&r.summary)).collect(),
+                best,
+                decimals,
+                scale,
+            };
         let panels = [
-            ("success_rate", panel("success rate, %", 0, &|s| Some(100.0 * s.success_rate))),
-            ("correct_matches", panel("mean correct matches", 0, &|s| s.mean_correct_matches)),
-            ("position_error", panel("mean position error, mm", 1, &|s| s.mean_position_error_mm)),
-            ("rotation_error", panel("mean rotation error, deg", 1, &|s| s.mean_rotation_error_deg)),
+            ("success_rate", panel("success rate, %", 0, success, &|s| Some(100.0 * s.success_rate))),
+            ("correct_matches", panel("mean correct matches", 0, ColourScale::Range, &|s| s.mean_correct_matches)),
+            ("position_error", panel("mean position error, mm", 1, ColourScale::Range, &|s| s.mean_position_error_mm)),
+            (
+                "rotation_error",
+                panel("mean rotation error, deg", 1, ColourScale::Range, &|s| s.mean_rotation_error_deg),
+            ),
         ];
         for (name, p) in &panels {
             save_plot(p, dir, name)?;

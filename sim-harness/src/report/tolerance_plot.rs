@@ -1,5 +1,6 @@
 //! One mounting tolerance for people: success against the offset of one parameter, with the
-//! 95 % interval of each point, the margin's floor dashed and the tolerated range shaded.
+//! 95 % interval of each point, the points judged outside in red and the tolerated range
+//! shaded.
 
 use std::path::Path;
 
@@ -8,22 +9,22 @@ use plotters::prelude::*;
 
 use super::font::FAMILY;
 use super::plot::{save_plot, Plot, SavedPlot};
-use crate::study::tolerance::{AxisTolerance, ToleranceReport};
+use crate::study::tolerance::{AxisTolerance, TolerancePoint, ToleranceReport, WalkEnd};
 use crate::Result;
 
 /// The plot of one parameter's walk.
 #[derive(Debug, Clone, PartialEq)]
 struct TolerancePlot<'a> {
     axis: &'a AxisTolerance,
-    /// Nominal success minus the margin, 0..1.
-    floor: f64,
+    /// The paired test's level: below it a point is outside.
+    level: f64,
 }
 
 /// Writes `tolerance_PARAMETER.svg` and `.png` into `dir` for every parameter of `report`.
 pub fn write_tolerance_plots(dir: &Path, report: &ToleranceReport) -> Result<Vec<SavedPlot>> {
     let mut saved = Vec::new();
     for axis in &report.axes {
-        let plot = TolerancePlot { axis, floor: report.nominal.success_rate - report.margin };
+        let plot = TolerancePlot { axis, level: report.level };
         if let Some(s) = save_plot(&plot, dir, &format!("tolerance_{}", axis.parameter))? {
             saved.push(s);
         }
@@ -39,10 +40,24 @@ impl Plot for TolerancePlot<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> std::result::Result<(), String> {
         let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
         let a = self.axis;
-        let lo = a.points.iter().map(|p| p.offset).fold(-a.step, f64::min) - 0.5 * a.step;
-        let hi = a.points.iter().map(|p| p.offset).fold(a.step, f64::max) + 0.5 * a.step;
+        let step = a.resolution;
+        let lo = a.points.iter().map(|p| p.offset).fold(-step, f64::min) - 2.0 * step;
+        let hi = a.points.iter().map(|p| p.offset).fold(step, f64::max) + 2.0 * step;
+        let side = |t: f64, end: WalkEnd, sign: &str| {
+            let bound = if end == WalkEnd::RangeEnd { "at least " } else { "" };
+            format!("{bound}{sign}{t}")
+        };
         let mut chart = ChartBuilder::on(root)
-            .caption(format!("{}: tolerated −{} / +{} {}", a.parameter, a.minus, a.plus, a.unit), (FAMILY, 18))
+            .caption(
+                format!(
+                    "{}: tolerated {} / {} {}",
+                    a.parameter,
+                    side(a.minus, a.minus_end, "−"),
+                    side(a.plus, a.plus_end, "+"),
+                    a.unit
+                ),
+                (FAMILY, 18),
+            )
             .margin(12)
             .x_label_area_size(42)
             .y_label_area_size(56)
@@ -62,18 +77,20 @@ impl Plot for TolerancePlot<'_> {
             .map_err(e)?;
         let shade = RGBColor(44, 160, 44).mix(0.15).filled();
         chart.draw_series([Rectangle::new([(-a.minus, 0.0), (a.plus, 105.0)], shade)]).map_err(e)?;
-        let floor = vec![(lo, 100.0 * self.floor), (hi, 100.0 * self.floor)];
-        chart.draw_series(DashedLineSeries::new(floor, 8, 6, RED.stroke_width(2))).map_err(e)?;
         let blue = RGBColor(31, 119, 180);
+        let red = RGBColor(214, 39, 40);
+        // A point is outside when the paired test showed a drop there.
+        let ink = |p: &TolerancePoint| if p.p_lower < self.level { red } else { blue };
+        let cap = 0.004 * (hi - lo);
         let bars = a.points.iter().map(|p| {
-            let (x, cap) = (p.offset, 0.08 * a.step);
+            let x = p.offset;
             let (lo, hi) = (100.0 * p.success_interval[0], 100.0 * p.success_interval[1]);
-            PathElement::new(vec![(x - cap, lo), (x + cap, lo), (x, lo), (x, hi), (x - cap, hi), (x + cap, hi)], blue)
+            PathElement::new(vec![(x - cap, lo), (x + cap, lo), (x, lo), (x, hi), (x - cap, hi), (x + cap, hi)], ink(p))
         });
         chart.draw_series(bars).map_err(e)?;
         let line = a.points.iter().map(|p| (p.offset, 100.0 * p.success_rate));
-        chart.draw_series(LineSeries::new(line, blue.stroke_width(2))).map_err(e)?;
-        let dots = a.points.iter().map(|p| Circle::new((p.offset, 100.0 * p.success_rate), 3, blue.filled()));
+        chart.draw_series(LineSeries::new(line, blue.mix(0.5).stroke_width(1))).map_err(e)?;
+        let dots = a.points.iter().map(|p| Circle::new((p.offset, 100.0 * p.success_rate), 3, ink(p).filled()));
         chart.draw_series(dots).map_err(e)?;
         Ok(())
     }

@@ -6,7 +6,9 @@
 //! shared. [`Paired`] counts the scenes each side alone succeeded on (the discordant ones)
 //! and states the difference with Newcombe's interval for paired proportions (method 10 of
 //! Newcombe 1998, Statistics in Medicine 17:2635, Wilson intervals with a correlation
-//! correction) and the exact McNemar test on the discordant scenes.
+//! correction) and the exact McNemar test on the discordant scenes. The mounting
+//! tolerances use the same test one-sided (is this point lower than the nominal?) and its
+//! power against a given drop, from which their scene count is chosen.
 
 use super::summary::wilson_interval;
 
@@ -128,19 +130,67 @@ impl Paired {
     /// scene is side a's with probability one half.
     pub fn mcnemar_p(&self) -> f64 {
         let m = self.only_a + self.only_b;
-        let k = self.only_a.min(self.only_b);
-        // P(X <= k) for X ~ Binomial(m, 1/2), summed in logs so large m stays finite.
-        let ln_half_m = m as f64 * 0.5f64.ln();
-        let mut ln_choose = 0.0; // ln C(m, 0)
-        let mut tail = 0.0;
-        for i in 0..=k {
-            if i > 0 {
-                ln_choose += ((m - i + 1) as f64).ln() - (i as f64).ln();
-            }
-            tail += (ln_choose + ln_half_m).exp();
-        }
-        (2.0 * tail).min(1.0)
+        (2.0 * binomial_half_cdf(m, self.only_a.min(self.only_b))).min(1.0)
     }
+}
+
+impl Paired {
+    /// One-sided p-value of the exact McNemar test that side a succeeds less often than side
+    /// b: the chance that a fair coin over the discordant scenes gives side a at most as many
+    /// as it got.
+    pub fn mcnemar_p_a_lower(&self) -> f64 {
+        binomial_half_cdf(self.only_a + self.only_b, self.only_a)
+    }
+}
+
+/// P(X <= k) for X ~ Binomial(m, 1/2), summed in logs so large m stays finite.
+fn binomial_half_cdf(m: usize, k: usize) -> f64 {
+    let ln_half_m = m as f64 * 0.5f64.ln();
+    let mut ln_choose = 0.0; // ln C(m, 0)
+    let mut tail = 0.0;
+    for i in 0..=k.min(m) {
+        if i > 0 {
+            ln_choose += ((m - i + 1) as f64).ln() - (i as f64).ln();
+        }
+        tail += (ln_choose + ln_half_m).exp();
+    }
+    tail.min(1.0)
+}
+
+/// The fewest scenes side a must lose (gaining none) for the one-sided exact McNemar test
+/// to show it lower at `level`: 5 at 5 %.
+pub fn losses_to_show_a_drop(level: f64) -> usize {
+    (1..64).find(|&l| binomial_half_cdf(l, 0) < level).unwrap_or(64)
+}
+
+/// The power of the one-sided exact McNemar test at `level` on `scenes` paired scenes when
+/// side a loses each scene side b succeeds on with probability `drop` and gains none: the
+/// chance that Binomial(scenes, drop) reaches [`losses_to_show_a_drop`].
+pub fn drop_detection_power(scenes: usize, drop: f64, level: f64) -> f64 {
+    let need = losses_to_show_a_drop(level);
+    if drop.is_nan() || drop <= 0.0 || scenes < need {
+        return 0.0;
+    }
+    if drop >= 1.0 {
+        return 1.0;
+    }
+    // 1 - P(X < need), each term by its logarithm.
+    let (n, ln_p, ln_q) = (scenes as f64, drop.ln(), (1.0 - drop).ln());
+    let mut ln_choose = 0.0;
+    let mut below = 0.0;
+    for i in 0..need {
+        if i > 0 {
+            ln_choose += (n - i as f64 + 1.0).ln() - (i as f64).ln();
+        }
+        below += (ln_choose + i as f64 * ln_p + (n - i as f64) * ln_q).exp();
+    }
+    (1.0 - below).clamp(0.0, 1.0)
+}
+
+/// The fewest paired scenes on which [`drop_detection_power`] of a `drop` reaches `power`
+/// (at most 100 000).
+pub fn scenes_for_power(drop: f64, power: f64, level: f64) -> Option<usize> {
+    (1..=100_000).find(|&n| drop_detection_power(n, drop, level) >= power)
 }
 
 /// `a` against `b` on the same scenes: the verdict (from the paired interval) and a sentence
@@ -296,6 +346,32 @@ mod tests {
         let [ulo, _] = difference_interval(shared.a(), shared.b());
         assert!(lo > 0.0 && ulo < 0.0, "paired {lo}, unpaired {ulo}");
         assert_eq!(compare_paired("a", "b", shared).0, Verdict::AHigher);
+    }
+
+    #[test]
+    fn the_one_sided_test_and_its_power_agree_with_sums_of_factorials() {
+        let choose = |n: usize, k: usize| (ln_factorial(n) - ln_factorial(k) - ln_factorial(n - k)).exp();
+        for m in 0..40usize {
+            for k in 0..=m {
+                let p = Paired { both: 2, only_a: k, only_b: m - k, neither: 1 };
+                let slow: f64 = (0..=k).map(|i| choose(m, i)).sum::<f64>() / 2f64.powi(m as i32);
+                assert!((p.mcnemar_p_a_lower() - slow).abs() < 1e-9, "m {m} k {k}");
+            }
+        }
+        // 5 scenes lost and none gained: p = 1/32 < 5 %; 4: 1/16 is not.
+        assert_eq!(losses_to_show_a_drop(0.05), 5);
+        assert!(Paired { only_b: 5, ..Paired::default() }.mcnemar_p_a_lower() < 0.05);
+        assert!(Paired { only_b: 4, ..Paired::default() }.mcnemar_p_a_lower() >= 0.05);
+        for n in [5usize, 20, 44, 66, 120] {
+            for drop in [0.02f64, 0.1, 0.15, 0.5] {
+                let slow: f64 =
+                    (5..=n).map(|i| choose(n, i) * drop.powi(i as i32) * (1.0 - drop).powi((n - i) as i32)).sum();
+                let fast = drop_detection_power(n, drop, 0.05);
+                assert!((fast - slow).abs() < 1e-9, "n {n} drop {drop}: {fast} vs {slow}");
+            }
+        }
+        assert_eq!(scenes_for_power(0.10, 0.8, 0.05), Some(66));
+        assert_eq!(scenes_for_power(0.15, 0.8, 0.05), Some(44));
     }
 
     #[test]

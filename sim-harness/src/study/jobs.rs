@@ -99,13 +99,59 @@ impl<'a> JobEvaluator<'a> {
         Ok(())
     }
 
-    fn evaluate_job(&self, job: &PlacementJob, bar: &ProgressBar) -> Result<()> {
-        let todo: Vec<u64> = job
-            .scenarios
+    /// Runs `job`'s scenes in scenario order, `part` at a time, building its model at most
+    /// once: before each part after the first, `enough(m)` is asked whether the first `m`
+    /// scenes (a whole number of parts) settle what the caller needs; returns the `m` it
+    /// stopped at, or every scene's count. The stopping point depends on the outcomes
+    /// only, never on which scenes were already in the store.
+    pub fn evaluate_until(
+        &self,
+        job: &PlacementJob,
+        part: usize,
+        label: &str,
+        mut enough: impl FnMut(usize) -> bool,
+    ) -> Result<usize> {
+        let part = part.max(1);
+        let bar = ProgressBar::new(self.pending(std::slice::from_ref(job)) as u64);
+        bar.set_style(
+            ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} scenes, {elapsed} elapsed, ETA {eta} {msg}")
+                .expect("a valid template")
+                .progress_chars("=> "),
+        );
+        bar.set_prefix(label.to_string());
+        let mut evaluator: Option<Evaluator> = None;
+        let mut done = 0;
+        for chunk in job.scenarios.chunks(part) {
+            if done > 0 && enough(done) {
+                break;
+            }
+            let todo = self.todo(&job.placement, job.seed, chunk);
+            if !todo.is_empty() {
+                if evaluator.is_none() {
+                    bar.set_message(format!("{} (model)", job.placement));
+                    let model = self.model(&job.placement, job.seed)?;
+                    evaluator = Some(Evaluator::with_model(self.cell, &job.placement, self.method, job.seed, model)?);
+                    bar.set_message(job.placement.to_string());
+                }
+                self.run_scenes(evaluator.as_ref().expect("built above"), job, &todo, &bar)?;
+            }
+            done += chunk.len();
+        }
+        bar.finish_and_clear();
+        Ok(done)
+    }
+
+    /// The scenario indices of `scenarios` the store lacks at `placement`.
+    fn todo(&self, placement: &Placement, seed: u64, scenarios: &[u64]) -> Vec<u64> {
+        scenarios
             .iter()
             .copied()
-            .filter(|&i| !self.store.contains(&SceneKey::new(&job.placement, self.method, job.seed, i)))
-            .collect();
+            .filter(|&i| !self.store.contains(&SceneKey::new(placement, self.method, seed, i)))
+            .collect()
+    }
+
+    fn evaluate_job(&self, job: &PlacementJob, bar: &ProgressBar) -> Result<()> {
+        let todo = self.todo(&job.placement, job.seed, &job.scenarios);
         if todo.is_empty() {
             return Ok(());
         }
@@ -113,6 +159,12 @@ impl<'a> JobEvaluator<'a> {
         let model = self.model(&job.placement, job.seed)?;
         let evaluator = Evaluator::with_model(self.cell, &job.placement, self.method, job.seed, model)?;
         bar.set_message(job.placement.to_string());
+        self.run_scenes(&evaluator, job, &todo, bar)
+    }
+
+    /// Runs scenarios `todo` of `job` with `evaluator`, one worker per thread, each scene
+    /// to the store as it finishes.
+    fn run_scenes(&self, evaluator: &Evaluator, job: &PlacementJob, todo: &[u64], bar: &ProgressBar) -> Result<()> {
         each_index(
             todo.len(),
             || evaluator.worker(),

@@ -26,6 +26,8 @@ pub mod shard;
 mod summary;
 pub mod sweep;
 pub mod tolerance;
+pub mod tolerance_report;
+pub mod tolerance_walk;
 pub mod tray_set;
 pub mod verified;
 

@@ -21,7 +21,7 @@ use super::placement_search::optimize_set;
 use super::shard::Shard;
 use super::summary::Summary;
 use super::sweep::sweep;
-use super::tolerance::{measure_tolerance, ToleranceReport, ToleranceRequest, TOLERANCE_STEPS};
+use super::tolerance::{measure_tolerance, ToleranceReport, ToleranceRequest, TOLERANCE_PARAMETERS};
 use super::tray_set::{lowest, margin_order, TraySet};
 use crate::render::Method;
 use crate::report::study_report::{pct, write_report};
@@ -51,10 +51,10 @@ pub struct Preset {
     pub recheck_scenarios: u64,
     /// Scenes per placement of the mounting tolerances (0: not measured).
     pub tolerance_scenarios: u64,
-    /// Steps walked out at most in each direction for the tolerances.
-    pub tolerance_steps: u32,
-    /// Largest drop of success still within tolerance.
+    /// The drop of success the tolerances' scene count detects with the stated power.
     pub tolerance_margin: f64,
+    /// The share of each found tolerance the corners of the box are placed at.
+    pub tolerance_corner_fraction: f64,
 }
 
 impl Preset {
@@ -71,9 +71,9 @@ impl Preset {
             search_scenarios: 50,
             top: 3,
             recheck_scenarios: 100,
-            tolerance_scenarios: 20,
-            tolerance_steps: 3,
-            tolerance_margin: 0.02,
+            tolerance_scenarios: 44,
+            tolerance_margin: 0.15,
+            tolerance_corner_fraction: 1.0,
         }
     }
 
@@ -90,8 +90,8 @@ impl Preset {
             top: 1,
             recheck_scenarios: 8,
             tolerance_scenarios: 0,
-            tolerance_steps: 0,
-            tolerance_margin: 0.02,
+            tolerance_margin: 0.15,
+            tolerance_corner_fraction: 1.0,
         }
     }
 
@@ -395,8 +395,8 @@ fn tolerance(out: &Path, r: &Recommendation, seed: u64, preset: &Preset) -> Resu
         seed,
         scenarios: preset.tolerance_scenarios,
         margin: preset.tolerance_margin,
-        max_steps: preset.tolerance_steps,
-        parameters: (0..TOLERANCE_STEPS.len()).collect(),
+        corner_fraction: preset.tolerance_corner_fraction,
+        parameters: (0..TOLERANCE_PARAMETERS.len()).collect(),
     };
     let report = measure_tolerance(&dir, r.cells.clone(), &request)?;
     write_tolerance_plots(&dir, &report)?;

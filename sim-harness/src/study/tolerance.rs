@@ -1,35 +1,61 @@
 //! Mounting tolerances around a placement: for each parameter (r, alpha, baseline, vergence,
-//! azimuth), how far the rig may be off, in each direction, before the success rate drops
-//! by more than a margin; then the success rate at the corners of that tolerance box.
+//! azimuth), how far the rig may be off, in each direction, before its success is shown to
+//! drop; then the success at the corners of that tolerance box.
 //!
-//! Every placement is evaluated on the same scenarios of one seed (common random numbers),
-//! so a difference in success between two placements comes from the placement, not from
-//! other scenes. Each offset is walked out in whole steps from the nominal placement; the
-//! walk stops at the first step whose success falls more than the margin below the
-//! nominal's, at the end of the parameter's valid range, or after the last step. As in
-//! every other command, a placement's scenes run with the model built at that placement
-//! and the rig's true calibration: the rig as installed and commissioned. A toe-in given
-//! as "auto" is fixed to its degrees first (to a thousandth of a degree), so moving the
-//! rig does not turn the cameras.
+//! Every placement is evaluated on the same scenarios of one seed (common random numbers)
+//! and compared with the nominal scene by scene: a point is outside the tolerance when the
+//! one-sided exact McNemar test on the scenes only one of the two succeeded on shows its
+//! success lower at the 5 % level ([`TOLERANCE_LEVEL`]). The scene count is chosen for a
+//! margin: a point that truly loses that share of the scenes is put outside with the
+//! stated power. Each side is walked out in growing steps and bisected to the parameter's
+//! resolution ([`super::tolerance_walk`]), or until the parameter's range ends. As in every
+//! other command, a placement's scenes run with the model built at that placement and the
+//! rig's true calibration: the rig as installed and commissioned. A toe-in given as "auto"
+//! is fixed to its degrees first (to a thousandth of a degree), so moving the rig does not
+//! turn the cameras.
 
 use std::path::Path;
 
-use camplace_config::{write_atomic, Cell, Placement};
-use serde::{Deserialize, Serialize};
+use camplace_config::{write_atomic, Cell, Placement, MAX_DISTANCE_MM};
 
+use super::findings::{drop_detection_power, Paired};
 use super::summary::Summary;
+pub use super::tolerance_report::{AxisTolerance, ToleranceCorner, TolerancePoint, ToleranceReport, WalkEnd};
+use super::tolerance_walk::{range_end, walk_to_edge};
 use super::tray_set::{lowest, TraySet};
 use crate::render::Method;
 use crate::{Error, Result};
 
-/// The parameters a bracket can get wrong, with the step each is walked out in and its unit.
-pub const TOLERANCE_STEPS: [(&str, f64, &str); 5] = [
-    ("r", 10.0, "mm"),
-    ("alpha", 2.0, "deg"),
-    ("baseline", 5.0, "mm"),
-    ("vergence", 0.5, "deg"),
-    ("azimuth", 5.0, "deg"),
+/// A parameter a bracket can get wrong, and how its tolerance is walked.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ToleranceParameter {
+    /// Its name in a placement.
+    pub name: &'static str,
+    /// mm or deg.
+    pub unit: &'static str,
+    /// The resolution the edge is found to; every offset is a whole number of it.
+    pub resolution: f64,
+    /// The first step out, in resolutions; each further step doubles.
+    pub first_steps: u64,
+    /// The furthest offset walked on either side (the placement's own range may end first).
+    pub walk_limit: f64,
+}
+
+/// The parameters, in the order of every offset array: r and baseline to 5 mm, alpha and
+/// azimuth to 1°, vergence to 0.25°; azimuth walked to half a turn either way.
+pub const TOLERANCE_PARAMETERS: [ToleranceParameter; 5] = [
+    ToleranceParameter { name: "r", unit: "mm", resolution: 5.0, first_steps: 2, walk_limit: MAX_DISTANCE_MM },
+    ToleranceParameter { name: "alpha", unit: "deg", resolution: 1.0, first_steps: 2, walk_limit: 90.0 },
+    ToleranceParameter { name: "baseline", unit: "mm", resolution: 5.0, first_steps: 2, walk_limit: MAX_DISTANCE_MM },
+    ToleranceParameter { name: "vergence", unit: "deg", resolution: 0.25, first_steps: 2, walk_limit: 90.0 },
+    ToleranceParameter { name: "azimuth", unit: "deg", resolution: 1.0, first_steps: 4, walk_limit: 180.0 },
 ];
+
+/// The level of the one-sided paired test that puts a point outside.
+pub const TOLERANCE_LEVEL: f64 = 0.05;
+
+/// The power the default scene counts give for a drop of the margin.
+pub const TOLERANCE_POWER: f64 = 0.8;
 
 /// What to measure.
 #[derive(Debug, Clone, PartialEq)]
@@ -42,203 +68,22 @@ pub struct ToleranceRequest {
     pub seed: u64,
     /// Scenarios `0..scenarios` at every placement.
     pub scenarios: u64,
-    /// Largest drop of the success rate that is still within tolerance (0.02: 2 points).
+    /// The drop of success the scene count is to detect (0.1: 10 points); only stated,
+    /// with its power, since the paired test decides.
     pub margin: f64,
-    /// Steps walked out at most in each direction.
-    pub max_steps: u32,
-    /// The parameters to walk, as indices into [`TOLERANCE_STEPS`]; the others stay at
-    /// their nominal values (also at the corners).
+    /// The share of each found tolerance the corners are placed at (1: at the edges).
+    pub corner_fraction: f64,
+    /// The parameters to walk, as indices into [`TOLERANCE_PARAMETERS`]; the others stay
+    /// at their nominal values (also at the corners).
     pub parameters: Vec<usize>,
 }
 
-/// One evaluated offset of one parameter.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct TolerancePoint {
-    /// Offset from the nominal value, mm or deg.
-    pub offset: f64,
-    /// Success rate there.
-    pub success_rate: f64,
-    /// Its Wilson 95 % interval.
-    pub success_interval: [f64; 2],
-}
-
-/// Why a walk in one direction stopped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum WalkEnd {
-    /// The next step dropped the success by more than the margin.
-    Drop,
-    /// The next step left the parameter's valid range.
-    RangeEnd,
-    /// Every step stayed within the margin.
-    LastStep,
-}
-
-/// One parameter's tolerance.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct AxisTolerance {
-    /// The parameter's name.
-    pub parameter: String,
-    /// mm or deg.
-    pub unit: String,
-    /// The step it was walked out in.
-    pub step: f64,
-    /// How far below the nominal value it may be (0 or more).
-    pub minus: f64,
-    /// Why the walk downwards stopped.
-    pub minus_end: WalkEnd,
-    /// How far above the nominal value it may be.
-    pub plus: f64,
-    /// Why the walk upwards stopped.
-    pub plus_end: WalkEnd,
-    /// Every evaluated offset, ascending, the nominal (0) included.
-    pub points: Vec<TolerancePoint>,
-}
-
-/// One corner of the tolerance box.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ToleranceCorner {
-    /// The placement there.
-    pub placement: String,
-    /// Each parameter's offset, in [`TOLERANCE_STEPS`] order.
-    pub offsets: [f64; 5],
-    /// Success rate there.
-    pub success_rate: f64,
-    /// Its Wilson 95 % interval.
-    pub success_interval: [f64; 2],
-}
-
-/// The whole measurement (`tolerance.json`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ToleranceReport {
-    /// The nominal placement (toe-in in degrees).
-    pub placement: String,
-    /// Sensor method.
-    pub method: String,
-    /// Seed of the scenarios.
-    pub seed: u64,
-    /// Scenarios per placement.
-    pub scenarios: u64,
-    /// The margin.
-    pub margin: f64,
-    /// Success at the nominal placement.
-    pub nominal: TolerancePoint,
-    /// Each walked parameter's tolerance, in [`TOLERANCE_STEPS`] order.
-    pub axes: Vec<AxisTolerance>,
-    /// The distinct corners of the tolerance box.
-    pub corners: Vec<ToleranceCorner>,
-}
-
-impl ToleranceReport {
-    /// The corner with the lowest success rate (the first of equals), if any.
-    pub fn worst_corner(&self) -> Option<&ToleranceCorner> {
-        self.corners.iter().fold(None, |worst: Option<&ToleranceCorner>, c| match worst {
-            Some(w) if w.success_rate <= c.success_rate => Some(w),
-            _ => Some(c),
-        })
-    }
-
-    /// A table for a terminal: one row per parameter, then the worst corner.
-    pub fn table(&self) -> String {
-        let mut text = format!(
-            "tolerance of {} ({}, seed {}, {} scenarios; nominal success {}; margin {:.1} points)\n",
-            self.placement,
-            self.method,
-            self.seed,
-            self.scenarios,
-            pct(self.nominal.success_rate),
-            100.0 * self.margin
-        );
-        text.push_str(&format!("  {:<9} {:>10} {:>10}  {}\n", "parameter", "minus", "plus", "walk ended by"));
-        for a in &self.axes {
-            text.push_str(&format!(
-                "  {:<9} {:>7} {:<3}{:>7} {:<3} {} / {}\n",
-                a.parameter,
-                a.minus,
-                a.unit,
-                a.plus,
-                a.unit,
-                end_text(a.minus_end),
-                end_text(a.plus_end)
-            ));
-        }
-        if self.nominal.success_rate <= self.margin {
-            text.push_str("  note: the nominal placement itself succeeds on (almost) no scene, so no offset can lose much; measure around a placement that works\n");
-        }
-        if let Some(w) = self.worst_corner() {
-            text.push_str(&format!(
-                "  worst of {} corners: {} at {} (95 % interval {}–{})",
-                self.corners.len(),
-                pct(w.success_rate),
-                w.placement,
-                pct(w.success_interval[0]),
-                pct(w.success_interval[1])
-            ));
-        }
-        text
-    }
-}
-
-fn pct(r: f64) -> String {
-    format!("{:.1} %", 100.0 * r)
-}
-
-/// How a walk ended, in words.
-pub fn end_text(end: WalkEnd) -> &'static str {
-    match end {
-        WalkEnd::Drop => "drop",
-        WalkEnd::RangeEnd => "range end",
-        WalkEnd::LastStep => "last step",
-    }
-}
-
-/// The outcome of walking one parameter out in one direction.
-#[derive(Debug, Clone, PartialEq)]
-struct Walk {
-    /// The largest offset (absolute) still within the margin.
-    tolerance: f64,
-    end: WalkEnd,
-    /// (offset, success) of every step evaluated, in walking order.
-    points: Vec<(f64, Summary)>,
-}
-
-/// Walks from 0 in steps of `step` (signed) up to `max_steps`: `at(offset)` is the
-/// placement there (`None` past the valid range), `success` evaluates it. Stops at the first
-/// step whose success is more than `margin` below `nominal`.
-fn walk<P>(
-    step: f64,
-    max_steps: u32,
-    nominal: f64,
-    margin: f64,
-    at: impl Fn(f64) -> Option<P>,
-    mut success: impl FnMut(P) -> Result<Summary>,
-) -> Result<Walk> {
-    let mut out = Walk { tolerance: 0.0, end: WalkEnd::LastStep, points: Vec::new() };
-    for k in 1..=max_steps {
-        let offset = step * f64::from(k);
-        let Some(place) = at(offset) else {
-            out.end = WalkEnd::RangeEnd;
-            return Ok(out);
-        };
-        let summary = success(place)?;
-        let rate = summary.success_rate;
-        out.points.push((offset, summary));
-        // A small tolerance keeps a rate exactly at the margin (in whole scenes) inside it.
-        if rate < nominal - margin - 1e-12 {
-            out.end = WalkEnd::Drop;
-            return Ok(out);
-        }
-        out.tolerance = offset.abs();
-    }
-    Ok(out)
-}
-
-/// The placement `offsets` (in [`TOLERANCE_STEPS`] order) away from `nominal`, if valid.
+/// The placement `offsets` (in [`TOLERANCE_PARAMETERS`] order) away from `nominal`, if valid.
 /// Values are rounded to a millionth of a mm or degree, so a placement prints as written.
 fn offset_placement(nominal: &Placement, offsets: &[f64; 5]) -> Option<Placement> {
     let mut p = *nominal;
-    for ((name, _, _), &d) in TOLERANCE_STEPS.iter().zip(offsets) {
-        p = p.set(name, round6(nominal.get(name)? + d))?;
+    for (param, &d) in TOLERANCE_PARAMETERS.iter().zip(offsets) {
+        p = p.set(param.name, round6(nominal.get(param.name)? + d))?;
     }
     p.validate("").ok().map(|_| p)
 }
@@ -247,14 +92,79 @@ fn round6(v: f64) -> f64 {
     (v * 1e6).round() / 1e6
 }
 
-fn point(offset: f64, s: &Summary) -> TolerancePoint {
-    TolerancePoint { offset, success_rate: s.success_rate, success_interval: s.success_interval }
+/// Scenes a point runs at a time before it is asked whether its verdict is settled.
+pub const TOLERANCE_PART: usize = 6;
+
+/// Whether the outcomes of a point's first scenes (`prefix`, paired with the same scenes of
+/// `nominal`) already settle the verdict over all of `nominal`'s scenes: outside even if
+/// every scene left the nominal failed were gained, or inside even if every scene left it
+/// succeeded were lost. The verdict over the prefix is then the verdict over them all.
+pub fn verdict_settled(prefix: &[Option<bool>], nominal: &[Option<bool>]) -> bool {
+    let m = prefix.len().min(nominal.len());
+    let p = Paired::from_outcomes(&prefix[..m], &nominal[..m]);
+    let rest = &nominal[m..];
+    let could_lose = rest.iter().filter(|o| **o == Some(true)).count();
+    let could_gain = rest.iter().filter(|o| **o == Some(false)).count();
+    let surely_outside = Paired { only_a: p.only_a + could_gain, ..p }.mcnemar_p_a_lower() < TOLERANCE_LEVEL;
+    let surely_inside = Paired { only_b: p.only_b + could_lose, ..p }.mcnemar_p_a_lower() >= TOLERANCE_LEVEL;
+    surely_outside || surely_inside
+}
+
+/// Judges placements against the nominal on the same scenes.
+struct Judge<'a> {
+    set: &'a TraySet,
+    seed: u64,
+    scenarios: u64,
+    /// The nominal's outcomes, per tray, by scenario.
+    nominal: Vec<Vec<Option<bool>>>,
+}
+
+impl Judge<'_> {
+    /// Evaluates `p` tray by tray, each [`TOLERANCE_PART`] scenes at a time in scenario
+    /// order until its verdict is settled (running only the scenes its folder lacks), and
+    /// pairs it with the nominal: the point at `offset` over the scenes that settled it, and
+    /// whether it is inside. A tray that shows a drop settles the point outside and the
+    /// trays after it are not run.
+    fn point(&self, p: &Placement, offset: f64) -> Result<(TolerancePoint, bool)> {
+        let n = self.scenarios;
+        let mut summaries = Vec::new();
+        let mut worst: Option<(f64, Paired)> = None;
+        for (t, nominal) in self.nominal.iter().enumerate() {
+            let m = self.set.evaluate_until(t, p, self.seed, n, TOLERANCE_PART, "tolerance", |m| {
+                verdict_settled(&self.set.outcomes(t, p, self.seed, m as u64), nominal)
+            })?;
+            let outcomes = self.set.outcomes(t, p, self.seed, m as u64);
+            let paired = Paired::from_outcomes(&outcomes, &nominal[..m.min(nominal.len())]);
+            let p_lower = paired.mcnemar_p_a_lower();
+            summaries.push(self.set.summary(t, p, self.seed, m as u64));
+            if worst.is_none_or(|(w, _)| p_lower < w) {
+                worst = Some((p_lower, paired));
+            }
+            if p_lower < TOLERANCE_LEVEL {
+                break;
+            }
+        }
+        let (p_lower, paired) = worst.unwrap_or((1.0, Paired::default()));
+        let low: Summary = lowest(&summaries);
+        let point = TolerancePoint {
+            offset,
+            success_rate: low.success_rate,
+            success_interval: low.success_interval,
+            scenes: low.scored,
+            lost: paired.only_b,
+            gained: paired.only_a,
+            p_lower,
+        };
+        Ok((point, p_lower >= TOLERANCE_LEVEL))
+    }
 }
 
 /// Measures the tolerances of `request` for one placement serving every tray of `trays`
-/// (`(name, cell)`; a placement's success is its lowest over the trays; results appended
-/// as scenes finish to the study folder `dir`, or with several trays to `dir/NAME`, so a stopped run resumes), writes `tolerance.json` into `dir`
-/// and returns it.
+/// (`(name, cell)`; a placement's success is its lowest over the trays, and it is outside
+/// when any tray's paired test shows a drop; results appended as scenes finish to the
+/// study folder `dir`, or with several trays to `dir/NAME`, so a stopped run resumes and
+/// a placement met again is not run again), writes `tolerance.json` into `dir` and
+/// returns it.
 pub fn measure_tolerance(
     dir: &Path,
     trays: Vec<(String, Cell)>,
@@ -263,8 +173,14 @@ pub fn measure_tolerance(
     let r = request;
     if !(r.margin.is_finite() && r.margin > 0.0 && r.margin < 1.0) {
         return Err(Error::Other(format!(
-            "--margin: expected a share of scenes between 0 and 1 (0.02 is 2 points), got {}",
+            "--margin: expected a share of scenes between 0 and 1 (0.1 is 10 points), got {}",
             r.margin
+        )));
+    }
+    if !(r.corner_fraction.is_finite() && r.corner_fraction > 0.0 && r.corner_fraction <= 1.0) {
+        return Err(Error::Other(format!(
+            "--corner-fraction: expected a share of each tolerance above 0 and at most 1, got {}",
+            r.corner_fraction
         )));
     }
     // To a thousandth of a degree, so placements print short.
@@ -284,13 +200,26 @@ pub fn measure_tolerance(
         })
         .collect();
     let set = TraySet::open(folders, r.method, r.seed)?;
-    let evaluate =
-        |p: &Placement| -> Result<Summary> { Ok(lowest(&set.evaluate(p, r.seed, r.scenarios, "tolerance")?)) };
+    let base = lowest(&set.evaluate(&nominal, r.seed, r.scenarios, "tolerance")?);
+    let judge = Judge {
+        set: &set,
+        seed: r.seed,
+        scenarios: r.scenarios,
+        nominal: (0..set.trays.len()).map(|t| set.outcomes(t, &nominal, r.seed, r.scenarios)).collect(),
+    };
+    let nominal_point = TolerancePoint {
+        offset: 0.0,
+        success_rate: base.success_rate,
+        success_interval: base.success_interval,
+        scenes: base.scored,
+        lost: 0,
+        gained: 0,
+        p_lower: 1.0,
+    };
 
-    let base = evaluate(&nominal)?;
     let mut axes = Vec::new();
     for &i in &r.parameters {
-        let Some(&(name, step, unit)) = TOLERANCE_STEPS.get(i) else {
+        let Some(param) = TOLERANCE_PARAMETERS.get(i) else {
             return Err(Error::Other(format!("tolerance: no parameter number {i}")));
         };
         let along = |offset: f64| {
@@ -298,22 +227,43 @@ pub fn measure_tolerance(
             offsets[i] = offset;
             offset_placement(&nominal, &offsets)
         };
-        let mut ends = [(0.0, WalkEnd::LastStep); 2];
-        let mut points = vec![point(0.0, &base)];
-        for (side, sign) in [-1.0, 1.0].into_iter().enumerate() {
-            let w = walk(sign * step, r.max_steps, base.success_rate, r.margin, along, |p| evaluate(&p))?;
-            points.extend(w.points.iter().map(|(o, s)| point(*o, s)));
-            ends[side] = (w.tolerance, w.end);
+        let mut points = vec![nominal_point.clone()];
+        let mut sides = Vec::new();
+        for sign in [-1.0, 1.0] {
+            // + 0.0 writes the nominal as 0, not -0.
+            let offset = |k: u64| sign * round6(k as f64 * param.resolution) + 0.0;
+            let cap = (param.walk_limit / param.resolution).floor() as u64;
+            let range = range_end(cap, |k| along(offset(k)).is_some());
+            let walk = walk_to_edge(param.first_steps, range, |k| {
+                let p = along(offset(k)).ok_or_else(|| {
+                    Error::Other(format!("tolerance: {} {:+} is outside its range", param.name, offset(k)))
+                })?;
+                let (point, inside) = judge.point(&p, offset(k))?;
+                points.push(point);
+                Ok(inside)
+            })?;
+            let find = |k: u64| points.iter().find(|p| p.offset == offset(k)).cloned();
+            let inside = if walk.inside == 0 { nominal_point.clone() } else { find(walk.inside).expect("judged") };
+            let outside = walk.outside.map(|k| find(k).expect("judged"));
+            sides.push((offset(walk.inside).abs(), walk.end, inside, outside, offset(range)));
         }
         points.sort_by(|a, b| a.offset.total_cmp(&b.offset));
+        let [(minus, minus_end, minus_inside, minus_outside, minus_range), (plus, plus_end, plus_inside, plus_outside, plus_range)] =
+            <[_; 2]>::try_from(sides).expect("two sides");
         axes.push(AxisTolerance {
-            parameter: name.to_string(),
-            unit: unit.to_string(),
-            step,
-            minus: ends[0].0,
-            minus_end: ends[0].1,
-            plus: ends[1].0,
-            plus_end: ends[1].1,
+            parameter: param.name.to_string(),
+            unit: param.unit.to_string(),
+            resolution: param.resolution,
+            minus,
+            minus_end,
+            minus_inside,
+            minus_outside,
+            minus_range,
+            plus,
+            plus_end,
+            plus_inside,
+            plus_outside,
+            plus_range,
             points,
         });
     }
@@ -322,19 +272,17 @@ pub fn measure_tolerance(
     for mask in 0..(1u32 << axes.len()) {
         let mut offsets = [0.0; 5];
         for (bit, (axis, &i)) in axes.iter().zip(&r.parameters).enumerate() {
-            offsets[i] = if mask & (1 << bit) == 0 { -axis.minus } else { axis.plus };
+            let res = TOLERANCE_PARAMETERS[i].resolution;
+            // A share of the tolerance, down to the resolution's grid.
+            let share = |t: f64| round6((r.corner_fraction * t / res + 1e-9).floor() * res);
+            offsets[i] = if mask & (1 << bit) == 0 { -share(axis.minus) } else { share(axis.plus) };
         }
         if corners.iter().any(|c| c.offsets == offsets) {
             continue; // a parameter with no tolerance on one side folds corners together
         }
         let Some(p) = offset_placement(&nominal, &offsets) else { continue };
-        let s = evaluate(&p)?;
-        corners.push(ToleranceCorner {
-            placement: p.to_string(),
-            offsets,
-            success_rate: s.success_rate,
-            success_interval: s.success_interval,
-        });
+        let (point, _) = judge.point(&p, 0.0)?;
+        corners.push(ToleranceCorner { placement: p.to_string(), offsets, point });
     }
 
     let report = ToleranceReport {
@@ -343,8 +291,11 @@ pub fn measure_tolerance(
         seed: r.seed,
         scenarios: r.scenarios,
         margin: r.margin,
-        nominal: point(0.0, &base),
+        level: TOLERANCE_LEVEL,
+        power: drop_detection_power(r.scenarios as usize, r.margin, TOLERANCE_LEVEL),
+        nominal: nominal_point,
         axes,
+        corner_fraction: r.corner_fraction,
         corners,
     };
     let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Other(format!("tolerance.json: {e}")))?;
@@ -355,67 +306,6 @@ pub fn measure_tolerance(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A summary of `n` scored frames with `k` successes.
-    fn rate(k: usize, n: usize) -> Summary {
-        let mut s = Summary::from_records(&[]);
-        s.scored = n;
-        s.successes = k;
-        s.success_rate = k as f64 / n as f64;
-        s
-    }
-
-    /// The tolerance by its definition: the largest |offset| on the grid such that every
-    /// step up to it (and it) stays within the margin, with nothing invalid before it.
-    fn slow_tolerance(step: f64, max_steps: u32, nominal: f64, margin: f64, f: &dyn Fn(f64) -> Option<f64>) -> f64 {
-        let mut best = 0.0;
-        for k in 1..=max_steps {
-            let ok = (1..=k).all(|j| f(step * f64::from(j)).is_some_and(|s| s >= nominal - margin - 1e-12));
-            if ok {
-                best = (step * f64::from(k)).abs();
-            }
-        }
-        best
-    }
-
-    #[test]
-    fn walks_match_the_definition_on_many_shapes() {
-        // Success profiles in whole scenes of 50: peaks, plateaus, dips, cliffs and range ends.
-        let n = 50usize;
-        for shape in 0..40u32 {
-            let width = 1.0 + f64::from(shape % 7) * 3.0;
-            let dip_at = f64::from(shape % 5) * 2.0;
-            let limit = if shape % 3 == 0 { 9.0 } else { 1e9 };
-            let f = move |x: f64| -> Option<f64> {
-                if x.abs() > limit {
-                    return None;
-                }
-                let mut s = (1.0 - (x / width).powi(2) * 0.1).clamp(0.0, 1.0);
-                if dip_at > 0.0 && (x.abs() - dip_at).abs() < 0.5 {
-                    s -= 0.05;
-                }
-                Some((s * n as f64).round() / n as f64)
-            };
-            for step in [-1.0, 1.0, -2.5, 2.5] {
-                let nominal = f(0.0).unwrap();
-                let margin = 0.02 * f64::from(1 + shape % 3);
-                let w = walk(step, 8, nominal, margin, f, |s| Ok(rate((s * n as f64).round() as usize, n))).unwrap();
-                let slow = slow_tolerance(step, 8, nominal, margin, &f);
-                assert_eq!(w.tolerance, slow, "shape {shape} step {step}");
-                // Each step evaluated once, in order, and nothing after the one that ended it.
-                let offsets: Vec<f64> = w.points.iter().map(|p| p.0).collect();
-                let expected: Vec<f64> = (1..=offsets.len() as u32).map(|k| step * f64::from(k)).collect();
-                assert_eq!(offsets, expected, "shape {shape} step {step}");
-                match w.end {
-                    WalkEnd::Drop => {
-                        assert!(w.points.last().unwrap().1.success_rate < nominal - margin, "shape {shape}")
-                    }
-                    WalkEnd::RangeEnd => assert!(f(step * (offsets.len() + 1) as f64).is_none(), "shape {shape}"),
-                    WalkEnd::LastStep => assert_eq!(offsets.len(), 8, "shape {shape}"),
-                }
-            }
-        }
-    }
 
     #[test]
     fn offsets_keep_the_toe_in_and_refuse_invalid_placements() {
@@ -431,27 +321,89 @@ mod tests {
         assert_eq!(p.vergence, camplace_config::Vergence::Degrees(4.0));
         assert!(offset_placement(&nominal, &[0.0, 60.0, 0.0, 0.0, 0.0]).is_none(), "alpha 92 is no placement");
         assert!(offset_placement(&nominal, &[0.0, 0.0, -81.0, 0.0, 0.0]).is_none(), "baseline 0 is no placement");
+        // The ranges the walks stop at: alpha down to 0, baseline down to 1 mm (80 of 81).
+        let along = |i: usize, d: f64| {
+            let mut o = [0.0; 5];
+            o[i] = d;
+            offset_placement(&nominal, &o).is_some()
+        };
+        assert_eq!(range_end(90, |k| along(1, -(k as f64))), 32);
+        assert_eq!(range_end(90, |k| along(1, k as f64)), 57);
+        assert_eq!(range_end(20_000, |k| along(2, -5.0 * k as f64)), 16);
+    }
+
+    /// A small deterministic generator.
+    fn next(state: &mut u64) -> u64 {
+        *state ^= *state << 13;
+        *state ^= *state >> 7;
+        *state ^= *state << 17;
+        *state
+    }
+
+    #[test]
+    fn a_settled_prefix_gives_the_verdict_of_every_scene() {
+        // The slow obvious version: the paired test over all the scenes.
+        let verdict =
+            |a: &[Option<bool>], b: &[Option<bool>]| Paired::from_outcomes(a, b).mcnemar_p_a_lower() >= TOLERANCE_LEVEL;
+        let mut state = 0x1234_5678_9abc_def1u64;
+        let mut settled_early = 0;
+        for case in 0..3000 {
+            let n = 1 + (next(&mut state) % 60) as usize;
+            let nominal_rate = next(&mut state) % 101;
+            let point_rate = next(&mut state) % 101;
+            let draw = |state: &mut u64, rate: u64| match next(state) % 100 {
+                0 => None,
+                x => Some(x <= rate),
+            };
+            let nominal: Vec<Option<bool>> = (0..n).map(|_| draw(&mut state, nominal_rate)).collect();
+            let point: Vec<Option<bool>> = (0..n).map(|_| draw(&mut state, point_rate)).collect();
+            let full = verdict(&point, &nominal);
+            assert!(verdict_settled(&point, &nominal), "case {case}: every scene settles it");
+            for m in 0..n {
+                if verdict_settled(&point[..m], &nominal) {
+                    assert_eq!(verdict(&point[..m], &nominal[..m]), full, "case {case}: settled at {m} of {n}");
+                    settled_early += 1;
+                }
+            }
+        }
+        assert!(settled_early > 10_000, "prefixes settle often: {settled_early}");
+    }
+
+    fn point(rate: f64) -> TolerancePoint {
+        TolerancePoint {
+            offset: 0.0,
+            success_rate: rate,
+            success_interval: [0.0, 1.0],
+            scenes: 10,
+            lost: 0,
+            gained: 0,
+            p_lower: 1.0,
+        }
     }
 
     #[test]
     fn the_worst_corner_is_the_lowest() {
-        let corner = |rate: f64| ToleranceCorner {
-            placement: format!("{rate}"),
-            offsets: [rate; 5],
-            success_rate: rate,
-            success_interval: [0.0, 1.0],
-        };
+        let corner =
+            |rate: f64| ToleranceCorner { placement: format!("{rate}"), offsets: [rate; 5], point: point(rate) };
         let report = ToleranceReport {
-            placement: String::new(),
+            placement: "r=605,alpha=32,baseline=81,vergence=3.5".into(),
             method: String::new(),
             seed: 0,
             scenarios: 1,
-            margin: 0.02,
-            nominal: TolerancePoint { offset: 0.0, success_rate: 1.0, success_interval: [0.0, 1.0] },
+            margin: 0.1,
+            level: 0.05,
+            power: 0.8,
+            nominal: point(1.0),
             axes: Vec::new(),
+            corner_fraction: 1.0,
             corners: vec![corner(0.9), corner(0.7), corner(0.8), corner(0.7)],
         };
-        assert_eq!(report.worst_corner().unwrap().success_rate, 0.7);
-        assert!(report.table().contains("worst of 4 corners: 70.0 %"), "{}", report.table());
+        assert_eq!(report.worst_corner().unwrap().point.success_rate, 0.7);
+        assert!(
+            report.table().contains("worst of 4 corners (every parameter at its edge at once): 70.0 %"),
+            "{}",
+            report.table()
+        );
+        assert_eq!(report.check(), Ok(()));
     }
 }

@@ -62,6 +62,32 @@ impl TraySet {
         Ok(out)
     }
 
+    /// Runs scenarios `0..n` of `seed` at `placement` on tray `tray` in order, `part` at a
+    /// time, until `enough(m)` says the first `m` settle it (see
+    /// [`JobEvaluator::evaluate_until`]); returns that `m`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn evaluate_until(
+        &self,
+        tray: usize,
+        placement: &Placement,
+        seed: u64,
+        n: u64,
+        part: usize,
+        label: &str,
+        enough: impl FnMut(usize) -> bool,
+    ) -> Result<usize> {
+        let t = &self.trays[tray];
+        let jobs = shard_jobs(&[*placement], seed, n, Shard::WHOLE);
+        let label = if self.trays.len() > 1 { format!("{label} {}", t.name) } else { label.to_string() };
+        let Some(job) = jobs.first() else { return Ok(0) };
+        JobEvaluator::new(&t.cell, self.method, &t.store).evaluate_until(job, part, &label, enough)
+    }
+
+    /// The summary of the first `n` scenarios of `seed` at `placement` on tray `tray`.
+    pub fn summary(&self, tray: usize, placement: &Placement, seed: u64, n: u64) -> Summary {
+        Summary::from_records(&self.trays[tray].store.records(placement, self.method, seed, n))
+    }
+
     /// Whether each of scenarios `0..n` of `seed` succeeded at `placement` for tray `tray`,
     /// by scenario (`None`: not in the folder or not scored), for comparisons paired by scene.
     pub fn outcomes(&self, tray: usize, placement: &Placement, seed: u64, n: u64) -> Vec<Option<bool>> {
