@@ -8,6 +8,7 @@ mod cluster;
 mod commissioning;
 mod deploy;
 mod estimate;
+mod hand_eye;
 mod installed_rig;
 mod integrity;
 mod meshes;
