@@ -41,6 +41,14 @@ pub const OUTLIER_MIN_SCORE: f64 = 3.0;
 pub const CORNER_SIGMA_PX: f64 = 0.1;
 /// The closed form leaves a pose out of its start only above this disagreement, mm.
 const START_OUTLIER_MIN_MM: f64 = 1.0;
+/// A pose agrees with a closed form from three poses below this disagreement, mm: far above
+/// what the robot's and the cameras' errors make, far below what a mis-paired pose does.
+const START_AGREEMENT_MM: f64 = 10.0;
+/// A turn counts as the distance it moves a point this far from the rotation's centre, mm
+/// (about a board's size).
+const START_REACH_MM: f64 = 100.0;
+/// The most triples of poses the start tries (evenly spread over all of them).
+const MAX_START_TRIPLES: usize = 500;
 /// Below this largest angle between the axes of the relative rotations, degrees, the poses
 /// turned about one axis only, and X's rotation is not determined: an error.
 pub const MIN_AXIS_SPREAD_DEG: f64 = 3.0;
@@ -373,12 +381,50 @@ fn solve(
     a: &[Isometry3<f64>],
     kept: &[usize],
 ) -> Result<Refined> {
-    let mut inliers = kept.to_vec();
     let not_fixed = || {
         Error::new(
             ErrorKind::Input,
             "hand-eye: the robot's turns do not fix the mounting's rotation; expected turns about at least two axes",
         )
+    };
+    // A pose's disagreement under (X, Z): how far A·X and Z·B put a point a board's size
+    // from the origin apart, mm.
+    let disagreement = |i: usize, x: &Isometry3<f64>, z: &Isometry3<f64>| {
+        let d = (z * b[i]).inverse() * (a[i] * x);
+        d.translation.vector.norm() + START_REACH_MM * d.rotation.angle()
+    };
+    // The closed form from triples of poses, the one that agrees with the most poses
+    // kept (a mis-paired pose agrees with none), then from all that agree with it.
+    let n = kept.len();
+    let total = n * (n - 1) * (n - 2) / 6;
+    let stride = total.div_ceil(MAX_START_TRIPLES).max(1);
+    let mut best: Option<(usize, f64, Vec<usize>)> = None;
+    let mut index = 0;
+    for i in 0..n {
+        for j in i + 1..n {
+            for k in j + 1..n {
+                index += 1;
+                if (index - 1) % stride != 0 {
+                    continue;
+                }
+                let three = [kept[i], kept[j], kept[k]];
+                let Some((x, z)) = solve_ax_zb(&three.map(|p| a[p]), &three.map(|p| b[p])) else { continue };
+                let d: Vec<f64> = kept.iter().map(|&p| disagreement(p, &x, &z)).collect();
+                let agreeing: Vec<usize> =
+                    kept.iter().zip(&d).filter(|(_, &v)| v < START_AGREEMENT_MM).map(|(&p, _)| p).collect();
+                let spread: f64 = d.iter().map(|v| v.min(START_AGREEMENT_MM)).sum();
+                if best
+                    .as_ref()
+                    .is_none_or(|(count, s, _)| agreeing.len() > *count || (agreeing.len() == *count && spread < *s))
+                {
+                    best = Some((agreeing.len(), spread, agreeing));
+                }
+            }
+        }
+    }
+    let mut inliers = match best {
+        Some((count, _, agreeing)) if count >= 3 => agreeing,
+        _ => kept.to_vec(),
     };
     let mut start = None;
     // At most a third of the poses are left out of the start.
@@ -387,27 +433,44 @@ fn solve(
         let b_in: Vec<Isometry3<f64>> = inliers.iter().map(|&i| b[i]).collect();
         let (x, z) = solve_ax_zb(&a_in, &b_in).ok_or_else(not_fixed)?;
         start = Some((x, z));
-        // A pose's disagreement as the distance it moves a point a board's size away.
-        let reach = 100.0;
-        let disagreement: Vec<f64> = a_in
-            .iter()
-            .zip(&b_in)
-            .map(|(ai, bi)| {
-                let d = (z * bi).inverse() * (ai * x);
-                d.translation.vector.norm() + reach * d.rotation.angle()
-            })
-            .collect();
-        let threshold = outlier_threshold(&disagreement, START_OUTLIER_MIN_MM);
+        let disagreements: Vec<f64> = inliers.iter().map(|&i| disagreement(i, &x, &z)).collect();
+        let threshold = outlier_threshold(&disagreements, START_OUTLIER_MIN_MM);
         let (worst, &worst_value) =
-            disagreement.iter().enumerate().max_by(|p, q| p.1.total_cmp(q.1)).expect("poses to solve from");
+            disagreements.iter().enumerate().max_by(|p, q| p.1.total_cmp(q.1)).expect("poses to solve from");
         if worst_value <= threshold || inliers.len() < MIN_HAND_EYE_POSES {
             break;
         }
         inliers.remove(worst);
     }
     let start = start.ok_or_else(not_fixed)?;
-    let problem = problem_of(input, pair, object, a, kept);
-    refine(&problem, start)
+    let refined = refine(&problem_of(input, pair, object, a, &inliers), start)?;
+    if inliers.len() == kept.len() {
+        return Ok(refined);
+    }
+    // The poses left out of the start, judged under the others' solution: all of them are
+    // taken back when none stands out; else each keeps its own fit, for the caller to drop
+    // the worst.
+    let threshold = outlier_threshold(&refined.scores, OUTLIER_MIN_SCORE);
+    let mut deltas = Vec::with_capacity(kept.len());
+    let mut scores = Vec::with_capacity(kept.len());
+    for &i in kept {
+        match inliers.iter().position(|&k| k == i) {
+            Some(p) => {
+                deltas.push(refined.deltas[p]);
+                scores.push(refined.scores[p]);
+            }
+            None => {
+                let one = problem_of(input, pair, object, a, &[i]);
+                let delta = refine_delta(&one, &refined)?;
+                deltas.push(delta);
+                scores.push(pose_fit(&one, &refined, &delta).1);
+            }
+        }
+    }
+    if scores.iter().all(|&s| s <= threshold) {
+        return refine(&problem_of(input, pair, object, a, kept), (refined.x, refined.z));
+    }
+    Ok(Refined { x: refined.x, z: refined.z, deltas, scores })
 }
 
 /// Above this a value stands out among `values`: median + k·σ_MAD, k'·median and `floor`.
