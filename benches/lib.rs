@@ -1,6 +1,7 @@
 //! camplace's benches, one module per topic, in a single criterion binary.
 
 mod features;
+mod hand_eye;
 mod phase;
 mod pipeline;
 mod pose;
@@ -16,5 +17,6 @@ criterion::criterion_main!(
     phase_benches,
     feature_benches,
     pose::benches,
-    pipeline_benches
+    pipeline_benches,
+    hand_eye::benches
 );

@@ -12,18 +12,18 @@ use camplace_sim::{Evaluator, FrameRecord, Method, Summary};
 
 use crate::camplace_cmd::{camplace, stderr};
 
-const OPTIMUM: &str = "r=605,alpha=32,baseline=81,vergence=3.5";
+pub(crate) const OPTIMUM: &str = "r=605,alpha=32,baseline=81,vergence=3.5";
 const SEED: u64 = 1;
 const SCENES: u64 = 4;
 
 /// A rendered dataset of `SCENES` scenarios at the optimum and the model of that placement,
 /// made once for every test here.
-struct Fixture {
+pub(crate) struct Fixture {
     _dir: tempfile::TempDir,
-    root: PathBuf,
+    pub(crate) root: PathBuf,
 }
 
-fn fixture() -> &'static Fixture {
+pub(crate) fn fixture() -> &'static Fixture {
     static FIXTURE: OnceLock<Fixture> = OnceLock::new();
     FIXTURE.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap();

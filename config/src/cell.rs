@@ -61,6 +61,10 @@ pub struct Robot {
     /// or by touching the table's centre and axes with the tool centre point).
     #[serde(rename = "T_robot_world")]
     pub t_robot_world: [[f64; 4]; 4],
+    /// For a rig carried by the robot: the rig's frame (its left camera's) in the flange's,
+    /// row-major 4 × 4, mm (from `calibrate --hand-eye --eye-in-hand`).
+    #[serde(rename = "T_flange_rig", default, skip_serializing_if = "Option::is_none")]
+    pub t_flange_rig: Option<[[f64; 4]; 4]>,
 }
 
 /// The table top.
@@ -474,6 +478,15 @@ impl Cell {
                     "robot.T_robot_world",
                     format!("expected a translation within ±{MAX_DISTANCE_MM} mm"),
                 ));
+            }
+            if let Some(t) = &robot.t_flange_rig {
+                crate::check_rigid(t).map_err(|m| Error::value("robot.T_flange_rig", m))?;
+                if (0..3).any(|i| t[i][3].abs() > MAX_DISTANCE_MM) {
+                    return Err(Error::value(
+                        "robot.T_flange_rig",
+                        format!("expected a translation within ±{MAX_DISTANCE_MM} mm"),
+                    ));
+                }
             }
         }
         let s = &self.sensor;

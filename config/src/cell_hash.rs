@@ -302,6 +302,14 @@ mod tests {
             let e = Cell::from_toml_str(bad, Path::new(".")).unwrap_err();
             assert!(e.key().starts_with("robot.T_robot_world"), "{bad}: {e}");
         }
+        let flange = "[robot]\nT_robot_world = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]\n";
+        let ok = format!("{flange}T_flange_rig = [[0.0, -1.0, 0.0, 40.0], [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 90.0], [0.0, 0.0, 0.0, 1.0]]\n");
+        let cell = Cell::from_toml_str(&ok, Path::new(".")).unwrap();
+        assert_eq!(cell.robot.as_ref().unwrap().t_flange_rig.unwrap()[2][3], 90.0);
+        let bad = format!("{flange}T_flange_rig = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [0.0, 0.0, 0.0, 1.0]]\n");
+        let e = Cell::from_toml_str(&bad, Path::new(".")).unwrap_err();
+        assert_eq!(e.key(), "robot.T_flange_rig", "{e}");
+        assert!(e.to_string().contains("determinant"), "{e}");
         let e = Cell::from_toml_str("[robot]\nframe = 1\n", Path::new(".")).unwrap_err();
         assert!(e.key().starts_with("robot"), "{e}");
     }

@@ -12,6 +12,7 @@ mod pose;
 mod raster;
 mod realism;
 mod rig;
+mod robot_pose;
 #[cfg(test)]
 mod same_checks_tests;
 mod trays;
@@ -37,11 +38,13 @@ pub use formats::read::{
     open_checked, read_bounded, read_text, FileKind, MAX_DATA_BYTES, MAX_IMAGE_FILE_BYTES, MAX_IMAGE_PIXELS,
     MAX_MODEL_BYTES, MAX_TEXT_BYTES,
 };
+pub use formats::robot_poses::{parse_robot_poses, read_robot_poses, robot_poses_text, RobotPoses};
 pub use formats::{is_temp_file_name, remove_stale_temp_files, temp_path_for, write_atomic};
 pub use placement::{Placement, Vergence, MAX_DISTANCE_MM, PARAMETERS};
 pub use pose::{check_rigid, ROTATION_TOLERANCE};
 pub use raster::{FloatImage, GrayImage, Image};
 pub use realism::{CalibrationError, Effect, Effects, Focus, Occluder, Optics, MAX_ROUGHNESS, MIN_ROUGHNESS};
 pub use rig::{CameraFile, RectifiedFile, RigFile, MAX_IMAGE_SIDE};
+pub use robot_pose::{format_pose, parse_pose, LengthUnit, PoseConvention, RobotPoseFormat, QUATERNION_NORM_TOLERANCE};
 pub use trays::{reserved_tray_name, TrayEntry, MAX_TRAYS, STUDY_FILE_ENDINGS, STUDY_FOLDER_NAMES};
 pub use truth::{LightingTruth, TruthFile};

@@ -24,8 +24,9 @@ mod rig;
 mod spatial;
 
 pub use calibration::{
-    calibrate_stereo, find_board_corners, BoardView, CalibrationBoard, StereoCalibration, ViewResidual,
-    MIN_CALIBRATION_VIEWS,
+    calibrate_hand_eye, calibrate_stereo, find_board_corners, BoardView, CalibrationBoard, ExpectedError,
+    HandEyeCalibration, HandEyeInput, HandEyeSetup, PoseResidual, RotationSpread, StereoCalibration, ViewResidual,
+    MIN_CALIBRATION_VIEWS, MIN_HAND_EYE_POSES,
 };
 pub use camera::{isometry_from_matrix, isometry_from_rows, isometry_to_rows, Camera};
 pub use depth::{

@@ -26,7 +26,10 @@ pub use reconstruction::{
 };
 pub use render::pattern::{fringe_set, one_shot};
 pub use render::render_files::{clear_dataset, render_dataset, render_scene};
-pub use render::{render_board_views, table_board_pose, BoardTruth, Frame, Method, Simulator};
+pub use render::{
+    render_board_views, render_hand_eye_views, setup_name, simulated_robot_base, table_board_pose, BoardTruth, Frame,
+    HandEyeOptions, HandEyePoses, HandEyeTruth, Method, Simulator, HAND_EYE_TRUTH_FILE, ROBOT_POSES_FILE,
+};
 pub use report::latency::write_latency_plot;
 pub use report::plot::SavedPlot;
 pub use report::sweep_panels::SweepResult;

@@ -2,6 +2,7 @@
 //! each camera's K and distortion and the pose between them from every view, the world frame
 //! from the view of the board lying flat on the table. Reads the folder `capture` writes
 //! (`frames/NNNN/left.png` + `right.png`, and `table/`); `render --board` writes the same.
+//! With `--hand-eye`, then where the rig sits in the robot's frame (`hand_eye.rs`).
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -9,7 +10,8 @@ use std::process::ExitCode;
 use anyhow::{bail, Context};
 use camplace_config::GrayImage;
 use camplace_estimator::{
-    calibrate_stereo, find_board_corners, BoardView, CalibrationBoard, Rig, StereoCalibration, MIN_CALIBRATION_VIEWS,
+    calibrate_stereo, find_board_corners, BoardView, CalibrationBoard, HandEyeSetup, Rig, StereoCalibration,
+    MIN_CALIBRATION_VIEWS,
 };
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
@@ -29,9 +31,34 @@ pub struct Args {
     /// world origin with its axes along the world's.
     #[arg(long, value_name = "X,Y,Z,YAW", allow_hyphen_values = true)]
     board_in_world: Option<String>,
-    /// The rig.json to write.
-    #[arg(long, value_name = "FILE", default_value = "rig.json")]
-    out: PathBuf,
+    /// The file to write: the rig.json (default `rig.json`), or with --hand-eye the `[robot]`
+    /// table (default `robot.toml`).
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
+    /// Hand-eye calibration: where the rig sits in the robot's frame, from the board images
+    /// paired by index with --robot-poses; writes the `[robot]` table the cell reads.
+    #[arg(long, requires = "robot_poses")]
+    hand_eye: bool,
+    /// The robot's flange poses, one a line, line k with frames/k (docs/formats.md).
+    #[arg(long, value_name = "FILE", requires = "hand_eye")]
+    robot_poses: Option<PathBuf>,
+    /// The rig on the robot's flange looking at a board fixed on the table (its pose in the
+    /// world: --board-in-world); without it the rig is fixed and the board on the flange.
+    #[arg(long, requires = "hand_eye")]
+    eye_in_hand: bool,
+    /// The calibrated rig for --hand-eye; without it the rig is calibrated from the same
+    /// images first (with table/, as `calibrate` alone) and written to rig.json beside --out.
+    #[arg(long, value_name = "FILE", requires = "hand_eye")]
+    rig: Option<PathBuf>,
+    #[command(flatten)]
+    pose_format: super::hand_eye::PoseFormatArgs,
+    /// With --hand-eye: the robot's accuracy, 1 σ per axis of a reported translation, mm;
+    /// each pose's correction is held to it.
+    #[arg(long, value_name = "MM", default_value_t = 0.1, requires = "hand_eye")]
+    robot_accuracy_mm: f64,
+    /// With --hand-eye: the robot's accuracy, 1 σ per axis of a reported rotation, degrees.
+    #[arg(long, value_name = "DEG", default_value_t = 0.02, requires = "hand_eye")]
+    robot_accuracy_deg: f64,
 }
 
 /// Parses `COLSxROWS@SQUARE_MM`, e.g. `9x6@25`.
@@ -87,6 +114,50 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         Some(text) => parse_board_in_world(text)?,
         None => camplace_sim::table_board_pose(&board),
     };
+    if !a.hand_eye {
+        let out = a.out.clone().unwrap_or_else(|| PathBuf::from("rig.json"));
+        calibrate_rig(&a, &board, &t_world_table_board, &out)?;
+        return Ok(ExitCode::SUCCESS);
+    }
+    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("robot.toml"));
+    let (rig, rig_path) = match &a.rig {
+        Some(path) => (super::hand_eye::load_rig(path)?, path.clone()),
+        None => {
+            let path = out.parent().unwrap_or(Path::new("")).join("rig.json");
+            (calibrate_rig(&a, &board, &t_world_table_board, &path)?, path)
+        }
+    };
+    let setup = if a.eye_in_hand { HandEyeSetup::EyeInHand } else { HandEyeSetup::EyeToHand };
+    let args = super::hand_eye::HandEyeArgs {
+        images: &a.images,
+        robot_poses: a.robot_poses.as_deref().context("--hand-eye needs --robot-poses FILE")?,
+        formats: &a.pose_format,
+        setup,
+        rig,
+        rig_path,
+        t_world_board: t_world_table_board,
+        out: &out,
+        robot_accuracy_mm: a.robot_accuracy_mm,
+        robot_accuracy_deg: a.robot_accuracy_deg,
+    };
+    if !(a.robot_accuracy_mm.is_finite() && a.robot_accuracy_mm > 0.0 && a.robot_accuracy_mm <= 100.0) {
+        bail!("--robot-accuracy-mm {}: expected a positive accuracy up to 100 mm", a.robot_accuracy_mm);
+    }
+    if !(a.robot_accuracy_deg.is_finite() && a.robot_accuracy_deg > 0.0 && a.robot_accuracy_deg <= 10.0) {
+        bail!("--robot-accuracy-deg {}: expected a positive accuracy up to 10 degrees", a.robot_accuracy_deg);
+    }
+    super::hand_eye::run(args, &board)
+}
+
+/// The stereo calibration from the board images: prints each view's error and the
+/// cameras, writes the rig to `out` and returns it.
+fn calibrate_rig(
+    a: &Args,
+    board: &CalibrationBoard,
+    t_world_table_board: &Isometry3<f64>,
+    out: &Path,
+) -> anyhow::Result<Rig> {
+    let board = *board;
     let frames = a.images.join("frames");
     let mut folders: Vec<PathBuf> = std::fs::read_dir(&frames)
         .with_context(|| format!("{}: cannot list the board views (frames/NNNN/)", frames.display()))?
@@ -171,7 +242,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let rig = world_rig(&cal, &t_world_left);
     let file = rig.to_file();
     file.check().map_err(|e| anyhow::anyhow!("the calibrated rig: {e}"))?;
-    file.save(&a.out)?;
+    file.save(out)?;
     // Printed once rig.json is written: a reader that stops early loses nothing.
     for line in &not_in_view {
         outln!("{line}");
@@ -182,7 +253,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         "calibrated from {} views in {seconds:.3} s: reprojection RMS {:.3} px, baseline {b:.2} mm; wrote {}",
         cal.views.iter().filter(|v| !v.dropped).count(),
         cal.rms_px,
-        a.out.display()
+        out.display()
     );
     outln!(
         "k3: {}",
@@ -207,7 +278,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             d[4]
         );
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(rig)
 }
 
 /// The pair in `folder` (`left.png` + `right.png`), named relative to `root`: both images

@@ -50,7 +50,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let points: Vec<Point3<f32>> = cloud.points.iter().map(|p| Point3::from(*p)).collect();
     let mut estimator = Estimator::new(&cell, &rig, model, Method::OneShot)?;
     let pose = estimator.process_cloud(&points).with_context(|| path.display().to_string())?;
-    outln!("{}", FrameRecord::new(path.display().to_string(), &pose).to_line());
+    outln!("{}", FrameRecord::new(path.display().to_string(), &pose).with_robot(&cell).to_line());
     Ok(ExitCode::SUCCESS)
 }
 

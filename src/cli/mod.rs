@@ -11,6 +11,7 @@ mod cell_args;
 mod devices;
 mod estimate;
 mod evaluate;
+mod hand_eye;
 mod init;
 mod merge;
 mod model;

@@ -1,7 +1,8 @@
 //! `camplace render`: one simulated scene with its ground truth, or (`--dataset`) a
 //! recorded-dataset folder of scenarios 0..N-1 that `evaluate` and `replay` read alike,
 //! into an empty folder (or, with `--force`, one emptied of an earlier dataset first), or
-//! (`--board`) the calibration images of a chessboard.
+//! (`--board`) the calibration images of a chessboard, held by hand or (`--hand-eye`,
+//! `--robot-poses`) by a robot.
 
 use camplace_sim::{clear_dataset, render_board_views, render_dataset, render_scene};
 use std::path::PathBuf;
@@ -38,6 +39,29 @@ pub struct Args {
     /// Board poses with --board (besides the table view), 3 to 1000.
     #[arg(long, default_value_t = 15, requires = "board", value_parser = clap::value_parser!(u64).range(3..=1000))]
     views: u64,
+    /// With --board: N robot poses chosen from the seed, spread in rotation, for a hand-eye
+    /// calibration (the board on the flange seen by the fixed rig, or with --eye-in-hand
+    /// the rig on the flange over the board on the table), 3 to 1000.
+    #[arg(long, value_name = "N", requires = "board", conflicts_with_all = ["views", "robot_poses"],
+          value_parser = clap::value_parser!(u64).range(3..=1000))]
+    hand_eye: Option<u64>,
+    /// With --board: the robot's flange poses to render (a pose file, docs/formats.md),
+    /// for a hand-eye calibration.
+    #[arg(long, value_name = "FILE", requires = "board", conflicts_with = "views")]
+    robot_poses: Option<PathBuf>,
+    /// With --hand-eye or --robot-poses: the rig on the flange, the board fixed on the table.
+    #[arg(long)]
+    eye_in_hand: bool,
+    /// The robot's error per axis of each reported translation, mm (1 σ), 0 to 10.
+    #[arg(long, value_name = "MM", default_value_t = 0.1)]
+    robot_noise_mm: f64,
+    /// The robot's error per axis of each reported rotation, degrees (1 σ), 0 to 5.
+    #[arg(long, value_name = "DEG", default_value_t = 0.02)]
+    robot_noise_deg: f64,
+    /// How the robot poses are written (and a --robot-poses file without a `format` line is
+    /// read); default kuka mm.
+    #[command(flatten)]
+    pose_format: super::hand_eye::PoseFormatArgs,
     /// Output folder.
     #[arg(long)]
     out: PathBuf,
@@ -47,8 +71,17 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (cell, placement) = a.cell.load()?;
     let seed = a.scene.seed(&cell);
+    if a.board.is_none() && (a.eye_in_hand || a.hand_eye.is_some() || a.robot_poses.is_some()) {
+        anyhow::bail!("--eye-in-hand, --hand-eye and --robot-poses: expected with --board COLSxROWS@MM");
+    }
     if let Some(text) = &a.board {
         let board = super::calibrate::parse_board(text)?;
+        if a.hand_eye.is_some() || a.robot_poses.is_some() {
+            return render_hand_eye(&a, &cell, &placement, &board, text, seed);
+        }
+        if a.eye_in_hand {
+            anyhow::bail!("--eye-in-hand: expected with --hand-eye N or --robot-poses FILE");
+        }
         render_board_views(&a.out, &cell, &placement, &board, a.views as usize, seed)?;
         outln!(
             "rendered {} views of a {text} board and the table view at {placement} (seed {seed}) into {}",
@@ -75,6 +108,51 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         "rendered {} scenarios of seed {seed} at {placement} ({}) into {}{replaced}",
         a.count,
         a.scene.method,
+        a.out.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `render --board B --hand-eye N` or `--robot-poses FILE`: a hand-eye calibration's views.
+fn render_hand_eye(
+    a: &Args,
+    cell: &camplace_config::Cell,
+    placement: &camplace_config::Placement,
+    board: &camplace_estimator::CalibrationBoard,
+    text: &str,
+    seed: u64,
+) -> anyhow::Result<ExitCode> {
+    use camplace_config::{LengthUnit, PoseConvention, RobotPoseFormat};
+    use camplace_estimator::HandEyeSetup;
+    use camplace_sim::{render_hand_eye_views, setup_name, HandEyeOptions, HandEyePoses};
+    if !(a.robot_noise_mm.is_finite() && (0.0..=10.0).contains(&a.robot_noise_mm)) {
+        anyhow::bail!("--robot-noise-mm {}: expected a robot error from 0 to 10 mm", a.robot_noise_mm);
+    }
+    if !(a.robot_noise_deg.is_finite() && (0.0..=5.0).contains(&a.robot_noise_deg)) {
+        anyhow::bail!("--robot-noise-deg {}: expected a robot error from 0 to 5 degrees", a.robot_noise_deg);
+    }
+    let flags = a.pose_format.format()?;
+    let (poses, format) = match (&a.robot_poses, a.hand_eye) {
+        (Some(path), _) => {
+            let file = camplace_config::read_robot_poses(path, flags)?;
+            (HandEyePoses::Given(file.poses), file.format)
+        }
+        (None, Some(n)) => (
+            HandEyePoses::Chosen(n as usize),
+            flags.unwrap_or(RobotPoseFormat { convention: PoseConvention::Kuka, unit: LengthUnit::Mm }),
+        ),
+        (None, None) => unreachable!("called with --hand-eye or --robot-poses"),
+    };
+    let setup = if a.eye_in_hand { HandEyeSetup::EyeInHand } else { HandEyeSetup::EyeToHand };
+    let options = HandEyeOptions { setup, poses, noise_mm: a.robot_noise_mm, noise_deg: a.robot_noise_deg, format };
+    let truth = render_hand_eye_views(&a.out, cell, placement, board, &options, seed)?;
+    outln!(
+        "rendered {} robot poses ({}) of a {text} board at {placement} (seed {seed}), robot error {} mm / {}°, poses \
+         as {format}, into {}",
+        truth.t_robot_flange.len(),
+        setup_name(setup),
+        a.robot_noise_mm,
+        a.robot_noise_deg,
         a.out.display()
     );
     Ok(ExitCode::SUCCESS)

@@ -7,7 +7,7 @@
 
 use anyhow::{bail, Context};
 use camplace_config::Cell;
-use camplace_estimator::{isometry_from_rows, isometry_to_rows, Rig};
+use camplace_estimator::Rig;
 use camplace_hwio::{parse_source, DeploySource, Deployment};
 use camplace_sim::{
     estimator_for, frame_record, load_model, load_model_for, method_for, truth_path, write_latency_plot, FrameRecord,
@@ -71,10 +71,6 @@ struct RunLine<'a> {
     latency_ms: f64,
     /// CPU time of the process while the frame was estimated (every thread), ms.
     cpu_ms: f64,
-    /// The tray's pose in the robot's base frame, when the cell has a `[robot]` and the
-    /// verification accepted the pose (row-major 4 × 4, mm).
-    #[serde(rename = "T_robot_tray", skip_serializing_if = "Option::is_none")]
-    t_robot_tray: Option<[[f64; 4]; 4]>,
     #[serde(flatten)]
     record: &'a FrameRecord,
 }
@@ -141,7 +137,6 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         )),
         None => Box::new(std::io::stdout().lock()),
     };
-    let robot = cell.robot.as_ref().map(|r| isometry_from_rows(&r.t_robot_world));
     let dataset = opened.dataset;
     let mut records = Vec::new();
     let stats = deployment.run(
@@ -155,9 +150,6 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 timestamp_us: e.timestamp_us,
                 latency_ms: e.timing.latency_ms,
                 cpu_ms: e.timing.cpu_ms,
-                t_robot_tray: robot
-                    .filter(|_| e.record.accepted())
-                    .map(|r| isometry_to_rows(&(r * isometry_from_rows(&e.record.t_world_tray)))),
                 record: &e.record,
             };
             let text = serde_json::to_string(&line).context("frame record")?;

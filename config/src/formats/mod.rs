@@ -13,5 +13,6 @@ pub(crate) mod pfm;
 pub(crate) mod ply;
 pub(crate) mod png;
 pub(crate) mod read;
+pub(crate) mod robot_poses;
 
 pub use atomic::{is_temp_file_name, remove_stale_temp_files, temp_path_for, write_atomic};

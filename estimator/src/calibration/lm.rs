@@ -120,14 +120,16 @@ pub(super) fn minimise<P: ViewProblem>(problem: &P, x: &mut DVector<f64>, what: 
 pub(super) fn evaluate<P: ViewProblem>(problem: &P, x: &DVector<f64>, out: &mut DVector<f64>) -> f64 {
     let (shared_len, view_len, m) = (problem.shared_len(), problem.view_len(), problem.residual_len());
     let (shared, views) = x.as_slice().split_at(shared_len);
-    for (view, own) in views.chunks_exact(view_len).enumerate() {
+    // A problem without per-view parameters (`view_len` 0) still has its views.
+    for view in 0..problem.view_count() {
+        let own = &views[view * view_len..(view + 1) * view_len];
         problem.residuals(shared, own, view, &mut out.as_mut_slice()[view * m..(view + 1) * m]);
     }
     out.norm_squared()
 }
 
 /// JᵀJ and Jᵀr, assembled view by view: a view's Jacobian has the shared columns and its own.
-fn normal_equations<P: ViewProblem>(
+pub(super) fn normal_equations<P: ViewProblem>(
     problem: &P,
     x: &DVector<f64>,
     residuals: &DVector<f64>,

@@ -12,7 +12,7 @@ use crate::error::Result;
 /// fx fy cx cy (pixels) and k1 k2 p1 p2 k3.
 const INTRINSICS_LEN: usize = 9;
 /// A rotation vector (axis times angle, radians) and a translation (mm).
-const POSE_LEN: usize = 6;
+pub(super) const POSE_LEN: usize = 6;
 
 /// One camera's intrinsics as parameters (its skew is zero).
 fn intrinsics_params(camera: &Camera) -> [f64; INTRINSICS_LEN] {
@@ -32,12 +32,12 @@ fn camera_from_params(p: &[f64], width: usize, height: usize, k3_free: bool) -> 
     }
 }
 
-fn pose_params(pose: &Isometry3<f64>) -> [f64; POSE_LEN] {
+pub(super) fn pose_params(pose: &Isometry3<f64>) -> [f64; POSE_LEN] {
     let (r, t) = (pose.rotation.scaled_axis(), pose.translation.vector);
     [r.x, r.y, r.z, t.x, t.y, t.z]
 }
 
-fn pose_from_params(p: &[f64]) -> Isometry3<f64> {
+pub(super) fn pose_from_params(p: &[f64]) -> Isometry3<f64> {
     Isometry3::from_parts(
         Translation3::new(p[3], p[4], p[5]),
         UnitQuaternion::from_scaled_axis(Vector3::new(p[0], p[1], p[2])),
@@ -54,14 +54,14 @@ fn intrinsics_typical(p: &[f64], out: &mut [f64]) {
 
 /// Typical magnitudes of a pose's parameters: a radian for the rotation, the distance for the
 /// translation.
-fn pose_typical(p: &[f64], out: &mut [f64]) {
+pub(super) fn pose_typical(p: &[f64], out: &mut [f64]) {
     out[..3].fill(1.0);
     out[3..POSE_LEN].fill(Vector3::new(p[3], p[4], p[5]).norm().max(1.0));
 }
 
 /// Wraps a rotation vector longer than π to the same rotation's shorter vector, which keeps
 /// the parameterisation away from its singularity at 2π.
-fn wrap_rotation(p: &mut [f64]) {
+pub(super) fn wrap_rotation(p: &mut [f64]) {
     let r = Vector3::new(p[0], p[1], p[2]);
     let angle = r.norm();
     if angle > std::f64::consts::PI {
@@ -72,7 +72,7 @@ fn wrap_rotation(p: &mut [f64]) {
 
 /// Writes the reprojection residuals (pixel minus observed, x then y per corner) of
 /// `object` seen by `camera` at `t_camera_board`; NaN for a point behind the camera.
-fn reprojection_residuals(
+pub(super) fn reprojection_residuals(
     camera: &Camera,
     t_camera_board: &Isometry3<f64>,
     object: &[Point3<f64>],

@@ -83,7 +83,7 @@ fn null_vector(a: DMatrix<f64>) -> Option<(DVector<f64>, f64)> {
 }
 
 /// The homography from board-plane points (mm) to pixels by the normalised DLT.
-fn homography(board_xy: &[Point2<f64>], pixels: &[Point2<f64>]) -> Option<Matrix3<f64>> {
+pub(super) fn homography(board_xy: &[Point2<f64>], pixels: &[Point2<f64>]) -> Option<Matrix3<f64>> {
     let t_board = normalising_transform(board_xy);
     let t_pixel = normalising_transform(pixels);
     let mut a = DMatrix::zeros(2 * board_xy.len(), 9);
@@ -153,7 +153,7 @@ fn intrinsics(homographies: &[Matrix3<f64>], width: usize, height: usize, camera
 
 /// The board pose (board frame -> camera frame) of homography `h` under intrinsics `k`, its
 /// rotation the nearest one to the homography's columns.
-fn board_pose(k: &Matrix3<f64>, h: &Matrix3<f64>) -> Isometry3<f64> {
+pub(super) fn board_pose(k: &Matrix3<f64>, h: &Matrix3<f64>) -> Isometry3<f64> {
     let m = k.try_inverse().expect("K has positive focal lengths") * h;
     let mut s = 2.0 / (m.column(0).norm() + m.column(1).norm());
     // The board lies in front of the camera.

@@ -91,14 +91,37 @@ pub fn render_board_views(
         )));
     }
     std::fs::create_dir_all(out).map_err(|e| camplace_config::Error::io(out, &e))?;
-    let rays = [CornerRays::new(&rig.left), CornerRays::new(&rig.right)];
-    let sensor = &cell.sensor;
     let jobs: Vec<(std::path::PathBuf, Isometry3<f64>, u64)> = poses
         .iter()
         .enumerate()
         .map(|(i, p)| (out.join("frames").join(frame_name(i as u64)), *p, i as u64))
         .chain(std::iter::once((out.join("table"), table, views as u64)))
         .collect();
+    render_board_pairs(&rig, &cell.sensor, board, &jobs, seed)?;
+    write_rig(&out.join("rig.json"), &rig)?;
+    let truth = BoardTruth {
+        cols: board.cols,
+        rows: board.rows,
+        square_mm: board.square_mm,
+        t_world_board: poses.iter().map(isometry_to_rows).collect(),
+        t_world_table_board: isometry_to_rows(&table),
+    };
+    let text = serde_json::to_string_pretty(&truth).map_err(|e| Error::Other(e.to_string()))?;
+    camplace_config::write_atomic(&out.join("board.json"), text.as_bytes())?;
+    Ok(truth)
+}
+
+/// Renders one stereo pair of `board` per job (its folder, the board's pose in the world,
+/// its index for the noise) through `rig` with the sensor's noise and blur:
+/// `left.png` + `right.png` in each folder.
+pub(super) fn render_board_pairs(
+    rig: &Rig,
+    sensor: &camplace_config::Sensor,
+    board: &CalibrationBoard,
+    jobs: &[(std::path::PathBuf, Isometry3<f64>, u64)],
+    seed: u64,
+) -> Result<()> {
+    let rays = [CornerRays::new(&rig.left), CornerRays::new(&rig.right)];
     jobs.par_iter().try_for_each(|(dir, pose, index)| -> Result<()> {
         std::fs::create_dir_all(dir).map_err(|e| camplace_config::Error::io(dir, &e))?;
         for (side, (camera, rays)) in [(&rig.left, &rays[0]), (&rig.right, &rays[1])].into_iter().enumerate() {
@@ -113,27 +136,16 @@ pub fn render_board_views(
             camplace_config::write_gray(&dir.join(name), image.width, image.height, &image.data)?;
         }
         Ok(())
-    })?;
-    write_rig(&out.join("rig.json"), &rig)?;
-    let truth = BoardTruth {
-        cols: board.cols,
-        rows: board.rows,
-        square_mm: board.square_mm,
-        t_world_board: poses.iter().map(isometry_to_rows).collect(),
-        t_world_table_board: isometry_to_rows(&table),
-    };
-    let text = serde_json::to_string_pretty(&truth).map_err(|e| Error::Other(e.to_string()))?;
-    camplace_config::write_atomic(&out.join("board.json"), text.as_bytes())?;
-    Ok(truth)
+    })
 }
 
 /// Width and height of the squares' area, mm (inner corners plus one square each side).
-fn board_extent(board: &CalibrationBoard) -> (f64, f64) {
+pub(super) fn board_extent(board: &CalibrationBoard) -> (f64, f64) {
     ((board.cols - 1) as f64 * board.square_mm, (board.rows - 1) as f64 * board.square_mm)
 }
 
 /// Whether the board's inner corners lie in both images with most of their outer squares.
-fn fits(rig: &Rig, board: &CalibrationBoard, t_world_board: &Isometry3<f64>) -> bool {
+pub(super) fn fits(rig: &Rig, board: &CalibrationBoard, t_world_board: &Isometry3<f64>) -> bool {
     fits_camera(&rig.left, board, t_world_board) && fits_camera(&rig.right, board, t_world_board)
 }
 

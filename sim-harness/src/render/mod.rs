@@ -1,10 +1,11 @@
 //! The render stage: the simulated sensor turning a scene into the frames a real one would
 //! capture — rasterizing, shading, the projector's patterns and the camera noise — and the
-//! frame files written from them.
+//! frame files written from them; calibration boards, held by hand or by a robot.
 
 mod board;
 pub mod defocus;
 pub mod frame_files;
+mod hand_eye;
 mod lens;
 pub mod noise;
 pub mod pattern;
@@ -15,6 +16,10 @@ mod simulator;
 mod terms;
 
 pub use board::{render_board_views, table_board_pose, BoardTruth};
+pub use hand_eye::{
+    render_hand_eye_views, setup_name, simulated_robot_base, HandEyeOptions, HandEyePoses, HandEyeTruth,
+    HAND_EYE_TRUTH_FILE, ROBOT_POSES_FILE,
+};
 pub use simulator::{Frame, Method, Simulator};
 
 #[cfg(test)]

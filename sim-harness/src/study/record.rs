@@ -1,9 +1,9 @@
 //! One frame's result as a JSON line: the pose, the counts of each stage, the stage timings
 //! and, where the truth is known, the paper's metrics.
 
-use camplace_config::Metrics;
-use camplace_estimator::isometry_to_rows;
+use camplace_config::{Cell, Metrics};
 use camplace_estimator::{correct_matches, pose_errors};
+use camplace_estimator::{isometry_from_rows, isometry_to_rows};
 use camplace_estimator::{Estimator, PoseEstimate, StageTimings, Verdict};
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
@@ -148,6 +148,10 @@ pub struct FrameRecord {
     /// The metrics, where the truth is known.
     #[serde(flatten, default, skip_serializing_if = "Option::is_none")]
     pub score: Option<Score>,
+    /// The tray's pose in the robot's base frame, when the cell has a `[robot]` and a pose
+    /// was found (row-major 4 × 4, mm).
+    #[serde(rename = "T_robot_tray", default, skip_serializing_if = "Option::is_none")]
+    pub t_robot_tray: Option<[[f64; 4]; 4]>,
 }
 
 impl FrameRecord {
@@ -168,6 +172,7 @@ impl FrameRecord {
             timings_ms: Timings::from(&pose.timings),
             ms: pose.timings.total_ms,
             score: None,
+            t_robot_tray: None,
         }
     }
 
@@ -175,6 +180,15 @@ impl FrameRecord {
     /// before it).
     pub fn accepted(&self) -> bool {
         self.found && self.verdict.as_deref() == Some(Verdict::Accepted.as_str())
+    }
+
+    /// Adds the pose in the robot's base frame when `cell` has a `[robot]` and the
+    /// verification accepted the pose: the robot is handed no other.
+    pub fn with_robot(mut self, cell: &Cell) -> Self {
+        self.t_robot_tray = cell.robot.as_ref().filter(|_| self.accepted()).map(|r| {
+            isometry_to_rows(&(isometry_from_rows(&r.t_robot_world) * isometry_from_rows(&self.t_world_tray)))
+        });
+        self
     }
 
     /// The record as one JSON line (without the newline).

@@ -76,7 +76,8 @@ pub fn estimator_for(
 }
 
 /// The record of the frame the estimator just processed, scored against `truth` (a
-/// `truth.json`) when there is one.
+/// `truth.json`) when there is one, with the pose in the robot's frame when the cell has a
+/// `[robot]`.
 pub fn record(
     cell: &Cell,
     estimator: &Estimator,
@@ -84,7 +85,7 @@ pub fn record(
     name: &str,
     truth: Option<&Path>,
 ) -> Result<FrameRecord> {
-    let mut record = FrameRecord::new(name, pose);
+    let mut record = FrameRecord::new(name, pose).with_robot(cell);
     if let Some(path) = truth {
         let truth = TruthFile::load(path)?;
         let symmetries: Vec<f32> = truth.symmetries.iter().map(|&s| s as f32).collect();

@@ -1,0 +1,253 @@
+//! `camplace calibrate --hand-eye`: where the rig sits in the robot's frame, from board
+//! images paired by index with the robot's flange poses. Finds the corners, reads the pose
+//! file, calls the estimator's hand-eye calibration, prints each pose's fit and writes the
+//! `[robot]` table the cell reads. Also the pose-format flags `render` shares.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{bail, Context};
+use camplace_config::{read_robot_poses, LengthUnit, PoseConvention, RigFile, RobotPoseFormat, RobotPoses};
+use camplace_estimator::{
+    calibrate_hand_eye, find_board_corners, isometry_from_rows, isometry_to_rows, BoardView, CalibrationBoard,
+    HandEyeCalibration, HandEyeInput, HandEyeSetup, Rig,
+};
+use nalgebra::Isometry3;
+use rayon::prelude::*;
+
+/// The flags naming a robot pose file's convention and unit.
+#[derive(clap::Args, Debug, Clone)]
+pub struct PoseFormatArgs {
+    /// The pose file's convention when it has no `format` line: matrix, quat-wxyz,
+    /// quat-xyzw, ur, kuka, abb or fanuc (docs/formats.md).
+    #[arg(long, value_name = "CONVENTION")]
+    pub pose_format: Option<String>,
+    /// The pose file's translation unit when it has no `format` line: mm or m.
+    #[arg(long, value_name = "mm|m")]
+    pub pose_unit: Option<String>,
+}
+
+impl PoseFormatArgs {
+    /// The format the flags name: `None` when neither is given; both or neither.
+    pub fn format(&self) -> anyhow::Result<Option<RobotPoseFormat>> {
+        let convention = match &self.pose_format {
+            Some(name) => Some(
+                PoseConvention::from_name(name)
+                    .with_context(|| format!("--pose-format {name:?}: expected one of {}", PoseConvention::names()))?,
+            ),
+            None => None,
+        };
+        let unit = match &self.pose_unit {
+            Some(name) => {
+                Some(LengthUnit::from_name(name).with_context(|| format!("--pose-unit {name:?}: expected mm or m"))?)
+            }
+            None => None,
+        };
+        match (convention, unit) {
+            (Some(convention), Some(unit)) => Ok(Some(RobotPoseFormat { convention, unit })),
+            (None, None) => Ok(None),
+            (Some(_), None) => bail!("--pose-format without --pose-unit: expected both (the unit: mm or m)"),
+            (None, Some(_)) => bail!("--pose-unit without --pose-format: expected both (the convention too)"),
+        }
+    }
+}
+
+/// What `calibrate --hand-eye` needs besides the board.
+pub struct HandEyeArgs<'a> {
+    pub images: &'a Path,
+    pub robot_poses: &'a Path,
+    pub formats: &'a PoseFormatArgs,
+    pub setup: HandEyeSetup,
+    /// The calibrated rig and the file it came from.
+    pub rig: Rig,
+    pub rig_path: PathBuf,
+    /// Eye-in-hand: the fixed board's pose in the world.
+    pub t_world_board: Isometry3<f64>,
+    pub out: &'a Path,
+    /// The robot's accuracy per axis (1 σ): mm ...
+    pub robot_accuracy_mm: f64,
+    /// ... and degrees.
+    pub robot_accuracy_deg: f64,
+}
+
+/// The rig of a `rig.json`.
+pub fn load_rig(path: &Path) -> anyhow::Result<Rig> {
+    let file = RigFile::load(path)?;
+    file.check().map_err(|e| e.in_file(path))?;
+    Ok(Rig::from_file(&file))
+}
+
+/// Runs the hand-eye calibration.
+pub fn run(a: HandEyeArgs<'_>, board: &CalibrationBoard) -> anyhow::Result<ExitCode> {
+    let poses: RobotPoses = read_robot_poses(a.robot_poses, a.formats.format()?)?;
+    let frames = a.images.join("frames");
+    let mut folders: Vec<PathBuf> = std::fs::read_dir(&frames)
+        .with_context(|| format!("{}: cannot list the board views (frames/NNNN/)", frames.display()))?
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.is_dir())
+        .collect();
+    folders.sort();
+    if folders.len() != poses.poses.len() {
+        bail!(
+            "{}: {} poses, but {} holds {} frames; expected one pose a frame, in the frames' order",
+            a.robot_poses.display(),
+            poses.poses.len(),
+            frames.display(),
+            folders.len()
+        );
+    }
+    let (width, height) = (a.rig.left.width, a.rig.left.height);
+    let found: Vec<[Result<Vec<nalgebra::Point2<f64>>, String>; 2]> = folders
+        .par_iter()
+        .map(|folder| -> anyhow::Result<_> {
+            let mut out = [Err(String::new()), Err(String::new())];
+            for (side, slot) in ["left", "right"].into_iter().zip(out.iter_mut()) {
+                let path = folder.join(format!("{side}.png"));
+                let g = camplace_config::read_gray(&path)?;
+                if (g.width, g.height) != (width, height) {
+                    bail!(
+                        "{}: {}x{} pixels, expected {width}x{height} as the rig's cameras",
+                        path.display(),
+                        g.width,
+                        g.height
+                    );
+                }
+                let mut image = camplace_config::GrayImage::default();
+                image.reset(g.width, g.height, 0);
+                image.data = g.data;
+                *slot = find_board_corners(&image, board).map_err(|e| format!("{}: {e}", path.display()));
+            }
+            Ok(out)
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let mut views = Vec::new();
+    let mut robot = Vec::new();
+    // Input index of each view passed on -> its pose's index and frame name.
+    let mut used = Vec::new();
+    for (i, [left, right]) in found.into_iter().enumerate() {
+        let name = folders[i].file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        if left.is_err() && right.is_err() {
+            outln!(
+                "left out: pose {i} ({}:{}), frames/{name}: the whole board is in neither image",
+                a.robot_poses.display(),
+                poses.lines[i]
+            );
+            continue;
+        }
+        views.push(BoardView { left: left.ok(), right: right.ok() });
+        robot.push(isometry_from_rows(&poses.poses[i]));
+        used.push((i, name));
+    }
+    let input = HandEyeInput {
+        setup: a.setup,
+        board,
+        left: &a.rig.left,
+        right: &a.rig.right,
+        views: &views,
+        t_base_flange: &robot,
+        robot_sigma_mm: a.robot_accuracy_mm,
+        robot_sigma_deg: a.robot_accuracy_deg,
+    };
+    let started = std::time::Instant::now();
+    let cal = calibrate_hand_eye(&input).with_context(|| a.robot_poses.display().to_string())?;
+    let seconds = started.elapsed().as_secs_f64();
+    print_poses(&cal, &used, &poses, a.robot_poses);
+    let s = &cal.spread;
+    let kept = cal.poses.iter().filter(|p| !p.dropped).count();
+    outln!(
+        "rotation spread: {kept} poses, turns between them up to {:.1}°, their axes up to {:.1}° apart ({} pairs \
+         turned 5° or more)",
+        s.max_rotation_deg, s.max_axis_angle_deg, s.informative_pairs
+    );
+    let e = &cal.expected;
+    outln!(
+        "expected error (1 σ, from the residuals): rig ±{:.3} mm ±{:.4}°, board ±{:.3} mm ±{:.4}°",
+        e.rig_translation_mm, e.rig_rotation_deg, e.board_translation_mm, e.board_rotation_deg
+    );
+    for w in &cal.warnings {
+        outln!("warning: {w}");
+    }
+    let (t_robot_world, t_flange_rig) = match a.setup {
+        HandEyeSetup::EyeToHand => (cal.t_mount_rig * a.rig.left.t_world_camera.inverse(), None),
+        HandEyeSetup::EyeInHand => (cal.t_mount_board * a.t_world_board.inverse(), Some(cal.t_mount_rig)),
+    };
+    let text = robot_table(&cal, &t_robot_world, t_flange_rig.as_ref(), &a.rig_path, poses.format);
+    // The table must read back as a cell's: the same checks as every `[robot]`.
+    let cell = camplace_config::Cell::from_toml_str(&text, Path::new("."))
+        .map_err(|e| anyhow::anyhow!("the calibrated [robot] table: {e}"))?;
+    debug_assert!(cell.robot.is_some());
+    camplace_config::write_atomic(a.out, text.as_bytes())?;
+    outln!(
+        "{} from {kept} poses in {seconds:.3} s: reprojection RMS {:.3} px; wrote {}",
+        camplace_sim::setup_name(a.setup),
+        cal.rms_px,
+        a.out.display()
+    );
+    print!("{text}");
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Each pose's fit; a dropped pose named on a line of its own.
+fn print_poses(cal: &HandEyeCalibration, used: &[(usize, String)], poses: &RobotPoses, file: &Path) {
+    outln!(
+        "{:<6} {:<8} {:>5} {:>9} {:>7} {:>9} {:>9}   (mm, deg: the correction of the robot's pose the fit took)",
+        "pose", "frame", "line", "px", "score", "mm", "deg"
+    );
+    let kept: Vec<f64> = cal.poses.iter().filter(|p| !p.dropped).map(|p| p.score).collect();
+    let mut sorted = kept.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+    for p in &cal.poses {
+        let (index, name) = &used[p.index];
+        let line = poses.lines[*index];
+        let mark = if p.dropped { "  dropped" } else { "" };
+        outln!(
+            "{index:<6} {name:<8} {line:>5} {:>9.3} {:>7.2} {:>9.3} {:>9.4}{mark}",
+            p.rms_px, p.score, p.translation_mm, p.rotation_deg
+        );
+    }
+    for p in cal.poses.iter().filter(|p| p.dropped) {
+        let (index, name) = &used[p.index];
+        outln!(
+            "dropped pose {index} (frames/{name}, {}:{}): score {:.1} against a median of {median:.1} (the robot's \
+             pose {:.1} mm, {:.2}° off to fit); its image and robot pose do not match (mis-paired, or the robot moved \
+             while the images were taken)",
+            file.display(),
+            poses.lines[*index],
+            p.score,
+            p.translation_mm,
+            p.rotation_deg
+        );
+    }
+}
+
+/// The `[robot]` table as a cell file takes it, with how it was made in comments.
+fn robot_table(
+    cal: &HandEyeCalibration,
+    t_robot_world: &Isometry3<f64>,
+    t_flange_rig: Option<&Isometry3<f64>>,
+    rig_path: &Path,
+    format: RobotPoseFormat,
+) -> String {
+    let matrix = |t: &Isometry3<f64>| {
+        let rows = isometry_to_rows(t);
+        let row = |r: &[f64; 4]| format!("[{}]", r.iter().map(|v| format!("{v:?}")).collect::<Vec<_>>().join(", "));
+        format!("[{}]", rows.iter().map(row).collect::<Vec<_>>().join(", "))
+    };
+    let kept = cal.poses.iter().filter(|p| !p.dropped).count();
+    let mut text = format!(
+        "# camplace calibrate --hand-eye ({}): {kept} poses ({format}), reprojection RMS {:.3} px, expected error \
+         ±{:.3} mm ±{:.4}° (1 σ);\n# the world frame is {}'s\n[robot]\nT_robot_world = {}\n",
+        camplace_sim::setup_name(cal.setup),
+        cal.rms_px,
+        cal.expected.rig_translation_mm,
+        cal.expected.rig_rotation_deg,
+        rig_path.display(),
+        matrix(t_robot_world)
+    );
+    if let Some(t) = t_flange_rig {
+        text.push_str(&format!("T_flange_rig = {}\n", matrix(t)));
+    }
+    text
+}

@@ -1,0 +1,301 @@
+//! Hand-eye calibration end to end: `render --board --hand-eye` (the truth beside the
+//! images), `calibrate --hand-eye` against it, its `[robot]` table in a cell, and `replay`
+//! giving the tray's pose in the robot's frame; mis-paired images, a pose file in metres
+//! read as millimetres, too few poses, turns about one axis and a pose that is not rigid,
+//! each one line.
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use camplace_config::{Cell, TruthFile};
+use camplace_estimator::isometry_from_rows;
+use camplace_sim::HandEyeTruth;
+use nalgebra::Isometry3;
+
+use crate::camplace_cmd::{assert_one_line_error, camplace, stderr};
+use crate::deploy::{fixture, OPTIMUM};
+
+const BOARD: &str = "9x6@25";
+const POSES: &str = "8";
+
+/// One eye-to-hand render of 8 poses, made once.
+struct Rendered {
+    _dir: tempfile::TempDir,
+    root: PathBuf,
+}
+
+fn rendered() -> &'static Rendered {
+    static R: OnceLock<Rendered> = OnceLock::new();
+    R.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path().to_path_buf();
+        let o = camplace(
+            &root,
+            &["render", "--board", BOARD, "--hand-eye", POSES, "--placement", OPTIMUM, "--seed", "4", "--out", "he"],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        Rendered { _dir: dir, root }
+    })
+}
+
+/// A copy of folder `from` at `to`.
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap().flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            copy_dir(&p, &to.join(e.file_name()));
+        } else {
+            std::fs::copy(&p, to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+fn read(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+fn errors(found: &Isometry3<f64>, truth: &Isometry3<f64>) -> (f64, f64) {
+    let d = truth.inverse() * found;
+    (d.translation.vector.norm(), d.rotation.angle().to_degrees())
+}
+
+/// `calibrate --hand-eye` on the folder `images` (in `dir`) with `poses`; the output.
+fn calibrate(dir: &Path, images: &str, poses: &str, extra: &[&str]) -> std::process::Output {
+    let rig = format!("{images}/rig.json");
+    let mut args =
+        vec!["calibrate", "--images", images, "--board", BOARD, "--hand-eye", "--robot-poses", poses, "--rig", &rig];
+    args.extend_from_slice(extra);
+    camplace(dir, &args)
+}
+
+#[test]
+fn hand_eye_to_the_cell_to_replay_gives_the_tray_in_the_robots_frame() {
+    let r = rendered();
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    copy_dir(&r.root.join("he"), &root.join("he"));
+    let o = calibrate(root, "he", "he/robot_poses.txt", &["--out", "robot.toml"]);
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(o.status.success(), "{}{out}", stderr(&o));
+    assert!(!out.contains("dropped"), "{out}");
+    let truth: HandEyeTruth = serde_json::from_str(&read(&root.join("he/hand_eye.json"))).unwrap();
+    let t_robot_world_truth = isometry_from_rows(&truth.t_robot_world);
+    // The table is a cell file of its own (laid over the default cell).
+    let cell = Cell::load(&root.join("robot.toml")).unwrap();
+    let t_robot_world = isometry_from_rows(&cell.robot.as_ref().unwrap().t_robot_world);
+    let (t, a) = errors(&t_robot_world, &t_robot_world_truth);
+    eprintln!("T_robot_world from {POSES} poses: {t:.3} mm, {a:.4}° off");
+    assert!(t < 0.5 && a < 0.05, "T_robot_world {t} mm, {a}° off\n{out}");
+
+    // The deployed estimator's poses in the robot's frame, against the truth.
+    let f = fixture();
+    copy_dir(&f.root.join("data"), &root.join("data"));
+    let o = camplace(
+        root,
+        &["replay", "data", "--model", &f.root.join("tray.model").display().to_string(), "--cell", "robot.toml"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut checked = 0;
+    for line in read(&root.join("data/poses.jsonl")).lines() {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        let frame = v["frame"].as_str().unwrap().to_string();
+        if v["found"] != serde_json::Value::Bool(true) {
+            assert!(v.get("T_robot_tray").is_none(), "{line}");
+            continue;
+        }
+        let rows = |key: &str| -> [[f64; 4]; 4] { serde_json::from_value(v[key].clone()).unwrap() };
+        let t_robot_tray = isometry_from_rows(&rows("T_robot_tray"));
+        let t_world_tray = isometry_from_rows(&rows("T_world_tray"));
+        let truth = TruthFile::load(&root.join("data/frames").join(&frame).join("truth.json")).unwrap();
+        let t_world_tray_truth = isometry_from_rows(&truth.t_world_tray);
+        // What the hand-eye calibration adds to the estimator's own error: the found pose
+        // taken into the robot's frame by the calibrated and by the true transform.
+        let (ht, ha) = errors(&t_robot_tray, &(t_robot_world_truth * t_world_tray));
+        // And the whole chain against the tray's true pose in the robot's frame.
+        let (wt, wa) = errors(&t_robot_tray, &(t_robot_world_truth * t_world_tray_truth));
+        let (et, ea) = errors(&t_world_tray, &t_world_tray_truth);
+        eprintln!(
+            "frame {frame}: T_robot_tray {wt:.3} mm {wa:.4}° off the truth (hand-eye {ht:.3} mm {ha:.4}°, estimator \
+             alone {et:.3} mm {ea:.4}°)"
+        );
+        assert!(ht < 1.0 && ha < 0.1, "frame {frame}: hand-eye adds {ht} mm, {ha}°");
+        assert!(wt < 1.0 + et && wa < 0.1 + ea, "frame {frame}: {wt} mm, {wa}°");
+        checked += 1;
+    }
+    assert!(checked >= 2, "only {checked} frames with a pose");
+}
+
+#[test]
+fn swapped_images_are_dropped_and_named() {
+    let r = rendered();
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    copy_dir(&r.root.join("he"), &root.join("he"));
+    let frames = root.join("he/frames");
+    std::fs::rename(frames.join("0002"), frames.join("tmp")).unwrap();
+    std::fs::rename(frames.join("0005"), frames.join("0002")).unwrap();
+    std::fs::rename(frames.join("tmp"), frames.join("0005")).unwrap();
+    let o = calibrate(root, "he", "he/robot_poses.txt", &[]);
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(o.status.success(), "{}{out}", stderr(&o));
+    let dropped: Vec<&str> = out.lines().filter(|l| l.starts_with("dropped pose")).collect();
+    assert_eq!(dropped.len(), 2, "{out}");
+    assert!(
+        dropped[0].starts_with("dropped pose 2 (frames/0002") || dropped[1].starts_with("dropped pose 2 (frames/0002"),
+        "{out}"
+    );
+    assert!(dropped.iter().any(|l| l.starts_with("dropped pose 5 (frames/0005")), "{out}");
+    assert!(dropped.iter().all(|l| l.contains("mis-paired")), "{out}");
+}
+
+#[test]
+fn a_pose_file_in_metres_read_as_millimetres_is_said_so() {
+    let r = rendered();
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    copy_dir(&r.root.join("he"), &root.join("he"));
+    // The same poses written by a controller in UR's convention and metres ...
+    let text = read(&root.join("he/robot_poses.txt"));
+    let poses = camplace_config::parse_robot_poses(&text, None).unwrap();
+    let ur_m = camplace_config::RobotPoseFormat {
+        convention: camplace_config::PoseConvention::Ur,
+        unit: camplace_config::LengthUnit::M,
+    };
+    let metres = camplace_config::robot_poses_text(&poses.poses, ur_m, "in metres");
+    std::fs::write(root.join("ur_m.txt"), &metres).unwrap();
+    let o = calibrate(root, "he", "ur_m.txt", &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // ... and with a header that says millimetres.
+    std::fs::write(root.join("ur_mm.txt"), metres.replace("format ur m\n", "format ur mm\n")).unwrap();
+    let o = calibrate(root, "he", "ur_mm.txt", &[]);
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["ur_mm.txt", "in m but were read as mm"]);
+}
+
+#[test]
+fn bad_pose_files_are_one_line_errors() {
+    let r = rendered();
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    copy_dir(&r.root.join("he"), &root.join("he"));
+    let text = read(&root.join("he/robot_poses.txt"));
+    let lines: Vec<&str> = text.lines().collect();
+    let header = lines.iter().position(|l| l.starts_with("format")).unwrap();
+
+    // Too few poses: 4 frames and 4 poses.
+    copy_dir(&root.join("he"), &root.join("few"));
+    for k in 4..8 {
+        std::fs::remove_dir_all(root.join("few/frames").join(format!("{k:04}"))).unwrap();
+    }
+    std::fs::write(root.join("few.txt"), lines[..header + 5].join("\n")).unwrap();
+    let o = calibrate(root, "few", "few.txt", &[]);
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["few.txt", "expected at least 5"]);
+
+    // A pose that is not a rigid transform: a KUKA line is six numbers, so write a matrix.
+    let mut bad = lines.clone();
+    bad[header] = "format matrix mm";
+    let scaled = "2 0 0 100 0 1 0 0 0 0 1 500 0 0 0 1";
+    for l in bad.iter_mut().skip(header + 1) {
+        *l = "1 0 0 100 0 1 0 0 0 0 1 500 0 0 0 1";
+    }
+    bad[header + 3] = scaled;
+    std::fs::write(root.join("bad.txt"), bad.join("\n")).unwrap();
+    let o = calibrate(root, "he", "bad.txt", &[]);
+    let line = format!("line {}", header + 4);
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["bad.txt", &line, "not a rigid transform"]);
+
+    // One pose fewer than frames.
+    std::fs::write(root.join("short.txt"), lines[..lines.len() - 1].join("\n")).unwrap();
+    let o = calibrate(root, "he", "short.txt", &[]);
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["short.txt", "7 poses", "8 frames"]);
+
+    // A convention the flags do not know.
+    let o = calibrate(root, "he", "he/robot_poses.txt", &["--pose-format", "stäubli", "--pose-unit", "mm"]);
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["--pose-format", "kuka"]);
+}
+
+#[test]
+fn turns_about_one_axis_are_refused() {
+    let r = rendered();
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    // The first pose turned about the flange's own axis in steps of 4°: the board spins
+    // in its plane, and every turn has the same axis.
+    let truth: HandEyeTruth = serde_json::from_str(&read(&r.root.join("he/hand_eye.json"))).unwrap();
+    let first = isometry_from_rows(&truth.t_robot_flange[0]);
+    let poses: Vec<[[f64; 4]; 4]> = (0..6)
+        .map(|k| {
+            let spin = nalgebra::UnitQuaternion::from_axis_angle(
+                &nalgebra::Vector3::z_axis(),
+                (4.0 * k as f64 - 10.0).to_radians(),
+            );
+            camplace_estimator::isometry_to_rows(
+                &(first * Isometry3::from_parts(nalgebra::Translation3::identity(), spin)),
+            )
+        })
+        .collect();
+    let format = camplace_config::RobotPoseFormat {
+        convention: camplace_config::PoseConvention::Fanuc,
+        unit: camplace_config::LengthUnit::Mm,
+    };
+    std::fs::write(root.join("spin.txt"), camplace_config::robot_poses_text(&poses, format, "one axis")).unwrap();
+    let o = camplace(
+        root,
+        &[
+            "render",
+            "--board",
+            BOARD,
+            "--robot-poses",
+            "spin.txt",
+            "--placement",
+            OPTIMUM,
+            "--seed",
+            "4",
+            "--out",
+            "spin",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = calibrate(root, "spin", "spin/robot_poses.txt", &[]);
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["robot_poses.txt", "about one axis"]);
+}
+
+#[test]
+fn eye_in_hand_finds_the_rig_on_the_flange() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let o = camplace(
+        root,
+        &[
+            "render",
+            "--board",
+            BOARD,
+            "--hand-eye",
+            POSES,
+            "--eye-in-hand",
+            "--placement",
+            OPTIMUM,
+            "--seed",
+            "5",
+            "--pose-format",
+            "abb",
+            "--pose-unit",
+            "mm",
+            "--out",
+            "eih",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = calibrate(root, "eih", "eih/robot_poses.txt", &["--eye-in-hand", "--out", "robot.toml"]);
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(o.status.success(), "{}{out}", stderr(&o));
+    let truth: HandEyeTruth = serde_json::from_str(&read(&root.join("eih/hand_eye.json"))).unwrap();
+    let cell = Cell::load(&root.join("robot.toml")).unwrap();
+    let robot = cell.robot.unwrap();
+    let (t, a) =
+        errors(&isometry_from_rows(&robot.t_flange_rig.unwrap()), &isometry_from_rows(&truth.t_flange_rig.unwrap()));
+    let (wt, wa) = errors(&isometry_from_rows(&robot.t_robot_world), &isometry_from_rows(&truth.t_robot_world));
+    eprintln!("eye-in-hand from {POSES} poses: T_flange_rig {t:.3} mm {a:.4}°, T_robot_world {wt:.3} mm {wa:.4}°");
+    assert!(t < 0.5 && a < 0.05, "T_flange_rig {t} mm {a}°\n{out}");
+    assert!(wt < 1.0 && wa < 0.05, "T_robot_world {wt} mm {wa}°\n{out}");
+}
