@@ -36,7 +36,8 @@ fn parse_header(rest: &str) -> Result<RobotPoseFormat, String> {
 /// Reads the pose file at `path`. `given` is the format named outside the file (flags):
 /// used when the file has no header, and refused when it contradicts the header.
 pub fn read_robot_poses(path: &Path, given: Option<RobotPoseFormat>) -> Result<RobotPoses, Error> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, &e))?;
+    // A pose file is a person's text file: bounded like every other (a device is refused).
+    let text = super::read::read_text(path)?;
     parse_robot_poses(&text, given).map_err(|e| e.in_file(path))
 }
 
