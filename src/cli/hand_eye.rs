@@ -158,12 +158,17 @@ pub fn run(a: HandEyeArgs<'_>, board: &CalibrationBoard) -> anyhow::Result<ExitC
     outln!(
         "rotation spread: {kept} poses, turns between them up to {:.1}°, their axes up to {:.1}° apart ({} pairs \
          turned 5° or more)",
-        s.max_rotation_deg, s.max_axis_angle_deg, s.informative_pairs
+        s.max_rotation_deg,
+        s.max_axis_angle_deg,
+        s.informative_pairs
     );
     let e = &cal.expected;
     outln!(
         "expected error (1 σ, from the residuals): rig ±{:.3} mm ±{:.4}°, board ±{:.3} mm ±{:.4}°",
-        e.rig_translation_mm, e.rig_rotation_deg, e.board_translation_mm, e.board_rotation_deg
+        e.rig_translation_mm,
+        e.rig_rotation_deg,
+        e.board_translation_mm,
+        e.board_rotation_deg
     );
     for w in &cal.warnings {
         outln!("warning: {w}");
@@ -192,7 +197,13 @@ pub fn run(a: HandEyeArgs<'_>, board: &CalibrationBoard) -> anyhow::Result<ExitC
 fn print_poses(cal: &HandEyeCalibration, used: &[(usize, String)], poses: &RobotPoses, file: &Path) {
     outln!(
         "{:<6} {:<8} {:>5} {:>9} {:>7} {:>9} {:>9}   (mm, deg: the correction of the robot's pose the fit took)",
-        "pose", "frame", "line", "px", "score", "mm", "deg"
+        "pose",
+        "frame",
+        "line",
+        "px",
+        "score",
+        "mm",
+        "deg"
     );
     let kept: Vec<f64> = cal.poses.iter().filter(|p| !p.dropped).map(|p| p.score).collect();
     let mut sorted = kept.clone();
@@ -204,7 +215,10 @@ fn print_poses(cal: &HandEyeCalibration, used: &[(usize, String)], poses: &Robot
         let mark = if p.dropped { "  dropped" } else { "" };
         outln!(
             "{index:<6} {name:<8} {line:>5} {:>9.3} {:>7.2} {:>9.3} {:>9.4}{mark}",
-            p.rms_px, p.score, p.translation_mm, p.rotation_deg
+            p.rms_px,
+            p.score,
+            p.translation_mm,
+            p.rotation_deg
         );
     }
     for p in cal.poses.iter().filter(|p| p.dropped) {

@@ -96,13 +96,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let rig = a.rig.as_ref().context("--rig: expected the rig.json of the pair (or --rectified)")?;
     let d = reconstruct_pair(&cell, rig, &a.left, &a.right, out)?;
     let method = if a.left.len() == 1 { Method::OneShot } else { Method::Phase12 };
-    outln!(
-        "{} points, {:.1} ms; wrote {}; {}",
-        d.points,
-        d.ms,
-        out.display(),
-        rows_text(method, cell.stereo.row_step)
-    );
+    outln!("{} points, {:.1} ms; wrote {}; {}", d.points, d.ms, out.display(), rows_text(method, cell.stereo.row_step));
     Ok(ExitCode::SUCCESS)
 }
 
