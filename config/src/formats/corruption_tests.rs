@@ -150,3 +150,35 @@ fn cell_toml_survives_truncation_and_flips() {
         std::str::from_utf8(b).is_ok_and(|t| Cell::from_toml_str(t, Path::new(".")).is_ok())
     });
 }
+
+#[test]
+fn placement_strings_survive_truncation_and_flips_and_read_back() {
+    let base = Cell::default().placement;
+    let good = b"r=605,alpha=32,baseline=81,vergence=3.5,azimuth=10";
+    torture(good, good.len(), 20_000, 7, |b| {
+        let Ok(text) = std::str::from_utf8(b) else { return false };
+        match base.with_overrides(text) {
+            Ok(p) => {
+                // What it accepts, it writes back as text that reads the same.
+                assert_eq!(base.with_overrides(&p.to_string()).ok(), Some(p), "{text:?}");
+                true
+            }
+            Err(_) => false,
+        }
+    });
+}
+
+#[test]
+fn images_survive_truncation_and_flips_within_the_pixel_budget() {
+    use image::ImageEncoder;
+    let pixels: Vec<u8> = (0..48u32 * 32).map(|v| (v * 7) as u8).collect();
+    let mut good = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut good).write_image(&pixels, 48, 32, image::ExtendedColorType::L8).unwrap();
+    torture(&good, good.len(), 5_000, 8, |b| match super::png::decode_gray(b) {
+        Ok(g) => {
+            assert!((g.width * g.height) as u64 <= crate::MAX_IMAGE_PIXELS && g.data.len() == g.width * g.height);
+            true
+        }
+        Err(_) => false,
+    });
+}
