@@ -324,7 +324,7 @@ fn the_report_opens_in_a_browser_with_every_image_and_the_summary_numbers() {
         .filter(|s| s.contains("mean correct matches"))
         .map(|s| {
             let at = s.find("range ").or_else(|| s.find("uniform: ")).expect("the legend states the range");
-            s[at..at + s[at..].find('<').unwrap()].to_string()
+            s[at..at + s[at..].find('<').unwrap()].trim().to_string()
         })
         .collect();
     let mut expected: Vec<String> = ["six-slot", "four-slot"]

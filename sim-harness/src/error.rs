@@ -16,6 +16,8 @@ pub enum Error {
     Recording(camplace_hwio::Error),
     /// An error that belongs to one input file, named before it.
     In(std::path::PathBuf, Box<Error>),
+    /// The sensor at a placement sees too little of the tray to build a model from.
+    TrayNotSeen(String),
     /// Anything else, said in words.
     Other(String),
 }
@@ -27,7 +29,7 @@ impl fmt::Display for Error {
             Error::Estimator(e) => e.fmt(f),
             Error::Recording(e) => e.fmt(f),
             Error::In(path, e) => write!(f, "{}: {e}", path.display()),
-            Error::Other(s) => f.write_str(s),
+            Error::TrayNotSeen(s) | Error::Other(s) => f.write_str(s),
         }
     }
 }
@@ -39,7 +41,7 @@ impl std::error::Error for Error {
             Error::Estimator(e) => Some(e),
             Error::Recording(e) => Some(e),
             Error::In(_, e) => Some(e.as_ref()),
-            Error::Other(_) => None,
+            Error::TrayNotSeen(_) | Error::Other(_) => None,
         }
     }
 }

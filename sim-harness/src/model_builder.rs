@@ -155,9 +155,16 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
             Ok(ModelView { view_direction: eye.coords.normalize(), points, normals })
         })
         .collect::<Result<_>>()?;
-    model.validate()?;
+    // Too few points of a viewpoint: the tray is barely in view from this placement.
+    model.validate().map_err(|e| Error::TrayNotSeen(format!("model: {e}")))?;
+    if model.views.iter().any(|v| v.points.len() < 3) {
+        return Err(Error::TrayNotSeen(
+            "model: a viewpoint saw fewer than 3 points of the tray at this placement (is the tray in view?)"
+                .to_string(),
+        ));
+    }
     if model.feature_points.is_empty() {
-        return Err(Error::Other(
+        return Err(Error::TrayNotSeen(
             "model: the sensor saw no tray features at this placement (is the tray in view?)".to_string(),
         ));
     }

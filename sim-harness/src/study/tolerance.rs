@@ -110,6 +110,18 @@ pub fn verdict_settled(prefix: &[Option<bool>], nominal: &[Option<bool>]) -> boo
     surely_outside || surely_inside
 }
 
+/// Whether `e` says the estimator cannot run at a placement (its cameras share no view of
+/// the work volume, see no tray to model, or reconstruct no background), rather than that
+/// a file or the cell is wrong: every error the estimator raises on simulated captures.
+fn rig_unusable(e: &Error) -> bool {
+    match e {
+        Error::Estimator(_) => true,
+        Error::TrayNotSeen(_) => true,
+        Error::In(_, inner) => rig_unusable(inner),
+        _ => false,
+    }
+}
+
 /// Judges placements against the nominal on the same scenes.
 struct Judge<'a> {
     set: &'a TraySet,
@@ -130,13 +142,28 @@ impl Judge<'_> {
         let mut summaries = Vec::new();
         let mut worst: Option<(f64, Paired)> = None;
         for (t, nominal) in self.nominal.iter().enumerate() {
-            let m = self.set.evaluate_until(t, p, self.seed, n, TOLERANCE_PART, "tolerance", |m| {
+            let run = self.set.evaluate_until(t, p, self.seed, n, TOLERANCE_PART, "tolerance", |m| {
                 verdict_settled(&self.set.outcomes(t, p, self.seed, m as u64), nominal)
-            })?;
-            let outcomes = self.set.outcomes(t, p, self.seed, m as u64);
-            let paired = Paired::from_outcomes(&outcomes, &nominal[..m.min(nominal.len())]);
+            });
+            let (paired, summary) = match run {
+                Ok(m) => {
+                    let outcomes = self.set.outcomes(t, p, self.seed, m as u64);
+                    let paired = Paired::from_outcomes(&outcomes, &nominal[..m.min(nominal.len())]);
+                    (paired, self.set.summary(t, p, self.seed, m as u64))
+                }
+                // Cameras that see no common part of the work volume, or no tray to model:
+                // the estimator cannot run there, so every scene fails.
+                Err(e) if rig_unusable(&e) => {
+                    let failed: Vec<Option<bool>> = nominal.iter().map(|o| o.map(|_| false)).collect();
+                    let mut summary = Summary::from_records(&[]);
+                    summary.scored = failed.iter().flatten().count();
+                    summary.success_interval = super::summary::wilson_interval(0, summary.scored);
+                    (Paired::from_outcomes(&failed, nominal), summary)
+                }
+                Err(e) => return Err(e),
+            };
             let p_lower = paired.mcnemar_p_a_lower();
-            summaries.push(self.set.summary(t, p, self.seed, m as u64));
+            summaries.push(summary);
             if worst.is_none_or(|(w, _)| p_lower < w) {
                 worst = Some((p_lower, paired));
             }
