@@ -23,6 +23,7 @@ use std::fmt;
 
 use camplace_config::EstimatorParams;
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+use rayon::prelude::*;
 
 use crate::spatial::SceneGrid;
 use crate::{Icp, Model};
@@ -37,6 +38,9 @@ pub const AMBIGUOUS_TURN_SIGMAS: f32 = 3.0;
 pub const RESTING_HEIGHT_MM: f64 = 6.0;
 /// A tray resting on the table has its z axis within this of the world's, deg.
 pub const RESTING_TILT_DEG: f64 = 4.0;
+
+/// View points per parallel task of the coverage count.
+const COVERAGE_CHUNK: usize = 2048;
 
 /// Why a pose is not handed on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -212,14 +216,23 @@ fn coverage(model: &Model, grid: &SceneGrid, sensor: &Point3<f32>, pose: &Isomet
     let to_world = pose.cast::<f32>();
     let eye = pose.inverse().cast::<f32>() * sensor;
     let r2 = reach * reach;
-    let (mut facing, mut seen) = (0u32, 0u32);
-    for (m, n) in view.points.iter().zip(&view.normals) {
-        if n.dot(&(eye - m)) <= 0.0 {
-            continue;
-        }
-        facing += 1;
-        seen += u32::from(grid.any_within(&(to_world * m), r2));
-    }
+    // Fixed chunks, integer counts: the same share whatever the number of threads.
+    let (facing, seen) = view
+        .points
+        .par_chunks(COVERAGE_CHUNK)
+        .zip(view.normals.par_chunks(COVERAGE_CHUNK))
+        .map(|(points, normals)| {
+            let (mut facing, mut seen) = (0u32, 0u32);
+            for (m, n) in points.iter().zip(normals) {
+                if n.dot(&(eye - m)) <= 0.0 {
+                    continue;
+                }
+                facing += 1;
+                seen += u32::from(grid.any_within(&(to_world * m), r2));
+            }
+            (facing, seen)
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
     if facing == 0 {
         0.0
     } else {
