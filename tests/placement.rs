@@ -161,7 +161,7 @@ fn a_bad_rig_or_tolerance_file_is_a_one_line_error() {
     let huge = std::fs::File::create(d.join("huge.json")).unwrap();
     huge.set_len(64 << 20).unwrap();
     let o = placement("huge.json");
-    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["huge.json", "at most 4194304 bytes"]);
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["huge.json", "at most 16777216 bytes"]);
     let o = placement("tolerance.json");
     assert!(matches!(o.status.code(), Some(0 | 1)), "the checked file is read: {}", stderr(&o));
     let o = camplace(d, &["placement", "--rig", "r/rig.json", "--study", "nowhere"]);

@@ -205,7 +205,7 @@ fn merge_leaf(dirs: &[PathBuf], out: &Path) -> Result<usize> {
                 placement,
                 method: method.to_string(),
                 seed,
-                summary: Summary::from_records(&records),
+                summary: Summary::from_records(&records).verified(&records, settings.cell.estimator.verify_max_wrong),
             })
             .collect();
         write_summary_json(&out.join("summary.json"), &rows)?;
