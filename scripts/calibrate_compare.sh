@@ -3,7 +3,7 @@
 # writes the default cell with lens distortion, renders a 9x6@25 board in 15 poses (plus the
 # table view) per seed, and scores both calibrations against the true rig.json.
 # Usage: scripts/calibrate_compare.sh [OUT] [SEED...]   (default out/calibrate-compare, seeds 3 4 5)
-# Needs a venv with ../shared/peers/requirements.txt (PYTHON overrides .peers/bin/python) and a
+# Needs a venv with scripts/requirements-peers.txt (PYTHON overrides .peers/bin/python) and a
 # built camplace (BIN overrides target/debug/camplace; it is not built here).
 set -euo pipefail
 out=${1:-out/calibrate-compare}
