@@ -81,13 +81,7 @@ pub fn load_rig(path: &Path) -> anyhow::Result<Rig> {
 pub fn run(a: HandEyeArgs<'_>, board: &CalibrationBoard) -> anyhow::Result<ExitCode> {
     let poses: RobotPoses = read_robot_poses(a.robot_poses, a.formats.format()?)?;
     let frames = a.images.join("frames");
-    let mut folders: Vec<PathBuf> = std::fs::read_dir(&frames)
-        .with_context(|| format!("{}: cannot list the board views (frames/NNNN/)", frames.display()))?
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.is_dir())
-        .collect();
-    folders.sort();
+    let folders = super::calibrate::board_view_folders(a.images)?;
     if folders.len() != poses.poses.len() {
         bail!(
             "{}: {} poses, but {} holds {} frames; expected one pose a frame, in the frames' order",

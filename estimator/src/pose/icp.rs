@@ -309,17 +309,19 @@ impl Icp {
             .map(|chunk| {
                 let mut count = 0;
                 for p in chunk {
-                    let q = pose * p;
-                    let Some(item) = self.whole.lookup(&q) else { continue };
-                    count += u32::from((q - self.whole_points[item as usize]).norm_squared() <= reach2);
+                    count += u32::from(self.explains(&(pose * p), reach2));
                 }
                 count
             })
             .sum()
     }
-}
 
-impl Icp {
+    /// Whether the whole tray has a point within `sqrt(reach2)` of `q` (tray frame): the one
+    /// test [`Icp::explained`], [`Icp::explained_apart`] and [`Icp::explained_near`] count.
+    fn explains(&self, q: &Point3<f32>, reach2: f32) -> bool {
+        self.whole.lookup(q).is_some_and(|item| (q - self.whole_points[item as usize]).norm_squared() <= reach2)
+    }
+
     /// Scene points (world frame) the whole tray explains at `a` but not at `b`, and at `b`
     /// but not at `a` ([`Icp::explained`]'s test): where two nearly symmetric poses differ,
     /// only these points tell them apart.
@@ -332,9 +334,7 @@ impl Icp {
     ) -> (u32, u32) {
         let (pa, pb) = (a.inverse().cast::<f32>(), b.inverse().cast::<f32>());
         let reach2 = reach * reach;
-        let near = |q: Point3<f32>| {
-            self.whole.lookup(&q).is_some_and(|item| (q - self.whole_points[item as usize]).norm_squared() <= reach2)
-        };
+        let near = |q: Point3<f32>| self.explains(&q, reach2);
         scene_points
             .par_chunks(CHUNK)
             .map(|chunk| {
@@ -374,8 +374,7 @@ impl Icp {
                         continue;
                     }
                     inside += 1;
-                    let Some(item) = self.whole.lookup(&q) else { continue };
-                    explained += u32::from((q - self.whole_points[item as usize]).norm_squared() <= reach2);
+                    explained += u32::from(self.explains(&q, reach2));
                 }
                 (explained, inside)
             })
