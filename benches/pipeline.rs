@@ -6,7 +6,7 @@
 use std::hint::black_box;
 
 use camplace_config::Cell;
-use camplace_estimator::Estimator;
+use camplace_estimator::{Estimator, EstimatorConfig};
 use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
 use criterion::Criterion;
 
@@ -21,7 +21,8 @@ pub fn benches(c: &mut Criterion) {
     sim.render(&background_scene(&cell, seed), Method::OneShot, noise_key(seed, 0, true), &mut background);
     let mut frame = Frame::default();
     sim.render(&draw_scenario(&cell, seed, 2).scene(), Method::OneShot, noise_key(seed, 2, false), &mut frame);
-    let mut estimator = Estimator::new(&cell, sim.rig(), model, Method::OneShot).expect("the estimator builds");
+    let mut estimator =
+        Estimator::new(&EstimatorConfig::from(&cell), sim.rig(), model, Method::OneShot).expect("the estimator builds");
     estimator.set_background(&background.left, &background.right).expect("the background reconstructs");
     let pose = estimator.process(&frame.left, &frame.right).expect("the frame is valid");
     eprintln!("pipeline: found {}, {} inliers, stages {:?}", pose.found, pose.inliers, pose.timings);

@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 
 use camplace_config::Cell;
-use camplace_estimator::{Estimator, PoseEstimate};
+use camplace_estimator::{Estimator, EstimatorConfig, PoseEstimate};
 use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
 use nalgebra::Point3;
 
@@ -88,7 +88,7 @@ fn warmed_up(method: Method) -> (Estimator, Vec<Frame>) {
             frame
         })
         .collect();
-    let mut estimator = Estimator::new(&cell, sim.rig(), model, method).unwrap();
+    let mut estimator = Estimator::new(&EstimatorConfig::from(&cell), sim.rig(), model, method).unwrap();
     estimator.set_background(&background.left, &background.right).unwrap();
     for frame in &frames {
         estimator.process(&frame.left, &frame.right).unwrap();

@@ -176,7 +176,13 @@ fn the_deployed_loop_in_process_gives_the_evaluations_poses() {
     let rig = camplace_estimator::Rig::from_file(&opened.rig);
     let bytes = std::fs::read(f.root.join("tray.model")).unwrap();
     let model = camplace_estimator::Model::from_bytes(&bytes).unwrap();
-    let mut estimator = camplace_estimator::Estimator::new(&cell, &rig, model, Method::OneShot).unwrap();
+    let mut estimator = camplace_estimator::Estimator::new(
+        &camplace_estimator::EstimatorConfig::from(&cell),
+        &rig,
+        model,
+        Method::OneShot,
+    )
+    .unwrap();
     let background = opened.background.as_ref().expect("render --dataset writes the background");
     estimator.set_background(&background.left, &background.right).unwrap();
 

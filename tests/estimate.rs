@@ -3,7 +3,7 @@
 //! file through the CLI.
 
 use camplace_config::{Cell, TrayKind};
-use camplace_estimator::Estimator;
+use camplace_estimator::{Estimator, EstimatorConfig};
 use camplace_sim::{background_scene, build_model, noise_key, Evaluator, Frame, Method, Simulator};
 
 use crate::camplace_cmd::{camplace, stderr};
@@ -47,7 +47,7 @@ fn scenes_without_a_tray_give_no_error() {
     let mut frame = Frame::default();
     let background = background_scene(&cell, seed);
     sim.render(&background, Method::OneShot, noise_key(seed, 0, true), &mut frame);
-    let mut estimator = Estimator::new(&cell, sim.rig(), model, Method::OneShot).unwrap();
+    let mut estimator = Estimator::new(&EstimatorConfig::from(&cell), sim.rig(), model, Method::OneShot).unwrap();
     estimator.set_background(&frame.left, &frame.right).unwrap();
     // The background itself, freshly captured. Background removal leaves much of the table
     // in a new capture, and a table patch can pass RANSAC's inlier share of a view (the
@@ -56,7 +56,8 @@ fn scenes_without_a_tray_give_no_error() {
     let pose = estimator.process(&frame.left, &frame.right).unwrap();
     assert!(pose.t_world_tray.to_homogeneous().iter().all(|v| v.is_finite()), "{pose:?}");
     // Without a background, the bare table is all the estimator sees.
-    let mut bare = Estimator::new(&cell, sim.rig(), estimator.model().clone(), Method::OneShot).unwrap();
+    let mut bare =
+        Estimator::new(&EstimatorConfig::from(&cell), sim.rig(), estimator.model().clone(), Method::OneShot).unwrap();
     let pose = bare.process(&frame.left, &frame.right).unwrap();
     assert!(pose.t_world_tray.to_homogeneous().iter().all(|v| v.is_finite()), "{pose:?}");
 }

@@ -3,7 +3,7 @@
 //! one-shot and 12-shot captures.
 
 use camplace_config::{Cell, Placement};
-use camplace_estimator::{Method, Reconstruction, Reconstructor};
+use camplace_estimator::{EstimatorConfig, Method, Reconstruction, Reconstructor};
 use camplace_sim::{background_scene, draw_scenario, noise_key, Frame, Simulator};
 use nalgebra::Point3;
 
@@ -26,7 +26,7 @@ fn score(text: &str, method: Method, n: u64) -> Score {
     let seed = 1;
     let mut sim = Simulator::new(&cell, &p, seed).unwrap();
     let rig = sim.rig().clone();
-    let mut rec = Reconstructor::new(&cell, &rig, method).unwrap();
+    let mut rec = Reconstructor::new(&EstimatorConfig::from(&cell), &rig, method).unwrap();
     let mut frame = Frame::default();
     sim.render(&background_scene(&cell, seed), method, noise_key(seed, 0, true), &mut frame);
     rec.set_background(&frame.left, &frame.right).unwrap();

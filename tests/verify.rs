@@ -4,7 +4,7 @@
 //! tray of the test's own.
 
 use camplace_config::{Cell, TrayKind};
-use camplace_estimator::{Estimator, PoseEstimate, Verdict};
+use camplace_estimator::{Estimator, EstimatorConfig, PoseEstimate, Verdict};
 use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
 use nalgebra::{Point3, Translation3};
 
@@ -20,7 +20,7 @@ fn setup(cell: &Cell, seed: u64) -> (Simulator, Estimator) {
     let mut sim = Simulator::new(cell, &placement, seed).unwrap();
     let mut frame = Frame::default();
     sim.render(&background_scene(cell, seed), Method::OneShot, noise_key(seed, 0, true), &mut frame);
-    let mut estimator = Estimator::new(cell, sim.rig(), model, Method::OneShot).unwrap();
+    let mut estimator = Estimator::new(&EstimatorConfig::from(cell), sim.rig(), model, Method::OneShot).unwrap();
     estimator.set_background(&frame.left, &frame.right).unwrap();
     (sim, estimator)
 }

@@ -42,7 +42,7 @@ pub use formats::robot_poses::{parse_robot_poses, read_robot_poses, robot_poses_
 pub use formats::{is_temp_file_name, remove_stale_temp_files, temp_path_for, write_atomic};
 pub use placement::{Placement, Vergence, MAX_DISTANCE_MM, PARAMETERS};
 pub use pose::{check_rigid, ROTATION_TOLERANCE};
-pub use raster::{FloatImage, GrayImage, Image};
+pub use raster::{AsImageView, FloatImage, GrayImage, Image, ImageView};
 pub use realism::{CalibrationError, Effect, Effects, Focus, Occluder, Optics, MAX_ROUGHNESS, MIN_ROUGHNESS};
 pub use rig::{CameraFile, RectifiedFile, RigFile, MAX_IMAGE_SIDE};
 pub use robot_pose::{format_pose, parse_pose, LengthUnit, PoseConvention, RobotPoseFormat, QUATERNION_NORM_TOLERANCE};

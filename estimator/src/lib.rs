@@ -16,6 +16,7 @@ mod calibration;
 mod camera;
 mod depth;
 mod error;
+mod estimator_config;
 mod features;
 mod method;
 mod pipeline;
@@ -34,6 +35,7 @@ pub use depth::{
     Reconstructor, Rectification, RectifiedCamera,
 };
 pub use error::{Error, ErrorKind, Result};
+pub use estimator_config::EstimatorConfig;
 pub use features::{
     is_valid_normal, quantise, Correspondence, Descriptor, Downsampler, Ecsad, FeatureExtractor, FeatureMatcher,
     FeatureTimings, KeypointSelector, NormalEstimator, ECSAD_DIM, MIN_NORMAL_NEIGHBOURS, QUANTISATION_STEPS,
@@ -49,6 +51,8 @@ pub use rig::Rig;
 // The image buffers are camplace-config's (image files hold them too); callers name them
 // there, the stages here as `crate::GrayImage`.
 use camplace_config::{FloatImage, GrayImage};
+// Frames reach the estimator as owned images or borrowed views of the caller's pixels.
+pub use camplace_config::{AsImageView, ImageView};
 pub use spatial::Neighbours;
 
 #[cfg(any(test, feature = "testing"))]

@@ -17,11 +17,11 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use camplace_config::{Cell, EstimatorParams};
+use camplace_config::{AsImageView, EstimatorParams};
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
 use crate::{
-    Correspondence, Error, ErrorKind, FeatureExtractor, FeatureMatcher, GrayImage, Icp, IcpResult, Method, Model,
+    Correspondence, Error, ErrorKind, EstimatorConfig, FeatureExtractor, FeatureMatcher, Icp, IcpResult, Method, Model,
     Ransac, RansacResult, Reconstruction, Reconstructor, Result, Rig, Verification, Verifier,
 };
 
@@ -157,15 +157,16 @@ fn ms(t: Instant) -> f64 {
 }
 
 impl Estimator {
-    /// The estimator for `rig` and `model` with the cell's settings; allocates every buffer.
-    pub fn new(cell: &Cell, rig: &Rig, model: Model, method: Method) -> Result<Estimator> {
+    /// The estimator for `rig` and `model` with `config`'s settings (a cell's, through
+    /// `EstimatorConfig::from(&cell)`); allocates every buffer.
+    pub fn new(config: &EstimatorConfig, rig: &Rig, model: Model, method: Method) -> Result<Estimator> {
         model.validate()?;
         if model.feature_points.is_empty() {
             return Err(Error::new(ErrorKind::Model, "model: expected at least one feature"));
         }
         let model = Arc::new(model);
-        let params = cell.estimator.clone();
-        let reconstructor = Reconstructor::new(cell, rig, method)?;
+        let params = config.estimator.clone();
+        let reconstructor = Reconstructor::new(config, rig, method)?;
         let cam = &reconstructor.rectification().camera;
         let (w, h) = (cam.width, cam.height);
         let sensor_position = Point3::from(cam.t_world_rectified.translation.vector.cast::<f32>());
@@ -198,9 +199,9 @@ impl Estimator {
     /// Uses `rig` from now on (a recalibrated rig, or the one a study's scenario believes
     /// in); the background must be set again, since it is reconstructed through the rig.
     /// Buffers sized by the rectified image are made again when its size changes.
-    pub fn set_rig(&mut self, cell: &Cell, rig: &Rig) -> Result<()> {
+    pub fn set_rig(&mut self, config: &EstimatorConfig, rig: &Rig) -> Result<()> {
         let old = self.reconstructor.rectification().camera.clone();
-        self.reconstructor.set_rig(cell, rig)?;
+        self.reconstructor.set_rig(config, rig)?;
         let new = &self.reconstructor.rectification().camera;
         if (old.width, old.height) != (new.width, new.height) {
             let (w, h) = (new.width, new.height);
@@ -219,21 +220,26 @@ impl Estimator {
     }
 
     /// Captures the background (the cell without tray) used to clean every later frame.
-    pub fn set_background(&mut self, left: &[GrayImage], right: &[GrayImage]) -> Result<()> {
+    /// The shots are owned images or borrowed views, as for [`Estimator::process`].
+    pub fn set_background<S: AsImageView<u8> + Sync>(&mut self, left: &[S], right: &[S]) -> Result<()> {
         self.reconstructor.set_background(left, right)
     }
 
     /// Estimates the tray's pose from one stereo frame (one or twelve shots per side).
     /// A frame without a recognisable tray gives a pose with `found = false`, not an error.
     ///
+    /// Each shot is an owned [`camplace_config::GrayImage`] or a borrowed [`camplace_config::ImageView`] of
+    /// someone else's pixels (any row stride): the raw pixels are read in place by the
+    /// rectification, never copied.
+    ///
     /// The frame runs on rayon's pool: entered once here, the stages' parallel loops (many a
     /// frame: ICP's iterations among them) share work between the pool's threads directly,
     /// where each loop started from another thread would wait for a worker to wake.
-    pub fn process(&mut self, left: &[GrayImage], right: &[GrayImage]) -> Result<PoseEstimate> {
+    pub fn process<S: AsImageView<u8> + Sync>(&mut self, left: &[S], right: &[S]) -> Result<PoseEstimate> {
         rayon::scope(|_| self.process_on_pool(left, right))
     }
 
-    fn process_on_pool(&mut self, left: &[GrayImage], right: &[GrayImage]) -> Result<PoseEstimate> {
+    fn process_on_pool<S: AsImageView<u8> + Sync>(&mut self, left: &[S], right: &[S]) -> Result<PoseEstimate> {
         let start = Instant::now();
         self.reconstructor.process(left, right, &mut self.reconstruction)?;
         let r = self.reconstruction.timings;
@@ -276,6 +282,13 @@ impl Estimator {
                 t_world_tray,
             )
         })
+    }
+
+    /// Where the first left shot of the last frame began in memory (0 before any frame):
+    /// the address of the pixels the rectification read, so an embedder can check that its
+    /// own buffer reached the estimator without a copy.
+    pub fn last_left_address(&self) -> usize {
+        self.reconstructor.last_left_address()
     }
 
     /// The model it matches against.

@@ -15,7 +15,7 @@ use std::time::Instant;
 
 use camplace_config::Cell;
 use camplace_estimator::{correct_matches, pose_errors};
-use camplace_estimator::{Estimator, Model, Neighbours};
+use camplace_estimator::{Estimator, EstimatorConfig, Model, Neighbours};
 use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
 use nalgebra::{Isometry3, Point3};
 
@@ -95,7 +95,8 @@ fn main() {
     let mut sim = Simulator::new(&cell, &placement, a.seed).expect("simulator");
     let mut frame = Frame::default();
     sim.render(&background_scene(&cell, a.seed), Method::OneShot, noise_key(a.seed, 0, true), &mut frame);
-    let mut estimator = Estimator::new(&cell, sim.rig(), model, Method::OneShot).expect("estimator");
+    let mut estimator =
+        Estimator::new(&EstimatorConfig::from(&cell), sim.rig(), model, Method::OneShot).expect("estimator");
     estimator.set_background(&frame.left, &frame.right).expect("background");
     let sensor = estimator.sensor_position();
     let reach = cell.estimator.inlier_distance as f32;

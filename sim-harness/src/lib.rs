@@ -51,8 +51,7 @@ pub use study::optimize::{SearchParameter, SearchPlan};
 pub use study::placement_search::optimize;
 pub use study::placement_study::{run_study, tolerance_dir, Preset, StudyRequest};
 pub use study::recording::{
-    estimate_dataset, estimator_for, load_model, load_model_for, method_for, record as frame_record, truth_path,
-    DATASET_SUMMARY,
+    estimate_dataset, estimator_for, method_for, record as frame_record, truth_path, DATASET_SUMMARY,
 };
 pub use study::shard::Shard;
 pub use study::sweep::sweep;

@@ -9,8 +9,8 @@
 use camplace_config::{Cell, Placement};
 use camplace_estimator::MIN_NORMAL_NEIGHBOURS;
 use camplace_estimator::{
-    Descriptor, Downsampler, FeatureExtractor, Method, Model, ModelOrigin, ModelView, Neighbours, NormalEstimator,
-    Reconstruction, Reconstructor, Rectification,
+    Descriptor, Downsampler, EstimatorConfig, FeatureExtractor, Method, Model, ModelOrigin, ModelView, Neighbours,
+    NormalEstimator, Reconstruction, Reconstructor, Rectification,
 };
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
@@ -102,7 +102,7 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
     // (built once, not per capture), taking captures in turn.
     let setup = || -> Result<_> {
         let sim = probe.clone();
-        let rec = Reconstructor::new(cell, probe.rig(), method)?;
+        let rec = Reconstructor::new(&EstimatorConfig::from(cell), probe.rig(), method)?;
         let features = FeatureExtractor::new(params, 1 << 16)?;
         Ok((sim, rec, features, Frame::default(), Reconstruction::default()))
     };

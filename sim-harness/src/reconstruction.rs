@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use camplace_config::{Cell, FloatImage, GrayImage, RectifiedFile, RigFile};
 use camplace_estimator::{isometry_to_rows, DisparityMatcher, Elas, Method};
-use camplace_estimator::{Reconstruction, Reconstructor, RectifiedCamera, Rig};
+use camplace_estimator::{EstimatorConfig, Reconstruction, Reconstructor, RectifiedCamera, Rig};
 use camplace_hwio::{FrameSource, Frames, RecordedSource};
 use rayon::prelude::*;
 
@@ -36,7 +36,8 @@ pub fn reconstruct_dataset(cell: &Cell, dir: &Path) -> Result<DatasetDepth> {
     let mut background = Frames::new(source.shots());
     let has_background = source.background(&mut background)?;
     let make = || -> Result<Reconstructor> {
-        let mut rec = Reconstructor::new(cell, &rig, method).map_err(|e| Error::from(e).in_file(&rig_path))?;
+        let mut rec = Reconstructor::new(&EstimatorConfig::from(cell), &rig, method)
+            .map_err(|e| Error::from(e).in_file(&rig_path))?;
         if has_background {
             rec.set_background(&background.left, &background.right)?;
         }
@@ -114,7 +115,8 @@ pub fn reconstruct_pair(
             }
         }
     }
-    let mut rec = Reconstructor::new(cell, &rig, method).map_err(|e| Error::from(e).in_file(rig_path))?;
+    let mut rec =
+        Reconstructor::new(&EstimatorConfig::from(cell), &rig, method).map_err(|e| Error::from(e).in_file(rig_path))?;
     let mut result = Reconstruction::default();
     rec.process(&left_images, &right_images, &mut result)?;
     create_dir(out)?;

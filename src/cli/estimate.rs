@@ -3,8 +3,8 @@
 
 use anyhow::Context;
 use camplace_config::RigFile;
-use camplace_estimator::{Estimator, Method, Model, Rig, Verifier};
-use camplace_sim::{estimate_dataset, load_model, load_model_for, FrameRecord, Summary};
+use camplace_estimator::{Estimator, EstimatorConfig, Method, Model, Rig, Verifier};
+use camplace_sim::{estimate_dataset, FrameRecord, Summary};
 use nalgebra::Point3;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -35,8 +35,8 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (cell, placement) = a.cell.load()?;
     let model = match &a.cell.cell {
-        Some(cell_file) => load_model_for(&a.model, &cell, cell_file)?,
-        None => load_model(&a.model)?,
+        Some(cell_file) => Model::load_for(&a.model, &cell, cell_file)?,
+        None => Model::load(&a.model)?,
     };
     if let Some(dir) = &a.dataset {
         return dataset(&cell, model, dir);
@@ -48,7 +48,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     };
     let cloud = camplace_config::read_cloud(path)?;
     let points: Vec<Point3<f32>> = cloud.points.iter().map(|p| Point3::from(*p)).collect();
-    let mut estimator = Estimator::new(&cell, &rig, model, Method::OneShot)?;
+    let mut estimator = Estimator::new(&EstimatorConfig::from(&cell), &rig, model, Method::OneShot)?;
     let pose = estimator.process_cloud(&points).with_context(|| path.display().to_string())?;
     outln!("{}", FrameRecord::new(path.display().to_string(), &pose).with_robot(&cell).to_line());
     Ok(ExitCode::SUCCESS)

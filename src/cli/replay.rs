@@ -6,8 +6,8 @@
 use anyhow::Context;
 use camplace_config::write_atomic;
 use camplace_config::Cell;
-use camplace_estimator::Verifier;
-use camplace_sim::{estimate_dataset, load_model, load_model_for, Summary, DATASET_SUMMARY};
+use camplace_estimator::{Model, Verifier};
+use camplace_sim::{estimate_dataset, Summary, DATASET_SUMMARY};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -34,10 +34,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (cell, model) = match &a.cell {
         Some(path) => {
             let cell = Cell::load(path)?.one_tray(a.tray.as_deref()).map_err(|e| e.in_file(path))?;
-            let model = load_model_for(&a.model, &cell, path)?;
+            let model = Model::load_for(&a.model, &cell, path)?;
             (cell, model)
         }
-        None => (Cell::default(), load_model(&a.model)?),
+        None => (Cell::default(), Model::load(&a.model)?),
     };
     let threshold = Verifier::for_model(&cell.estimator, &model).threshold_in_force();
     let (records, method) = estimate_dataset(&cell, model, &a.dataset)?;

@@ -7,11 +7,10 @@
 
 use anyhow::{bail, Context};
 use camplace_config::Cell;
-use camplace_estimator::Rig;
+use camplace_estimator::{Model, Rig};
 use camplace_hwio::{parse_source, DeploySource, Deployment};
 use camplace_sim::{
-    estimator_for, frame_record, load_model, load_model_for, method_for, truth_path, write_latency_plot, FrameRecord,
-    Method, Summary,
+    estimator_for, frame_record, method_for, truth_path, write_latency_plot, FrameRecord, Method, Summary,
 };
 use serde::Serialize;
 use std::io::Write;
@@ -113,8 +112,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let opened = DeploySource::open(&spec, a.rig.as_deref(), a.background.as_deref(), a.fps)?;
     let rig = Rig::from_file(&opened.rig);
     let model = match &a.cell {
-        Some(path) => load_model_for(&a.model, &cell, path)?,
-        None => load_model(&a.model)?,
+        Some(path) => Model::load_for(&a.model, &cell, path)?,
+        None => Model::load(&a.model)?,
     };
     let method = method_for(opened.source.shots());
     let threshold = camplace_estimator::Verifier::for_model(&cell.estimator, &model).threshold_in_force();

@@ -4,12 +4,12 @@
 
 use std::time::Instant;
 
-use camplace_config::Cell;
+use camplace_config::{AsImageView, ImageView};
 
 use super::stereo::DisparityMatcher;
 use crate::{
-    Background, Cloud, CloudBuilder, Elas, Error, ErrorKind, FloatImage, GrayImage, Method, PhaseDecoder,
-    Rectification, Result, Rig,
+    Background, Cloud, CloudBuilder, Elas, Error, ErrorKind, EstimatorConfig, FloatImage, GrayImage, Method,
+    PhaseDecoder, Rectification, Result, Rig,
 };
 
 /// Time spent in each reconstruction stage of the last frame, ms.
@@ -50,6 +50,8 @@ pub struct Reconstructor {
     rect_left: Vec<GrayImage>,
     rect_right: Vec<GrayImage>,
     scratch: FloatImage,
+    /// The address of the last frame's first left shot's pixels (0 before any).
+    last_left: usize,
     /// What the decoder was built from: its settings, the canvas and the disparity span.
     decoder_for: DecoderFor,
 }
@@ -65,12 +67,12 @@ struct DecoderFor {
 }
 
 impl DecoderFor {
-    fn new(cell: &Cell, rectification: &Rectification) -> DecoderFor {
+    fn new(config: &EstimatorConfig, rectification: &Rectification) -> DecoderFor {
         let (lo, hi) = rectification.disparity_range();
         DecoderFor {
-            stereo: cell.stereo.clone(),
-            phase: cell.phase.clone(),
-            fringe_periods: cell.sensor.fringe_periods.clone(),
+            stereo: config.stereo.clone(),
+            phase: config.phase.clone(),
+            fringe_periods: config.fringe_periods.clone(),
             canvas: (rectification.camera.width, rectification.camera.height),
             span: (hi - lo).ceil().max(1.0) as usize + 1,
         }
@@ -87,33 +89,34 @@ impl DecoderFor {
 
 impl Reconstructor {
     /// The workspace for `rig` with the cell's work volume and settings.
-    pub fn new(cell: &Cell, rig: &Rig, method: Method) -> Result<Reconstructor> {
-        Self::with_rectification(cell, rig, method, Rectification::new(rig, &cell.work_volume)?)
+    pub fn new(config: &EstimatorConfig, rig: &Rig, method: Method) -> Result<Reconstructor> {
+        Self::with_rectification(config, rig, method, Rectification::new(rig, &config.work_volume)?)
     }
 
     /// The workspace around a rectification of `rig` made already.
     fn with_rectification(
-        cell: &Cell,
+        config: &EstimatorConfig,
         rig: &Rig,
         method: Method,
         rectification: Rectification,
     ) -> Result<Reconstructor> {
         let cam = &rectification.camera;
         let (w, h) = (cam.width, cam.height);
-        let decoder_for = DecoderFor::new(cell, &rectification);
+        let decoder_for = DecoderFor::new(config, &rectification);
         let decoder = decoder_for.decoder(method)?;
-        let shots = method.shots(cell.sensor.fringe_periods.len());
+        let shots = method.shots(config.fringe_periods.len());
         Ok(Reconstructor {
             method,
-            builder: CloudBuilder::new(cam, &cell.work_volume, &cell.reconstruction),
+            builder: CloudBuilder::new(cam, &config.work_volume, &config.reconstruction),
             decoder,
             background: None,
-            reconstruction: cell.reconstruction.clone(),
+            reconstruction: config.reconstruction.clone(),
             raw_left: (rig.left.width, rig.left.height),
             raw_right: (rig.right.width, rig.right.height),
             rect_left: vec![GrayImage::new(w, h, 0); shots],
             rect_right: vec![GrayImage::new(w, h, 0); shots],
             scratch: FloatImage::new(w, h, f32::INFINITY),
+            last_left: 0,
             rectification,
             decoder_for,
         })
@@ -124,17 +127,17 @@ impl Reconstructor {
     /// the canvas and the disparity span are unchanged (they hold nothing from one frame to
     /// the next), else everything as [`Reconstructor::new`] builds it. The background is
     /// dropped: it must be captured again through the new rig.
-    pub fn set_rig(&mut self, cell: &Cell, rig: &Rig) -> Result<()> {
-        let rectification = Rectification::new(rig, &cell.work_volume)?;
-        let decoder_for = DecoderFor::new(cell, &rectification);
-        let shots = self.method.shots(cell.sensor.fringe_periods.len());
+    pub fn set_rig(&mut self, config: &EstimatorConfig, rig: &Rig) -> Result<()> {
+        let rectification = Rectification::new(rig, &config.work_volume)?;
+        let decoder_for = DecoderFor::new(config, &rectification);
+        let shots = self.method.shots(config.fringe_periods.len());
         if decoder_for != self.decoder_for || shots != self.rect_left.len() {
-            *self = Reconstructor::with_rectification(cell, rig, self.method, rectification)?;
+            *self = Reconstructor::with_rectification(config, rig, self.method, rectification)?;
             return Ok(());
         }
-        self.builder = CloudBuilder::new(&rectification.camera, &cell.work_volume, &cell.reconstruction);
+        self.builder = CloudBuilder::new(&rectification.camera, &config.work_volume, &config.reconstruction);
         self.background = None;
-        self.reconstruction = cell.reconstruction.clone();
+        self.reconstruction = config.reconstruction.clone();
         self.raw_left = (rig.left.width, rig.left.height);
         self.raw_right = (rig.right.width, rig.right.height);
         self.rectification = rectification;
@@ -156,6 +159,11 @@ impl Reconstructor {
         (&self.rect_left, &self.rect_right)
     }
 
+    /// Where the last frame's first left shot began in memory (0 before any frame).
+    pub fn last_left_address(&self) -> usize {
+        self.last_left
+    }
+
     /// The background, once captured.
     pub fn background(&self) -> Option<&Background> {
         self.background.as_ref()
@@ -163,7 +171,7 @@ impl Reconstructor {
 
     /// Reconstructs the background capture (the cell without tray and items) and keeps it,
     /// dilated, for background removal in every later frame.
-    pub fn set_background(&mut self, left: &[GrayImage], right: &[GrayImage]) -> Result<()> {
+    pub fn set_background<S: AsImageView<u8>>(&mut self, left: &[S], right: &[S]) -> Result<()> {
         let mut disparity = std::mem::take(&mut self.scratch);
         let result = self.disparity(left, right, &mut disparity, &mut ReconstructTimings::default());
         let background = result
@@ -174,7 +182,7 @@ impl Reconstructor {
     }
 
     /// Reconstructs one frame into `out`.
-    pub fn process(&mut self, left: &[GrayImage], right: &[GrayImage], out: &mut Reconstruction) -> Result<()> {
+    pub fn process<S: AsImageView<u8>>(&mut self, left: &[S], right: &[S], out: &mut Reconstruction) -> Result<()> {
         let mut timings = ReconstructTimings::default();
         self.disparity(left, right, &mut out.disparity, &mut timings)?;
         let t = Instant::now();
@@ -184,10 +192,10 @@ impl Reconstructor {
         Ok(())
     }
 
-    fn disparity(
+    fn disparity<S: AsImageView<u8>>(
         &mut self,
-        left: &[GrayImage],
-        right: &[GrayImage],
+        left: &[S],
+        right: &[S],
         out: &mut FloatImage,
         timings: &mut ReconstructTimings,
     ) -> Result<()> {
@@ -204,11 +212,12 @@ impl Reconstructor {
             ));
         }
         for (i, img) in left.iter().enumerate() {
-            check_size("left", i, img, self.raw_left)?;
+            check_size("left", i, img.as_view(), self.raw_left)?;
         }
         for (i, img) in right.iter().enumerate() {
-            check_size("right", i, img, self.raw_right)?;
+            check_size("right", i, img.as_view(), self.raw_right)?;
         }
+        self.last_left = left.first().map_or(0, |s| s.as_view().data().as_ptr() as usize);
         let t = Instant::now();
         self.rectification.rectify_left_shots(left, &mut self.rect_left);
         self.rectification.rectify_right_shots(right, &mut self.rect_right);
@@ -224,13 +233,14 @@ impl Reconstructor {
     }
 }
 
-fn check_size(side: &str, shot: usize, img: &GrayImage, (width, height): (usize, usize)) -> Result<()> {
-    if img.width != width || img.height != height {
+fn check_size(side: &str, shot: usize, img: ImageView<'_, u8>, (width, height): (usize, usize)) -> Result<()> {
+    if img.width() != width || img.height() != height {
         return Err(Error::new(
             ErrorKind::Input,
             format!(
                 "{side} image {shot}: expected {width} x {height} pixels (the rig), got {} x {}",
-                img.width, img.height
+                img.width(),
+                img.height()
             ),
         ));
     }

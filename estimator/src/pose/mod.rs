@@ -6,6 +6,7 @@ mod icp;
 mod kabsch;
 mod metrics;
 mod model;
+mod model_load;
 mod ransac;
 mod verify;
 

@@ -6,7 +6,7 @@
 use camplace_config::frame_name;
 use camplace_config::{Cell, Placement};
 use camplace_estimator::{isometry_from_rows, isometry_to_rows};
-use camplace_estimator::{Estimator, Model, PoseEstimate};
+use camplace_estimator::{Estimator, EstimatorConfig, Model, PoseEstimate};
 
 use super::record::{score, FrameRecord};
 use crate::model_builder::build_model;
@@ -60,7 +60,7 @@ impl Evaluator {
         let mut sim = Simulator::new(cell, placement, seed)?;
         let mut background = Frame::default();
         sim.render(&background_scene(cell, seed), method, noise_key(seed, 0, true), &mut background);
-        let mut estimator = Estimator::new(cell, sim.rig(), model, method)?;
+        let mut estimator = Estimator::new(&EstimatorConfig::from(cell), sim.rig(), model, method)?;
         estimator.set_background(&background.left, &background.right)?;
         Ok(Evaluator { cell: cell.clone(), placement: *placement, method, seed, background, estimator, sim })
     }
@@ -104,7 +104,7 @@ impl Worker<'_> {
         // Each scenario's estimator believes in its own miscalibrated rig, through which the
         // background is reconstructed again, as a cell calibrated that way would.
         if let Some(error) = draw_rig_error(cell, *seed, index) {
-            self.estimator.set_rig(cell, &error.apply(self.sim.rig()))?;
+            self.estimator.set_rig(&EstimatorConfig::from(cell), &error.apply(self.sim.rig()))?;
             let background = &self.evaluator.background;
             self.estimator.set_background(&background.left, &background.right)?;
         }
@@ -140,7 +140,8 @@ mod tests {
             worker.scene(index).unwrap();
             let error = draw_rig_error(&cell, seed, index).expect("the default cell draws rig errors");
             let model = worker.estimator.model().clone();
-            let mut fresh = Estimator::new(&cell, &error.apply(sim.rig()), model, method).unwrap();
+            let mut fresh =
+                Estimator::new(&EstimatorConfig::from(&cell), &error.apply(sim.rig()), model, method).unwrap();
             fresh.set_background(&evaluator.background.left, &evaluator.background.right).unwrap();
             let scenario = draw_scenario(&cell, seed, index);
             sim.render(&scenario.scene(), method, noise_key(seed, index, false), &mut frame);

@@ -1,6 +1,5 @@
 //! A recorded dataset through the estimator, shared by `estimate --dataset`, `replay` and
-//! `run --source dir:`: the model read (and checked against the cell's tray when a cell
-//! file is given), the estimator set up from the dataset's rig and background, each frame's
+//! `run --source dir:`: the estimator set up from the dataset's rig and background, each frame's
 //! record scored against its `truth.json`, and `poses.jsonl` written.
 
 use std::path::{Path, PathBuf};
@@ -8,42 +7,11 @@ use std::path::{Path, PathBuf};
 use camplace_config::{remove_stale_temp_files, write_atomic};
 use camplace_config::{Cell, TruthFile};
 use camplace_estimator::isometry_from_rows;
-use camplace_estimator::{ErrorKind, Estimator, Method, Model, PoseEstimate, Rig};
+use camplace_estimator::{ErrorKind, Estimator, EstimatorConfig, Method, Model, PoseEstimate, Rig};
 use camplace_hwio::{FrameSource, Frames, RecordedSource};
 
 use super::record::{score, FrameRecord};
 use crate::{Error, Result};
-
-/// Reads a model file.
-pub fn load_model(path: &Path) -> Result<Model> {
-    let bytes = camplace_config::read_bounded(path, camplace_config::FileKind::Model)?;
-    Model::from_bytes(&bytes).map_err(|e| Error::Other(format!("{}: not a usable model file: {e}", path.display())))
-}
-
-/// Reads a model file and checks that it was built for the tray of `cell` (read from
-/// `cell_file`): the same tray and items geometry. A model that records no origin (written by
-/// an earlier camplace) is refused too, as it cannot be checked.
-pub fn load_model_for(path: &Path, cell: &Cell, cell_file: &Path) -> Result<Model> {
-    let model = load_model(path)?;
-    let tray_hash = cell.hashes()?.tray;
-    let rebuild = format!("rebuild it with camplace model --cell {}", cell_file.display());
-    match &model.origin {
-        None => Err(Error::Other(format!(
-            "{}: the model records no tray it was built for (an earlier camplace wrote it); {rebuild}",
-            path.display()
-        ))),
-        Some(o) if o.tray_hash != tray_hash => Err(Error::Other(format!(
-            "{}: built for tray {} (geometry {}), but {} has tray {} (geometry {}); {rebuild}",
-            path.display(),
-            o.tray,
-            o.tray_hash.short(),
-            cell_file.display(),
-            cell.tray_name(),
-            tray_hash.short()
-        ))),
-        Some(_) => Ok(model),
-    }
-}
 
 /// The method a source of `shots` images per side was captured with.
 pub fn method_for(shots: usize) -> Method {
@@ -65,10 +33,11 @@ pub fn estimator_for(
     background: Option<&Frames>,
 ) -> Result<Estimator> {
     // Only the rig's own errors belong to its file; a model's name the model.
-    let mut estimator = Estimator::new(cell, rig, model, method).map_err(|e| match e.kind() {
-        ErrorKind::Rig => Error::from(e).in_file(rig_path),
-        _ => Error::from(e),
-    })?;
+    let mut estimator =
+        Estimator::new(&EstimatorConfig::from(cell), rig, model, method).map_err(|e| match e.kind() {
+            ErrorKind::Rig => Error::from(e).in_file(rig_path),
+            _ => Error::from(e),
+        })?;
     if let Some(frames) = background {
         estimator.set_background(&frames.left, &frames.right).map_err(|e| Error::Other(format!("background: {e}")))?;
     }

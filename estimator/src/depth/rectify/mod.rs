@@ -14,6 +14,8 @@ use rayon::prelude::*;
 use crate::camera::Camera;
 use crate::error::{Error, ErrorKind, Result};
 use crate::rig::Rig;
+use camplace_config::AsImageView;
+
 use crate::{FloatImage, GrayImage};
 
 /// Fixed-point resolution of the bilinear weights: 1/256 px is far below the matcher's
@@ -165,18 +167,18 @@ impl Rectification {
 
     /// [`Rectification::rectify_left`] of every shot of a frame, `raws[i]` into `outs[i]`,
     /// in one pass over the remap table.
-    pub fn rectify_left_shots(&self, raws: &[GrayImage], outs: &mut [GrayImage]) {
+    pub fn rectify_left_shots<S: AsImageView<u8>>(&self, raws: &[S], outs: &mut [GrayImage]) {
         self.resample(&self.map_left, &self.left, raws, outs);
     }
 
     /// [`Rectification::rectify_right`] of every shot of a frame, `raws[i]` into `outs[i]`,
     /// in one pass over the remap table.
-    pub fn rectify_right_shots(&self, raws: &[GrayImage], outs: &mut [GrayImage]) {
+    pub fn rectify_right_shots<S: AsImageView<u8>>(&self, raws: &[S], outs: &mut [GrayImage]) {
         self.resample(&self.map_right, &self.right, raws, outs);
     }
 
     /// The shots of one raw camera through its remap table onto the canvas.
-    fn resample(&self, map: &[RemapEntry], raw: &Camera, raws: &[GrayImage], outs: &mut [GrayImage]) {
+    fn resample<S: AsImageView<u8>>(&self, map: &[RemapEntry], raw: &Camera, raws: &[S], outs: &mut [GrayImage]) {
         let canvas = (self.camera.width, self.camera.height);
         resample::remap_shots(map, (raw.width, raw.height), canvas, raws, outs);
     }

@@ -7,6 +7,8 @@
 use rayon::prelude::*;
 
 use super::{RemapEntry, FRAC_BITS, FRAC_ONE, OUTSIDE};
+use camplace_config::AsImageView;
+
 use crate::GrayImage;
 
 /// Shots resampled in one pass over the table; a frame with more takes several passes.
@@ -25,22 +27,27 @@ unsafe impl Sync for SharedRows {}
 
 /// Resamples `raws[i]` into `outs[i]` for every shot through `map` (a table of the `w` x `h`
 /// canvas over `raw_w` x `raw_h` images). A raw image of the wrong size yields an all-black
-/// canvas; shots beyond the shorter list are left alone.
-pub(super) fn remap_shots(
+/// canvas; shots beyond the shorter list are left alone. A raw view with padded rows is read
+/// in place, one pixel at a time, to the same bits as its rows back to back would give.
+pub(super) fn remap_shots<S: AsImageView<u8>>(
     map: &[RemapEntry],
     (raw_w, raw_h): (usize, usize),
     (w, h): (usize, usize),
-    raws: &[GrayImage],
+    raws: &[S],
     outs: &mut [GrayImage],
 ) {
     #[cfg(target_arch = "x86_64")]
     let wide = crate::cpu::Avx512::detect();
     for (raws, outs) in raws.chunks(SHOTS_PER_PASS).zip(outs.chunks_mut(SHOTS_PER_PASS)) {
         let mut srcs: heapless::Vec<&[u8], SHOTS_PER_PASS> = heapless::Vec::new();
+        let mut strides: heapless::Vec<usize, SHOTS_PER_PASS> = heapless::Vec::new();
         let mut rows: heapless::Vec<SharedRows, SHOTS_PER_PASS> = heapless::Vec::new();
         for (raw, out) in raws.iter().zip(outs.iter_mut()) {
-            let fits = raw.width == raw_w && raw.height == raw_h && raw.data.len() == raw_w * raw_h;
-            if !fits {
+            let raw = raw.as_view();
+            // The view holds at least this much when built by its constructor (an owned
+            // image's fields may disagree); the reads stop at the last row's end.
+            let used = if raw_h == 0 { 0 } else { (raw_h - 1) * raw.stride() + raw_w };
+            if raw.width() != raw_w || raw.height() != raw_h || raw.data().len() < used {
                 out.reset(w, h, 0);
                 continue;
             }
@@ -48,14 +55,16 @@ pub(super) fn remap_shots(
             if !(out.width == w && out.height == h && out.data.len() == w * h) {
                 out.reset(w, h, 0);
             }
-            // Both lists hold at most SHOTS_PER_PASS entries: the chunks do.
-            let _ = srcs.push(&raw.data);
+            // Every list holds at most SHOTS_PER_PASS entries: the chunks do.
+            let _ = srcs.push(&raw.data()[..used]);
+            let _ = strides.push(raw.stride());
             let _ = rows.push(SharedRows(out.data.as_mut_ptr()));
         }
         if srcs.is_empty() || w == 0 {
             continue;
         }
-        let (srcs, rows) = (&srcs[..], &rows[..]);
+        let (srcs, strides, rows) = (&srcs[..], &strides[..], &rows[..]);
+        let padded = strides.iter().any(|&s| s != raw_w);
         map.par_chunks(w).take(h).enumerate().for_each(|(y, entries)| {
             let mut out: heapless::Vec<&mut [u8], SHOTS_PER_PASS> = heapless::Vec::new();
             for shared in rows {
@@ -63,6 +72,12 @@ pub(super) fn remap_shots(
                 // pass; row y is written by this task alone.
                 let row = unsafe { std::slice::from_raw_parts_mut(shared.0.add(y * w), w) };
                 let _ = out.push(row);
+            }
+            if padded {
+                for ((src, &stride), row) in srcs.iter().zip(strides).zip(out.iter_mut()) {
+                    remap_pixels_strided(src, raw_w, stride, entries, row);
+                }
+                return;
             }
             #[cfg(target_arch = "x86_64")]
             if let Some(proof) = wide {
@@ -72,6 +87,29 @@ pub(super) fn remap_shots(
                 remap_pixels(src, raw_w, entries, row);
             }
         });
+    }
+}
+
+/// [`remap_pixels`] over rows `stride` bytes apart: each table index (of rows back to
+/// back) is moved to its row in the padded image.
+fn remap_pixels_strided(src: &[u8], raw_w: usize, stride: usize, entries: &[RemapEntry], row: &mut [u8]) {
+    if stride == raw_w {
+        return remap_pixels(src, raw_w, entries, row);
+    }
+    for (o, e) in row.iter_mut().zip(entries) {
+        if e.index == OUTSIDE {
+            *o = 0;
+            continue;
+        }
+        let (y, x) = (e.index as usize / raw_w, e.index as usize % raw_w);
+        let i = y * stride + x;
+        let (a, b) = (src[i] as u32, src[i + 1] as u32);
+        let (c, d) = (src[i + stride] as u32, src[i + stride + 1] as u32);
+        let (fx, fy) = (e.frac_x as u32, e.frac_y as u32);
+        let top = a * (FRAC_ONE - fx) + b * fx;
+        let bottom = c * (FRAC_ONE - fx) + d * fx;
+        let v = top * (FRAC_ONE - fy) + bottom * fy;
+        *o = ((v + (1 << (2 * FRAC_BITS - 1))) >> (2 * FRAC_BITS)) as u8;
     }
 }
 
@@ -268,5 +306,32 @@ mod tests {
             }
             assert_eq!(out.data, expected, "shot {s}");
         }
+    }
+
+    #[test]
+    fn padded_views_resample_to_the_bits_of_their_rows_back_to_back() {
+        use camplace_config::ImageView;
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let (raw_w, raw_h) = (37usize, 29usize);
+        let (w, h) = (41usize, 23usize);
+        let map = random_entries(&mut rng, raw_w, raw_h, w * h);
+        let raws: Vec<GrayImage> = (0..3)
+            .map(|_| {
+                let data = (0..raw_w * raw_h).map(|_| rng.random_range(0..=255u8)).collect();
+                GrayImage::from_vec(raw_w, raw_h, data).unwrap()
+            })
+            .collect();
+        // The same pixels in rows of raw_w + 11 bytes, the padding 255.
+        let stride = raw_w + 11;
+        let padded: Vec<Vec<u8>> =
+            raws.iter().map(|r| (0..raw_h).flat_map(|y| r.row(y).iter().copied().chain([255; 11])).collect()).collect();
+        let views: Vec<ImageView<'_, u8>> =
+            padded.iter().map(|p| ImageView::new(&p[..p.len() - 11], raw_w, raw_h, stride).unwrap()).collect();
+        let mut expected: Vec<GrayImage> = vec![GrayImage::default(); 3];
+        let mut got: Vec<GrayImage> = vec![GrayImage::default(); 3];
+        remap_shots(&map, (raw_w, raw_h), (w, h), &raws, &mut expected);
+        remap_shots(&map, (raw_w, raw_h), (w, h), &views, &mut got);
+        assert_eq!(got, expected);
+        assert!(expected[0].data.iter().any(|&v| v != 0));
     }
 }
