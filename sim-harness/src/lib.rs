@@ -10,6 +10,7 @@
 
 mod error;
 mod model_builder;
+mod progress;
 mod reconstruction;
 mod render;
 mod report;
@@ -21,6 +22,7 @@ mod workers;
 
 pub use error::{Error, Result};
 pub use model_builder::{build_model, model_origin, model_points};
+pub use progress::{set_progress, ProgressCallback, ProgressEvent};
 pub use reconstruction::{
     match_rectified, reconstruct_dataset, reconstruct_pair, DatasetDepth, PairDepth, RectifiedDepth, RectifiedPair,
 };

@@ -17,6 +17,7 @@ mod merge;
 mod model;
 mod optimize;
 mod placement;
+mod progress;
 mod project;
 mod reconstruct;
 mod render;
@@ -97,6 +98,7 @@ pub fn dispatch() -> anyhow::Result<ExitCode> {
         // A bad flag: one line, exit code 2 like every other bad input.
         Err(e) => anyhow::bail!("{}", one_line(&e.to_string())),
     };
+    progress::install();
     match cli.command {
         Command::Init(a) => init::run(a),
         Command::Render(a) => render::run(a),

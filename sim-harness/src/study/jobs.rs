@@ -8,12 +8,12 @@ use std::path::{Path, PathBuf};
 use camplace_config::write_atomic;
 use camplace_config::{Cell, Placement};
 use camplace_estimator::{Model, ModelOrigin};
-use indicatif::{ProgressBar, ProgressStyle};
 
 use super::evaluate::Evaluator;
 use super::results::{ResultLine, ResultsStore, SceneKey};
 use super::shard::Shard;
 use crate::model_builder::{build_model, model_origin};
+use crate::progress::{report, ProgressEvent};
 use crate::render::Method;
 use crate::workers::each_index;
 use crate::{Error, Result};
@@ -79,24 +79,17 @@ impl<'a> JobEvaluator<'a> {
             .sum()
     }
 
-    /// Runs every unfinished scene of `jobs`, `label` heading the progress bar.
+    /// Runs every unfinished scene of `jobs`, `label` naming the run in its progress
+    /// (`crate::set_progress`).
     pub fn evaluate(&self, jobs: &[PlacementJob], label: &str) -> Result<()> {
         let total = self.pending(jobs);
         if total == 0 {
             return Ok(());
         }
-        let bar = ProgressBar::new(total as u64);
-        bar.set_style(
-            ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} scenes, {elapsed} elapsed, ETA {eta} {msg}")
-                .expect("a valid template")
-                .progress_chars("=> "),
-        );
-        bar.set_prefix(label.to_string());
-        for job in jobs {
-            self.evaluate_job(job, &bar)?;
-        }
-        bar.finish_and_clear();
-        Ok(())
+        report(ProgressEvent::Start { label, scenes: total as u64 });
+        let result = jobs.iter().try_for_each(|job| self.evaluate_job(job));
+        report(ProgressEvent::Finish);
+        result
     }
 
     /// Runs `job`'s scenes in scenario order, `part` at a time, building its model at most
@@ -112,13 +105,13 @@ impl<'a> JobEvaluator<'a> {
         mut enough: impl FnMut(usize) -> bool,
     ) -> Result<usize> {
         let part = part.max(1);
-        let bar = ProgressBar::new(self.pending(std::slice::from_ref(job)) as u64);
-        bar.set_style(
-            ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} scenes, {elapsed} elapsed, ETA {eta} {msg}")
-                .expect("a valid template")
-                .progress_chars("=> "),
-        );
-        bar.set_prefix(label.to_string());
+        report(ProgressEvent::Start { label, scenes: self.pending(std::slice::from_ref(job)) as u64 });
+        let done = self.run_until(job, part, &mut enough);
+        report(ProgressEvent::Finish);
+        done
+    }
+
+    fn run_until(&self, job: &PlacementJob, part: usize, enough: &mut impl FnMut(usize) -> bool) -> Result<usize> {
         let mut evaluator: Option<Evaluator> = None;
         let mut done = 0;
         for chunk in job.scenarios.chunks(part) {
@@ -128,16 +121,15 @@ impl<'a> JobEvaluator<'a> {
             let todo = self.todo(&job.placement, job.seed, chunk);
             if !todo.is_empty() {
                 if evaluator.is_none() {
-                    bar.set_message(format!("{} (model)", job.placement));
+                    report(ProgressEvent::Doing(&format!("{} (model)", job.placement)));
                     let model = self.model(&job.placement, job.seed)?;
                     evaluator = Some(Evaluator::with_model(self.cell, &job.placement, self.method, job.seed, model)?);
-                    bar.set_message(job.placement.to_string());
+                    report(ProgressEvent::Doing(&job.placement.to_string()));
                 }
-                self.run_scenes(evaluator.as_ref().expect("built above"), job, &todo, &bar)?;
+                self.run_scenes(evaluator.as_ref().expect("built above"), job, &todo)?;
             }
             done += chunk.len();
         }
-        bar.finish_and_clear();
         Ok(done)
     }
 
@@ -150,21 +142,21 @@ impl<'a> JobEvaluator<'a> {
             .collect()
     }
 
-    fn evaluate_job(&self, job: &PlacementJob, bar: &ProgressBar) -> Result<()> {
+    fn evaluate_job(&self, job: &PlacementJob) -> Result<()> {
         let todo = self.todo(&job.placement, job.seed, &job.scenarios);
         if todo.is_empty() {
             return Ok(());
         }
-        bar.set_message(format!("{} (model)", job.placement));
+        report(ProgressEvent::Doing(&format!("{} (model)", job.placement)));
         let model = self.model(&job.placement, job.seed)?;
         let evaluator = Evaluator::with_model(self.cell, &job.placement, self.method, job.seed, model)?;
-        bar.set_message(job.placement.to_string());
-        self.run_scenes(&evaluator, job, &todo, bar)
+        report(ProgressEvent::Doing(&job.placement.to_string()));
+        self.run_scenes(&evaluator, job, &todo)
     }
 
     /// Runs scenarios `todo` of `job` with `evaluator`, one worker per thread, each scene
     /// to the store as it finishes.
-    fn run_scenes(&self, evaluator: &Evaluator, job: &PlacementJob, todo: &[u64], bar: &ProgressBar) -> Result<()> {
+    fn run_scenes(&self, evaluator: &Evaluator, job: &PlacementJob, todo: &[u64]) -> Result<()> {
         each_index(
             todo.len(),
             || evaluator.worker(),
@@ -178,7 +170,7 @@ impl<'a> JobEvaluator<'a> {
                     scenario: index,
                     record,
                 })?;
-                bar.inc(1);
+                report(ProgressEvent::Scene);
                 Ok(())
             },
         )?;
