@@ -313,16 +313,27 @@ fn evaluate<'py>(
     py.import("json")?.call_method1("loads", (json,))
 }
 
+/// read_image(path) -> 2-D uint8 array: an image file (PNG, or any common format) as grey,
+/// within the pixel budget (8192 x 8192), as every camplace command reads one.
+#[pyfunction]
+fn read_image<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyAny>> {
+    let gray = camplace_config::read_gray(&path).map_err(fail)?;
+    let a = Array2::from_shape_vec((gray.height, gray.width), gray.data).map_err(fail)?;
+    Ok(a.into_pyarray(py).into_any())
+}
+
 /// camplace: where to mount a stereo camera and projector above a robot cell, and the
 /// tray-pose estimator that runs there. Estimator(...).process(left, right) estimates the
 /// tray's pose on numpy frames without copying them; render(...) simulates one scene with
-/// its truth; evaluate(...) measures a placement's success rate. Bad input raises
+/// its truth; evaluate(...) measures a placement's success rate; read_image(path) reads an
+/// image file as the commands do. Bad input raises
 /// camplace.Error.
 #[pymodule]
 fn camplace(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Estimator>()?;
     m.add_function(wrap_pyfunction!(render, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(read_image, m)?)?;
     m.add("Error", m.py().get_type::<Error>())?;
     Ok(())
 }
