@@ -1,6 +1,9 @@
 //! camplace's estimator: the pipeline that runs on the cell PC, from a stereo frame to the
-//! tray's pose. Pure compute: it never opens a file or a device; the crate that owns a
-//! format loads it and hands the estimator plain values.
+//! tray's pose. Pure compute: it opens no device, and no file but a model file (read
+//! through camplace-config's bounded reader by `Model::load`, so an embedder needs nothing
+//! else); the crate that owns any other format loads it and hands the estimator plain
+//! values. Frames arrive as borrowed `ImageView`s (or owned images), settings as an
+//! `EstimatorConfig`.
 //!
 //! The stages live in folders by pipeline step: `depth` (rectification, stereo or phase
 //! decoding, background, world cloud), `features` (down-sampling, normals, key points,
