@@ -88,3 +88,63 @@ pub(crate) fn size_of(path: &Path) -> std::io::Result<u64> {
     }
     Ok(total)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use camplace_config::{CameraFile, GrayImage, RigFile};
+
+    /// A rig.json of two 64 × 48 cameras.
+    fn rig(dir: &Path) -> PathBuf {
+        let camera = |x: f64| CameraFile {
+            width: 64,
+            height: 48,
+            k: [[60.0, 0.0, 31.5], [0.0, 60.0, 23.5], [0.0, 0.0, 1.0]],
+            dist: [0.0; 5],
+            t_world_camera: [[1.0, 0.0, 0.0, x], [0.0, -1.0, 0.0, 0.0], [0.0, 0.0, -1.0, 600.0], [0.0, 0.0, 0.0, 1.0]],
+        };
+        let file = RigFile { left: camera(0.0), right: camera(80.0), projector: None, rectified: None };
+        let path = dir.join("rig.json");
+        std::fs::write(&path, serde_json::to_string(&file).unwrap()).unwrap();
+        path
+    }
+
+    /// Frames whose pixels vary (so the PNGs do not compress to nothing), seeded by `k`.
+    fn frames(k: u8) -> Frames {
+        let image = |side: u8| {
+            let data =
+                (0..64 * 48).map(|i: usize| (i as u8).wrapping_mul(31).wrapping_add(k).wrapping_add(side)).collect();
+            GrayImage { width: 64, height: 48, data }
+        };
+        Frames { left: vec![image(0)], right: vec![image(1)] }
+    }
+
+    #[test]
+    fn the_oldest_frames_go_when_the_quota_is_reached() {
+        let dir = tempfile::tempdir().unwrap();
+        let rig = rig(dir.path());
+        let kept = dir.path().join("kept");
+        let mut big =
+            FlightRecorder::new(RecorderSettings { dir: kept.clone(), quota_bytes: u64::MAX }, &rig, Some(frames(200)))
+                .unwrap();
+        big.keep(&frames(0)).unwrap().unwrap();
+        let one_frame = size_of(&kept.join("frames/0000")).unwrap();
+        let base = size_of(&kept).unwrap() - one_frame;
+        // Room for the rig, the background and three frames (and a little less than four).
+        let quota = base + 3 * one_frame + one_frame / 2;
+        let mut recorder =
+            FlightRecorder::new(RecorderSettings { dir: kept.clone(), quota_bytes: quota }, &rig, Some(frames(200)))
+                .unwrap();
+        for k in 1..8 {
+            recorder.keep(&frames(k)).unwrap();
+            assert!(size_of(&kept).unwrap() <= quota, "frame {k}: {} > {quota}", size_of(&kept).unwrap());
+        }
+        let mut left: Vec<String> = std::fs::read_dir(kept.join("frames"))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["0005", "0006", "0007"], "the newest three stay");
+        assert!(kept.join("background").is_dir() && kept.join("rig.json").is_file());
+    }
+}
