@@ -270,16 +270,22 @@ fn hostile_clients_leave_the_service_answering() {
                 s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
                 let _ = s.write_all(format!("TRIGGER c{i}\n").as_bytes());
                 let mut line = String::new();
-                BufReader::new(s).read_line(&mut line).unwrap();
+                // A client past the cap may find its connection closed (reset) instead.
+                let _ = BufReader::new(s).read_line(&mut line);
                 line
             })
         })
         .collect();
+    let mut answered = 0;
     for c in clients {
         let line = c.join().unwrap();
-        assert!(line.ends_with('\n'), "{line:?}");
-        check(line.trim_end());
+        if !line.is_empty() {
+            assert!(line.ends_with('\n'), "{line:?}");
+            check(line.trim_end());
+            answered += 1;
+        }
     }
+    assert!(answered >= 8, "{answered} of 50 clients got a reply");
     sent += 50;
     // A 1 MB line: refused as too long, the connection closed.
     {

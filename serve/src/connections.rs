@@ -86,7 +86,17 @@ pub(crate) fn accept(listener: TcpListener, cx: Context) {
 fn refuse(mut stream: TcpStream, cx: &Context) {
     let _ = stream.write_all(format!("{}\n", busy_line("too-many-clients", None)).as_bytes());
     cx.shared.count(Status::Busy);
-    let _ = stream.shutdown(std::net::Shutdown::Both);
+    // What the client already sent is read and dropped, so closing does not reset the
+    // connection before it reads the line (a request sent later still may).
+    let mut sink = [0u8; 512];
+    if stream.set_nonblocking(true).is_ok() {
+        for _ in 0..4 {
+            if !matches!(stream.read(&mut sink), Ok(n) if n > 0) {
+                break;
+            }
+        }
+    }
+    let _ = stream.shutdown(std::net::Shutdown::Write);
 }
 
 /// Reads lines and answers them until the client goes, misbehaves, idles or the service stops.
