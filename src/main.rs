@@ -24,6 +24,7 @@ fn main() -> ExitCode {
                 let complete = cause.is::<camplace_config::Error>()
                     || cause.is::<camplace_estimator::Error>()
                     || cause.is::<camplace_hwio::Error>()
+                    || cause.is::<camplace_serve::Error>()
                     || cause.is::<camplace_sim::Error>();
                 if complete {
                     break;

@@ -20,6 +20,7 @@ mod own_cell;
 mod placement;
 mod reconstruct;
 mod reconstruct_errors;
+mod serve;
 mod study;
 mod study_folder;
 mod tolerance;

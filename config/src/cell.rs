@@ -65,6 +65,22 @@ pub struct Robot {
     /// row-major 4 × 4, mm (from `calibrate --hand-eye --eye-in-hand`).
     #[serde(rename = "T_flange_rig", default, skip_serializing_if = "Option::is_none")]
     pub t_flange_rig: Option<[[f64; 4]; 4]>,
+    /// How `serve` writes a pose for this robot's controller: `"CONVENTION UNIT"` (see
+    /// `RobotPoseFormat::from_text`); `"matrix mm"` when not given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose_format: Option<String>,
+}
+
+impl Robot {
+    /// The pose format of `serve`'s replies (`"matrix mm"` when the cell names none).
+    pub fn reply_format(&self) -> Result<crate::RobotPoseFormat, Error> {
+        match &self.pose_format {
+            Some(text) => crate::RobotPoseFormat::from_text(text).map_err(|m| Error::value("robot.pose_format", m)),
+            None => {
+                Ok(crate::RobotPoseFormat { convention: crate::PoseConvention::Matrix, unit: crate::LengthUnit::Mm })
+            }
+        }
+    }
 }
 
 /// The table top.
@@ -479,6 +495,7 @@ impl Cell {
                     format!("expected a translation within ±{MAX_DISTANCE_MM} mm"),
                 ));
             }
+            robot.reply_format()?;
             if let Some(t) = &robot.t_flange_rig {
                 crate::check_rigid(t).map_err(|m| Error::value("robot.T_flange_rig", m))?;
                 if (0..3).any(|i| t[i][3].abs() > MAX_DISTANCE_MM) {

@@ -45,6 +45,8 @@ pub use pose::{check_rigid, ROTATION_TOLERANCE};
 pub use raster::{AsImageView, FloatImage, GrayImage, Image, ImageView};
 pub use realism::{CalibrationError, Effect, Effects, Focus, Occluder, Optics, MAX_ROUGHNESS, MIN_ROUGHNESS};
 pub use rig::{CameraFile, RectifiedFile, RigFile, MAX_IMAGE_SIDE};
-pub use robot_pose::{format_pose, parse_pose, LengthUnit, PoseConvention, RobotPoseFormat, QUATERNION_NORM_TOLERANCE};
+pub use robot_pose::{
+    format_pose, format_pose_exact, parse_pose, LengthUnit, PoseConvention, RobotPoseFormat, QUATERNION_NORM_TOLERANCE,
+};
 pub use trays::{reserved_tray_name, TrayEntry, MAX_TRAYS, STUDY_FILE_ENDINGS, STUDY_FOLDER_NAMES};
 pub use truth::{LightingTruth, TruthFile};

@@ -145,6 +145,27 @@ pub struct RobotPoseFormat {
     pub unit: LengthUnit,
 }
 
+impl RobotPoseFormat {
+    /// The format written `"CONVENTION UNIT"` (`"ur m"`, `"kuka mm"`), as it displays;
+    /// the error says what was expected.
+    pub fn from_text(text: &str) -> Result<RobotPoseFormat, String> {
+        let words: Vec<&str> = text.split_whitespace().collect();
+        let expected = || {
+            format!(
+                "expected \"CONVENTION UNIT\" with a convention of {} and a unit of mm, m; got {text:?}",
+                PoseConvention::names()
+            )
+        };
+        match words[..] {
+            [c, u] => match (PoseConvention::from_name(c), LengthUnit::from_name(u)) {
+                (Some(convention), Some(unit)) => Ok(RobotPoseFormat { convention, unit }),
+                _ => Err(expected()),
+            },
+            _ => Err(expected()),
+        }
+    }
+}
+
 impl fmt::Display for RobotPoseFormat {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{} {}", self.convention, self.unit)
@@ -218,47 +239,68 @@ pub fn parse_pose(line: &str, format: RobotPoseFormat) -> Result<[[f64; 4]; 4], 
 /// single spaces, with the digits a controller's pose needs to round-trip far below 1 µm and
 /// 1e-6°.
 pub fn format_pose(t: &[[f64; 4]; 4], format: RobotPoseFormat) -> String {
-    let scale = format.unit.mm();
     let length_digits = match format.unit {
         LengthUnit::Mm => 5,
         LengthUnit::M => 8,
     };
-    let [x, y, z] = [t[0][3] / scale, t[1][3] / scale, t[2][3] / scale];
-    let xyz = format!("{x:.length_digits$} {y:.length_digits$} {z:.length_digits$}");
+    format_pose_with(t, format, |v, kind| match kind {
+        Number::Length => format!("{v:.length_digits$}"),
+        Number::Unitless => format!("{v:.10}"),
+        Number::Degrees => format!("{v:.8}"),
+    })
+}
+
+/// Formats like [`format_pose`], every number in the fewest digits that read back as the
+/// same `f64`: a pose handed on and parsed back is the transform it came from to rounding
+/// (1e-12 and below), not to a controller's display digits.
+pub fn format_pose_exact(t: &[[f64; 4]; 4], format: RobotPoseFormat) -> String {
+    format_pose_with(t, format, |v, _| format!("{v}"))
+}
+
+/// What a number of a pose line stands for, so a formatter can choose its digits.
+#[derive(Clone, Copy)]
+enum Number {
+    Length,
+    Unitless,
+    Degrees,
+}
+
+fn format_pose_with(t: &[[f64; 4]; 4], format: RobotPoseFormat, number: impl Fn(f64, Number) -> String) -> String {
+    let scale = format.unit.mm();
+    let len = |v: f64| number(v / scale, Number::Length);
+    let one = |v: f64| number(v, Number::Unitless);
+    let deg = |v: f64| number(v, Number::Degrees);
+    let xyz = format!("{} {} {}", len(t[0][3]), len(t[1][3]), len(t[2][3]));
     let r = [[t[0][0], t[0][1], t[0][2]], [t[1][0], t[1][1], t[1][2]], [t[2][0], t[2][1], t[2][2]]];
     match format.convention {
         PoseConvention::Matrix => {
             let mut parts = Vec::with_capacity(16);
             for (i, row) in t.iter().enumerate() {
                 for (j, v) in row.iter().enumerate() {
-                    parts.push(if j == 3 && i < 3 {
-                        format!("{:.length_digits$}", v / scale)
-                    } else {
-                        format!("{v:.10}")
-                    });
+                    parts.push(if j == 3 && i < 3 { len(*v) } else { one(*v) });
                 }
             }
             parts.join(" ")
         }
         PoseConvention::QuatWxyz | PoseConvention::Abb => {
             let [w, qx, qy, qz] = rotation_quaternion(&r);
-            format!("{xyz} {w:.10} {qx:.10} {qy:.10} {qz:.10}")
+            format!("{xyz} {} {} {} {}", one(w), one(qx), one(qy), one(qz))
         }
         PoseConvention::QuatXyzw => {
             let [w, qx, qy, qz] = rotation_quaternion(&r);
-            format!("{xyz} {qx:.10} {qy:.10} {qz:.10} {w:.10}")
+            format!("{xyz} {} {} {} {}", one(qx), one(qy), one(qz), one(w))
         }
         PoseConvention::Ur => {
             let [rx, ry, rz] = rotation_vector(&r);
-            format!("{xyz} {rx:.10} {ry:.10} {rz:.10}")
+            format!("{xyz} {} {} {}", one(rx), one(ry), one(rz))
         }
         PoseConvention::Kuka => {
             let (a, b, c) = zyx_angles(&r);
-            format!("{xyz} {a:.8} {b:.8} {c:.8}")
+            format!("{xyz} {} {} {}", deg(a), deg(b), deg(c))
         }
         PoseConvention::Fanuc => {
             let (rz, p, w) = zyx_angles(&r);
-            format!("{xyz} {w:.8} {p:.8} {rz:.8}")
+            format!("{xyz} {} {} {}", deg(w), deg(p), deg(rz))
         }
     }
 }
@@ -450,8 +492,26 @@ mod tests {
                     let back = parse_pose(&line, format).unwrap_or_else(|e| panic!("{format}: {line}: {e}"));
                     let (rot, tr) = max_difference(&truth, &back);
                     assert!(rot < 1e-8 && tr < 1e-4, "{format} {a} {b} {c}: {line}: {rot} {tr}");
+                    let exact = format_pose_exact(&truth, format);
+                    let back = parse_pose(&exact, format).unwrap_or_else(|e| panic!("{format}: {exact}: {e}"));
+                    let (rot, tr) = max_difference(&truth, &back);
+                    assert!(rot < 1e-9 && tr < 1e-9, "exact {format} {a} {b} {c}: {exact}: {rot} {tr}");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn a_reply_format_reads_as_it_displays_and_names_what_it_expects() {
+        for convention in PoseConvention::ALL {
+            for unit in [LengthUnit::Mm, LengthUnit::M] {
+                let format = RobotPoseFormat { convention, unit };
+                assert_eq!(RobotPoseFormat::from_text(&format.to_string()), Ok(format));
+            }
+        }
+        for bad in ["ur", "ur cm", "euler mm", "ur m extra", ""] {
+            let e = RobotPoseFormat::from_text(bad).unwrap_err();
+            assert!(e.contains("CONVENTION UNIT") && e.contains("fanuc"), "{bad}: {e}");
         }
     }
 

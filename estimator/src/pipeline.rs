@@ -307,6 +307,11 @@ impl Estimator {
         &self.reconstruction
     }
 
+    /// The rectified left camera the disparity is in (intrinsics, baseline, pose in the world).
+    pub fn rectified_camera(&self) -> &crate::RectifiedCamera {
+        &self.reconstructor.rectification().camera
+    }
+
     /// The last frame's down-sampled scene cloud, world mm.
     pub fn scene_cloud(&self) -> &[Point3<f32>] {
         self.stages.features.cloud()

@@ -23,6 +23,7 @@ mod reconstruct;
 mod render;
 mod replay;
 mod run;
+mod serve;
 mod study;
 mod study_args;
 mod sweep;
@@ -74,6 +75,8 @@ enum Command {
     Replay(replay::Args),
     /// The deployed loop: frames from cameras or a recording, one pose per frame, latency.
     Run(run::Args),
+    /// Serve the robot: poses over TCP on request, a status page, a flight recorder, a drift watch.
+    Serve(serve::Args),
     /// The installed rig's rig.json from stereo pairs of a chessboard (with one lying on the table).
     Calibrate(calibrate::Args),
     /// Save frames from a source as a recorded dataset (calibration images, the background, frames to replay).
@@ -116,6 +119,7 @@ pub fn dispatch() -> anyhow::Result<ExitCode> {
         Command::Merge(a) => merge::run(a),
         Command::Replay(a) => replay::run(a),
         Command::Run(a) => run::run(a),
+        Command::Serve(a) => serve::run(a),
         Command::Calibrate(a) => calibrate::run(a),
         Command::Capture(a) => capture::run(a),
         Command::Devices(a) => devices::run(a),

@@ -1,0 +1,196 @@
+//! The robot interface's sockets: the accepting thread and one thread per client up to a
+//! cap (a client past it gets one `BUSY` line and is closed). Each client thread reads
+//! request lines into a fixed buffer of [`MAX_REQUEST_BYTES`], answers each with one line,
+//! and closes the connection after a line too long, after an idle spell, or when the
+//! service stops.
+
+use std::io::{ErrorKind as IoKind, Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{bounded, Sender, TrySendError};
+
+use crate::protocol::{
+    bad_request_line, busy_line, parse_request, BadRequest, Request, Status, MAX_REQUEST_BYTES, PROTOCOL,
+};
+use crate::state::Shared;
+use crate::worker::Job;
+
+/// How often a waiting thread looks at the stop flag.
+const POLL: Duration = Duration::from_millis(50);
+
+/// How long a trigger in the queue may wait for the stopping worker.
+const STOP_GRACE: Duration = Duration::from_secs(10);
+
+/// The limits of the robot interface.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ConnectionLimits {
+    /// Clients served at once.
+    pub max_clients: usize,
+    /// A client that sends no complete line for this long is closed.
+    pub idle: Duration,
+    /// A reply that cannot be written within this is dropped with its connection.
+    pub write: Duration,
+}
+
+impl Default for ConnectionLimits {
+    fn default() -> Self {
+        ConnectionLimits { max_clients: 8, idle: Duration::from_secs(60), write: Duration::from_secs(5) }
+    }
+}
+
+/// What every client thread shares.
+#[derive(Clone)]
+pub(crate) struct Context {
+    pub(crate) jobs: Sender<Job>,
+    pub(crate) shared: Arc<Shared>,
+    pub(crate) stop: Arc<AtomicBool>,
+    pub(crate) limits: ConnectionLimits,
+    pub(crate) active: Arc<AtomicUsize>,
+    pub(crate) version: String,
+}
+
+/// Accepts clients until the stop flag is set.
+pub(crate) fn accept(listener: TcpListener, cx: Context) {
+    // Non-blocking so the stop flag is seen between clients.
+    if listener.set_nonblocking(true).is_err() {
+        return;
+    }
+    while !cx.stop.load(Ordering::SeqCst) {
+        match listener.accept() {
+            Ok((stream, _)) => {
+                let _ = stream.set_nonblocking(false);
+                let _ = stream.set_write_timeout(Some(cx.limits.write));
+                if cx.active.load(Ordering::SeqCst) >= cx.limits.max_clients {
+                    refuse(stream, &cx);
+                    continue;
+                }
+                cx.active.fetch_add(1, Ordering::SeqCst);
+                let client = cx.clone();
+                let spawned = std::thread::Builder::new().name("camplace-client".into()).spawn(move || {
+                    serve_client(stream, &client);
+                    client.active.fetch_sub(1, Ordering::SeqCst);
+                });
+                if spawned.is_err() {
+                    cx.active.fetch_sub(1, Ordering::SeqCst);
+                }
+            }
+            Err(e) if e.kind() == IoKind::WouldBlock => std::thread::sleep(POLL / 5),
+            Err(_) => std::thread::sleep(POLL),
+        }
+    }
+}
+
+fn refuse(mut stream: TcpStream, cx: &Context) {
+    let _ = stream.write_all(format!("{}\n", busy_line("too-many-clients", None)).as_bytes());
+    cx.shared.count(Status::Busy);
+    // What the client already sent is read and dropped, so closing does not reset the
+    // connection before it reads the line (a request sent later still may).
+    let mut sink = [0u8; 512];
+    if stream.set_nonblocking(true).is_ok() {
+        for _ in 0..4 {
+            if !matches!(stream.read(&mut sink), Ok(n) if n > 0) {
+                break;
+            }
+        }
+    }
+    let _ = stream.shutdown(std::net::Shutdown::Write);
+}
+
+/// Reads lines and answers them until the client goes, misbehaves, idles or the service stops.
+fn serve_client(mut stream: TcpStream, cx: &Context) {
+    if stream.set_read_timeout(Some(POLL)).is_err() {
+        return;
+    }
+    let _ = stream.set_nodelay(true);
+    // One line plus its `\r\n`; never grows.
+    let mut line = [0u8; MAX_REQUEST_BYTES + 2];
+    let mut len = 0usize;
+    let mut chunk = [0u8; 512];
+    let mut last_line = Instant::now();
+    loop {
+        if cx.stop.load(Ordering::SeqCst) {
+            return;
+        }
+        let n = match stream.read(&mut chunk) {
+            Ok(0) => return,
+            Ok(n) => n,
+            Err(e) if matches!(e.kind(), IoKind::WouldBlock | IoKind::TimedOut | IoKind::Interrupted) => {
+                if last_line.elapsed() > cx.limits.idle {
+                    return;
+                }
+                continue;
+            }
+            Err(_) => return,
+        };
+        for &b in &chunk[..n] {
+            if b == b'\n' {
+                let reply = answer(&line[..len], cx);
+                len = 0;
+                last_line = Instant::now();
+                if stream.write_all(reply.as_bytes()).and_then(|()| stream.write_all(b"\n")).is_err() {
+                    return;
+                }
+                continue;
+            }
+            if len == line.len() {
+                cx.shared.count(Status::BadRequest);
+                let _ = stream.write_all(format!("{}\n", bad_request_line(BadRequest::TooLong)).as_bytes());
+                let _ = stream.shutdown(std::net::Shutdown::Both);
+                return;
+            }
+            line[len] = b;
+            len += 1;
+        }
+    }
+}
+
+/// The reply line (without `\n`) to one request line.
+fn answer(line: &[u8], cx: &Context) -> String {
+    match parse_request(line) {
+        Err(why) => {
+            cx.shared.count(Status::BadRequest);
+            bad_request_line(why)
+        }
+        Ok(Request::Ping) => "PONG".to_string(),
+        Ok(Request::Version) => format!("VERSION {PROTOCOL} camplace={}", cx.version),
+        Ok(Request::Status) => cx.shared.lock().status_line(),
+        Ok(Request::Trigger { id }) => trigger(id, cx),
+    }
+}
+
+fn trigger(id: Option<String>, cx: &Context) -> String {
+    let (reply, replied) = bounded(1);
+    let job = Job { id: id.clone(), at: Instant::now(), reply };
+    match cx.jobs.try_send(job) {
+        Ok(()) => {}
+        Err(TrySendError::Full(_)) => {
+            cx.shared.count(Status::Busy);
+            return busy_line("queue-full", id.as_deref());
+        }
+        Err(TrySendError::Disconnected(_)) => {
+            cx.shared.count(Status::Busy);
+            return busy_line("stopping", id.as_deref());
+        }
+    }
+    // The worker answers every job it takes, stopping or not; one queued as it ended is
+    // told so after a grace period.
+    let mut stopping_since: Option<Instant> = None;
+    loop {
+        match replied.recv_timeout(POLL) {
+            Ok(line) => return line,
+            Err(crossbeam_channel::RecvTimeoutError::Timeout) => {
+                if cx.stop.load(Ordering::SeqCst)
+                    && stopping_since.get_or_insert_with(Instant::now).elapsed() > STOP_GRACE
+                {
+                    break;
+                }
+            }
+            Err(crossbeam_channel::RecvTimeoutError::Disconnected) => break,
+        }
+    }
+    cx.shared.count(Status::Busy);
+    busy_line("stopping", id.as_deref())
+}

@@ -1,0 +1,162 @@
+//! What the service has done, shared by the worker, the connections, `STATUS` and the status
+//! page: counts by status, the latency histogram, the last trigger (its left image and the
+//! model's outline at its pose) and the drift watch's state.
+
+use std::collections::VecDeque;
+use std::sync::Mutex;
+
+use camplace_config::GrayImage;
+use serde::Serialize;
+
+use crate::drift::{DriftLimits, DriftState};
+use crate::protocol::{Status, PROTOCOL};
+
+/// Width of one latency histogram bar, ms.
+pub const HISTOGRAM_STEP_MS: f64 = 10.0;
+/// Bars of the histogram; the last takes everything from its start on.
+pub const HISTOGRAM_BARS: usize = 21;
+/// Latencies kept for the percentiles (the most recent).
+const RECENT: usize = 1000;
+
+/// The last trigger that reached the estimator.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct LastTrigger {
+    /// The robot's id.
+    pub id: Option<String>,
+    /// The frame's name.
+    pub frame: String,
+    /// The reply's status word.
+    pub status: String,
+    /// The verification's verdict (`accepted`, `rejected: poor fit`, ...).
+    pub verdict: String,
+    /// The verification's score.
+    pub score: f32,
+    /// Trigger to reply, ms.
+    pub latency_ms: f64,
+}
+
+/// Everything the page and `STATUS` show.
+#[derive(Debug, Default)]
+pub(crate) struct State {
+    pub(crate) counts: [u64; 6],
+    pub(crate) histogram: [u64; HISTOGRAM_BARS],
+    pub(crate) recent: VecDeque<f64>,
+    pub(crate) last: Option<LastTrigger>,
+    /// The last frame's first left shot.
+    pub(crate) image: GrayImage,
+    /// Bumped with every new image, so the page asks for the new one.
+    pub(crate) image_serial: u64,
+    /// The model's outline at the last pose, left-image pixels (empty without a pose).
+    pub(crate) outline: Vec<[f32; 2]>,
+    pub(crate) drift: DriftState,
+    pub(crate) drift_limits: Option<DriftLimits>,
+    pub(crate) camera_error: Option<String>,
+    pub(crate) recorded: u64,
+}
+
+/// The shared state behind one lock; every holder keeps it for a copy's time only.
+#[derive(Debug, Default)]
+pub(crate) struct Shared {
+    pub(crate) state: Mutex<State>,
+}
+
+impl Shared {
+    pub(crate) fn lock(&self) -> std::sync::MutexGuard<'_, State> {
+        // A panicking holder leaves plain counters behind, still worth showing.
+        self.state.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    pub(crate) fn count(&self, status: Status) {
+        self.lock().counts[status.index()] += 1;
+    }
+}
+
+impl State {
+    pub(crate) fn add_latency(&mut self, ms: f64) {
+        let bar = ((ms / HISTOGRAM_STEP_MS).floor().max(0.0) as usize).min(HISTOGRAM_BARS - 1);
+        self.histogram[bar] += 1;
+        if self.recent.len() == RECENT {
+            self.recent.pop_front();
+        }
+        self.recent.push_back(ms);
+    }
+
+    /// The nearest-rank `q`-th percentile of the recent latencies.
+    pub(crate) fn percentile(&self, q: f64) -> Option<f64> {
+        let mut v: Vec<f64> = self.recent.iter().copied().collect();
+        if v.is_empty() {
+            return None;
+        }
+        v.sort_by(f64::total_cmp);
+        let rank = ((q / 100.0) * v.len() as f64).ceil() as usize;
+        Some(v[rank.clamp(1, v.len()) - 1])
+    }
+
+    /// The `STATUS` reply line.
+    pub(crate) fn status_line(&self) -> String {
+        let mut s = String::from("STATUS");
+        let triggers: u64 = self.counts[..4].iter().sum();
+        s.push_str(&format!(" triggers={triggers}"));
+        for status in Status::ALL {
+            s.push_str(&format!(" {}={}", status.as_str().to_ascii_lowercase(), self.counts[status.index()]));
+        }
+        let p = |q| self.percentile(q).map_or("-".to_string(), |v| format!("{v:.1}"));
+        s.push_str(&format!(" p50_ms={} p99_ms={}", p(50.0), p(99.0)));
+        let d = &self.drift;
+        let drift = match (d.warning, d.rotation_deg) {
+            (true, _) => "warning",
+            (false, Some(_)) => "ok",
+            (false, None) => "unchecked",
+        };
+        s.push_str(&format!(" drift={drift}"));
+        if let (Some(r), Some(t)) = (d.rotation_deg, d.translation_mm) {
+            s.push_str(&format!(" drift_deg={r:.2} drift_mm={t:.1}"));
+        }
+        s.push_str(&format!(" camera={}", if self.camera_error.is_some() { "error" } else { "ok" }));
+        s
+    }
+
+    /// The status as the page's JSON endpoint gives it.
+    pub(crate) fn json(&self) -> StatusJson {
+        StatusJson {
+            protocol: PROTOCOL,
+            counts: Status::ALL.iter().map(|s| (s.as_str(), self.counts[s.index()])).collect(),
+            latency_ms: LatencyJson {
+                p50: self.percentile(50.0),
+                p99: self.percentile(99.0),
+                histogram_step_ms: HISTOGRAM_STEP_MS,
+                histogram: self.histogram.to_vec(),
+            },
+            last: self.last.clone(),
+            image_serial: self.image_serial,
+            outline: self.outline.clone(),
+            drift: self.drift.clone(),
+            drift_limits: self.drift_limits.clone(),
+            camera_error: self.camera_error.clone(),
+            recorded: self.recorded,
+        }
+    }
+}
+
+/// The JSON endpoint's body.
+#[derive(Debug, Serialize)]
+pub(crate) struct StatusJson {
+    protocol: &'static str,
+    counts: std::collections::BTreeMap<&'static str, u64>,
+    latency_ms: LatencyJson,
+    last: Option<LastTrigger>,
+    image_serial: u64,
+    outline: Vec<[f32; 2]>,
+    drift: DriftState,
+    drift_limits: Option<DriftLimits>,
+    camera_error: Option<String>,
+    recorded: u64,
+}
+
+#[derive(Debug, Serialize)]
+struct LatencyJson {
+    p50: Option<f64>,
+    p99: Option<f64>,
+    histogram_step_ms: f64,
+    histogram: Vec<u64>,
+}

@@ -1,0 +1,169 @@
+//! The status page over HTTP (tiny_http): `/` an HTML page that reloads itself every two
+//! seconds (the last left image with the model's outline at the pose, the verdict and
+//! score, counts by status, the latency histogram, the drift state), `/frame.png` that image
+//! and `/status.json` the same figures for programs.
+
+use std::io::Cursor;
+use std::net::TcpListener;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use image::ImageEncoder;
+use tiny_http::{Header, Response, Server};
+
+use crate::protocol::Status;
+use crate::state::{Shared, State, HISTOGRAM_BARS, HISTOGRAM_STEP_MS};
+
+/// Serves the page until `stop` is set.
+pub(crate) fn serve_page(listener: TcpListener, shared: Arc<Shared>, stop: Arc<AtomicBool>) {
+    let Ok(server) = Server::from_listener(listener, None) else { return };
+    while !stop.load(Ordering::SeqCst) {
+        let request = match server.recv_timeout(Duration::from_millis(100)) {
+            Ok(Some(r)) => r,
+            Ok(None) => continue,
+            Err(_) => continue,
+        };
+        let path = request.url().split('?').next().unwrap_or("/").to_string();
+        let (body, kind, code) = match path.as_str() {
+            "/" | "/index.html" => (page(&shared.lock()).into_bytes(), "text/html; charset=utf-8", 200),
+            "/status.json" => {
+                let json = serde_json::to_vec(&shared.lock().json()).unwrap_or_default();
+                (json, "application/json", 200)
+            }
+            "/frame.png" => match frame_png(&shared) {
+                Some(png) => (png, "image/png", 200),
+                None => (b"no frame yet".to_vec(), "text/plain", 404),
+            },
+            _ => (b"not found".to_vec(), "text/plain", 404),
+        };
+        let header = Header::from_bytes(&b"Content-Type"[..], kind.as_bytes()).expect("a valid header");
+        let no_cache = Header::from_bytes(&b"Cache-Control"[..], &b"no-store"[..]).expect("a valid header");
+        let response =
+            Response::new(code.into(), vec![header, no_cache], Cursor::new(body.clone()), Some(body.len()), None);
+        let _ = request.respond(response);
+    }
+}
+
+/// The last frame's first left shot as a grey PNG.
+fn frame_png(shared: &Shared) -> Option<Vec<u8>> {
+    let image = {
+        let s = shared.lock();
+        if s.image.data.is_empty() {
+            return None;
+        }
+        s.image.clone()
+    };
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new_with_quality(
+        &mut out,
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Sub,
+    )
+    .write_image(&image.data, image.width as u32, image.height as u32, image::ExtendedColorType::L8)
+    .ok()?;
+    Some(out)
+}
+
+fn escape(text: &str) -> String {
+    text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+/// The HTML page of `s`.
+fn page(s: &State) -> String {
+    let mut html = String::with_capacity(8192);
+    html.push_str(
+        "<!DOCTYPE html><html><head><meta charset=\"utf-8\"><meta http-equiv=\"refresh\" content=\"2\">\
+         <title>camplace serve</title><style>body{font-family:sans-serif;margin:1em}\
+         td,th{padding:2px 8px;text-align:right}.warn{color:#b00;font-weight:bold}\
+         #view{position:relative;display:inline-block;max-width:100%}#view img{display:block;max-width:100%}\
+         #view svg{position:absolute;left:0;top:0;width:100%;height:100%}</style></head><body>\
+         <h1>camplace serve</h1>",
+    );
+    // The last frame and the outline.
+    match &s.last {
+        Some(l) => html.push_str(&format!(
+            "<p>last trigger: <span id=\"last-status\">{}</span>, frame <span id=\"last-frame\">{}</span>, \
+             verdict <span id=\"verdict\">{}</span>, score <span id=\"score\">{:.4}</span>, \
+             {:.1} ms</p>",
+            escape(&l.status),
+            escape(&l.frame),
+            escape(&l.verdict),
+            l.score,
+            l.latency_ms
+        )),
+        None => html.push_str("<p>no trigger yet</p>"),
+    }
+    if let Some(e) = &s.camera_error {
+        html.push_str(&format!("<p class=\"warn\" id=\"camera-error\">camera: {}</p>", escape(e)));
+    }
+    if s.image_serial > 0 {
+        let (w, h) = (s.image.width, s.image.height);
+        let points: Vec<String> = s.outline.iter().map(|[x, y]| format!("{x:.1},{y:.1}")).collect();
+        html.push_str(&format!(
+            "<div id=\"view\"><img id=\"frame\" src=\"/frame.png?n={}\" width=\"{w}\" height=\"{h}\" alt=\"last left image\">\
+             <svg viewBox=\"0 0 {w} {h}\" preserveAspectRatio=\"none\"><polygon id=\"outline\" points=\"{}\" \
+             fill=\"none\" stroke=\"#0f0\" stroke-width=\"3\"/></svg></div>",
+            s.image_serial,
+            points.join(" ")
+        ));
+    }
+    // Counts by status.
+    html.push_str("<h2>replies</h2><table><tr>");
+    for status in Status::ALL {
+        html.push_str(&format!("<th>{}</th>", status.as_str()));
+    }
+    html.push_str("</tr><tr>");
+    for status in Status::ALL {
+        html.push_str(&format!("<td id=\"count-{}\">{}</td>", status.as_str(), s.counts[status.index()]));
+    }
+    html.push_str("</tr></table>");
+    // Latency.
+    let p = |q| s.percentile(q).map_or("-".to_string(), |v| format!("{v:.1} ms"));
+    html.push_str(&format!(
+        "<h2>trigger to reply</h2><p>p50 <span id=\"p50\">{}</span>, p99 <span id=\"p99\">{}</span> \
+         (last {} triggers)</p>",
+        p(50.0),
+        p(99.0),
+        s.recent.len()
+    ));
+    let most = s.histogram.iter().copied().max().unwrap_or(0).max(1);
+    html.push_str("<svg id=\"histogram\" width=\"630\" height=\"140\" viewBox=\"0 0 630 140\">");
+    for (i, &n) in s.histogram.iter().enumerate() {
+        let bar = 100.0 * n as f64 / most as f64;
+        html.push_str(&format!(
+            "<rect x=\"{}\" y=\"{:.1}\" width=\"26\" height=\"{bar:.1}\" fill=\"#47a\"><title>{} ms: {n}</title></rect>",
+            i * 30,
+            110.0 - bar,
+            if i + 1 == HISTOGRAM_BARS {
+                format!("{:.0}+", i as f64 * HISTOGRAM_STEP_MS)
+            } else {
+                format!("{:.0}–{:.0}", i as f64 * HISTOGRAM_STEP_MS, (i + 1) as f64 * HISTOGRAM_STEP_MS)
+            }
+        ));
+        if i % 5 == 0 {
+            html.push_str(&format!(
+                "<text x=\"{}\" y=\"130\" font-size=\"11\">{:.0}</text>",
+                i * 30,
+                i as f64 * HISTOGRAM_STEP_MS
+            ));
+        }
+    }
+    html.push_str("</svg>");
+    // Drift.
+    let d = &s.drift;
+    let state = match (d.warning, d.rotation_deg) {
+        (true, _) => "<span class=\"warn\" id=\"drift\">warning: the rig has moved</span>".to_string(),
+        (false, Some(_)) => "<span id=\"drift\">ok</span>".to_string(),
+        (false, None) => "<span id=\"drift\">not checked yet</span>".to_string(),
+    };
+    html.push_str(&format!("<h2>drift watch</h2><p>{state}"));
+    if let (Some(r), Some(t)) = (d.rotation_deg, d.translation_mm) {
+        html.push_str(&format!(": turned {r:.2}°, moved {t:.1} mm along the table's normal ({} checks)", d.checks));
+    }
+    if let Some(l) = &s.drift_limits {
+        html.push_str(&format!("; limits {:.2}° and {:.1} mm ({})", l.rotation_deg, l.translation_mm, escape(&l.from)));
+    }
+    html.push_str(&format!("</p><p>flight recorder: {} frames kept</p></body></html>", s.recorded));
+    html
+}

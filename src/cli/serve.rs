@@ -1,0 +1,190 @@
+//! `camplace serve`: flags parsed, the cell, model, rig and source opened, the estimator
+//! built, and `camplace_serve::Service` run until SIGTERM or Ctrl-C. Prints the addresses it
+//! listens on to standard output and one log line per trigger to standard error.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{bail, Context};
+use camplace_config::{Cell, LengthUnit, PoseConvention, RobotPoseFormat};
+use camplace_estimator::Rig;
+use camplace_hwio::{open_source, parse_source, DeploySource, FrameSource, RecordedSource, SourceSpec};
+use camplace_serve::{ConnectionLimits, DriftLimits, RecorderSettings, Service, Settings, Status};
+use camplace_sim::{estimator_for, load_model, load_model_for, method_for, ToleranceReport};
+
+/// Flags of `camplace serve`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Where frames come from: dir:PATH (a recorded dataset, served from its first frame
+    /// again after its last), v4l2:LEFT,RIGHT, v4l2-sbs:DEV, v4l2-16:DEV or dc1394[:GUID].
+    #[arg(long, value_name = "SPEC")]
+    source: String,
+    /// The tray model (from `camplace model`).
+    #[arg(long, value_name = "FILE")]
+    model: PathBuf,
+    /// Cell file (TOML): estimator settings, and `[robot]` (T_robot_world, pose_format) for
+    /// the replies; the built-in default when not given.
+    #[arg(long, value_name = "FILE")]
+    cell: Option<PathBuf>,
+    /// Which of the cell's listed trays (`[[trays]]` name) when it lists several.
+    #[arg(long, value_name = "NAME")]
+    tray: Option<String>,
+    /// Calibration of the cameras (needed for cameras; a dataset's own rig.json otherwise).
+    #[arg(long, value_name = "FILE")]
+    rig: Option<PathBuf>,
+    /// A folder with the empty cell's images (left.png, right.png); a dataset's own
+    /// background/ otherwise.
+    #[arg(long, value_name = "DIR")]
+    background: Option<PathBuf>,
+    /// The robot interface's address, e.g. 0.0.0.0:50010 (port 0: any free port, printed).
+    #[arg(long, value_name = "ADDR:PORT")]
+    listen: String,
+    /// The status page's address, e.g. 0.0.0.0:8080.
+    #[arg(long, value_name = "ADDR:PORT")]
+    status: Option<String>,
+    /// Keep the frames of every NO_POSE and REJECTED trigger in this dataset folder.
+    #[arg(long, value_name = "DIR")]
+    record: Option<PathBuf>,
+    /// Most the flight recorder's folder may hold, MB (oldest frames dropped first).
+    #[arg(long, value_name = "MB", default_value_t = 500.0, requires = "record")]
+    record_quota_mb: f64,
+    /// The study's tolerance.json: the drift watch warns when the rig's implied turn passes
+    /// alpha's tolerance or its move r's.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["drift_deg", "drift_mm"])]
+    tolerance: Option<PathBuf>,
+    /// Without --tolerance: the largest turn of the rig before the drift watch warns, deg.
+    #[arg(long, value_name = "DEG")]
+    drift_deg: Option<f64>,
+    /// Without --tolerance: the largest move of the rig along the table's normal, mm.
+    #[arg(long, value_name = "MM")]
+    drift_mm: Option<f64>,
+    /// Clients served at once; more get one BUSY line.
+    #[arg(long, value_name = "N", default_value_t = 8)]
+    max_clients: usize,
+    /// A frame not captured within this is a CAMERA_ERROR and the camera is opened again, ms.
+    #[arg(long, value_name = "MS", default_value_t = 2000)]
+    camera_timeout_ms: u64,
+}
+
+/// The drift limits when neither --tolerance nor the flags give them: the tolerance walk's
+/// resolution for alpha (1°) and r (5 mm), below which a study does not tell placements apart.
+const DEFAULT_DRIFT_DEG: f64 = 1.0;
+const DEFAULT_DRIFT_MM: f64 = 5.0;
+
+fn address(text: &str, flag: &str) -> anyhow::Result<SocketAddr> {
+    text.parse().map_err(|_| anyhow::anyhow!("{flag} {text:?}: expected ADDR:PORT, e.g. 127.0.0.1:50010"))
+}
+
+fn positive(v: f64, flag: &str) -> anyhow::Result<f64> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        bail!("{flag} {v}: expected a number above 0")
+    }
+}
+
+/// The drift limits: alpha's and r's tolerances (the smaller side of each), or the flags.
+fn drift_limits(a: &Args) -> anyhow::Result<DriftLimits> {
+    let Some(path) = &a.tolerance else {
+        return Ok(DriftLimits {
+            rotation_deg: positive(a.drift_deg.unwrap_or(DEFAULT_DRIFT_DEG), "--drift-deg")?,
+            translation_mm: positive(a.drift_mm.unwrap_or(DEFAULT_DRIFT_MM), "--drift-mm")?,
+            from: if a.drift_deg.is_some() || a.drift_mm.is_some() { "flags" } else { "defaults" }.to_string(),
+        });
+    };
+    let t = ToleranceReport::load(path)?;
+    let axis = |name: &str| {
+        t.axes
+            .iter()
+            .find(|x| x.parameter == name)
+            .map(|x| x.minus.min(x.plus))
+            .with_context(|| format!("{}: axes: expected a tolerance of {name}", path.display()))
+    };
+    Ok(DriftLimits { rotation_deg: axis("alpha")?, translation_mm: axis("r")?, from: path.display().to_string() })
+}
+
+/// Opens `spec` again each time the service asks (at the start, after a failure, at the end
+/// of a recording).
+fn opener(spec: SourceSpec) -> camplace_serve::SourceOpener {
+    Box::new(move || -> camplace_hwio::Result<Box<dyn FrameSource + Send>> {
+        match &spec {
+            SourceSpec::Recorded(dir) => Ok(Box::new(RecordedSource::open(dir)?)),
+            other => open_source(other),
+        }
+    })
+}
+
+/// Runs `camplace serve`.
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let listen = address(&a.listen, "--listen")?;
+    let status = a.status.as_deref().map(|s| address(s, "--status")).transpose()?;
+    let drift = drift_limits(&a)?;
+    let quota_bytes = (positive(a.record_quota_mb, "--record-quota-mb")? * 1e6) as u64;
+    if a.camera_timeout_ms == 0 {
+        bail!("--camera-timeout-ms 0: expected at least 1");
+    }
+    let spec = parse_source(&a.source)?;
+    let cell = match &a.cell {
+        Some(path) => Cell::load(path)?.one_tray(a.tray.as_deref()).map_err(|e| e.in_file(path))?,
+        None => Cell::default().one_tray(a.tray.as_deref())?,
+    };
+    let pose_format = match &cell.robot {
+        Some(r) => r.reply_format().map_err(|e| match &a.cell {
+            Some(path) => e.in_file(path),
+            None => e,
+        })?,
+        None => RobotPoseFormat { convention: PoseConvention::Matrix, unit: LengthUnit::Mm },
+    };
+    // The source opened once here: its calibration, background and shots, and a missing
+    // camera reported before anything listens.
+    let opened = DeploySource::open(&spec, a.rig.as_deref(), a.background.as_deref(), None)?;
+    let rig = Rig::from_file(&opened.rig);
+    let model = match &a.cell {
+        Some(path) => load_model_for(&a.model, &cell, path)?,
+        None => load_model(&a.model)?,
+    };
+    let shots = opened.source.shots();
+    let method = method_for(shots);
+    let estimator = estimator_for(&cell, model, &rig, &opened.rig_path, method, opened.background.as_ref())?;
+    if opened.background.is_none() {
+        noteln!("note: no background to remove (give --background DIR with the empty cell's images)");
+    }
+    drop(opened.source);
+    let settings = Settings {
+        listen,
+        status,
+        pose_format,
+        t_robot_world: cell.robot.as_ref().map(|r| r.t_robot_world),
+        rig,
+        rig_path: opened.rig_path.clone(),
+        background: opened.background,
+        shots,
+        recorder: a.record.clone().map(|dir| RecorderSettings { dir, quota_bytes }),
+        drift,
+        limits: ConnectionLimits { max_clients: a.max_clients, ..ConnectionLimits::default() },
+        camera_timeout: Duration::from_millis(a.camera_timeout_ms),
+        version: env!("CARGO_PKG_VERSION").to_string(),
+    };
+    let service = Service::bind(settings)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    let on_signal = stop.clone();
+    ctrlc::set_handler(move || on_signal.store(true, Ordering::SeqCst)).context("SIGTERM/Ctrl-C handler")?;
+    outln!(
+        "robot interface {} on {} ({method}, poses as {pose_format})",
+        camplace_serve::PROTOCOL,
+        service.robot_addr()?
+    );
+    if let Some(addr) = service.status_addr()? {
+        outln!("status page on http://{addr}/");
+    }
+    let log: camplace_serve::Log = Arc::new(|line: &str| noteln!("{line}"));
+    let served = service.run(estimator, opener(spec), stop, log)?;
+    let counts: Vec<String> =
+        Status::ALL.iter().map(|s| format!("{} {}", s.as_str(), served.counts[s.index()])).collect();
+    noteln!("stopped: {}", counts.join(", "));
+    Ok(ExitCode::SUCCESS)
+}

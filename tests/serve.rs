@@ -1,0 +1,606 @@
+//! `camplace serve` end to end, spoken to over raw `TcpStream`s as a robot would: the poses
+//! of 50 triggers equal `replay`'s in every pose format, hostile clients leave it answering,
+//! the flight recorder keeps the refused frames for `replay`, the status page shows what was
+//! replied in a browser, and the drift watch sees a rig turned 3° and not an unmoved one.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+use camplace_config::{parse_pose, LengthUnit, PoseConvention, RobotPoseFormat};
+use camplace_sim::FrameRecord;
+
+use crate::camplace_cmd::{camplace, stderr};
+use crate::deploy::fixture;
+
+/// The statuses a trigger reply may start with.
+const TRIGGER_STATUSES: [&str; 6] = ["OK", "NO_POSE", "REJECTED", "CAMERA_ERROR", "BUSY", "BAD_REQUEST"];
+
+/// A running `camplace serve`, killed when dropped.
+struct Served {
+    child: Child,
+    port: u16,
+    status_port: Option<u16>,
+    log: PathBuf,
+}
+
+impl Served {
+    /// Starts `camplace serve` in `dir` with `args` on free loopback ports; its log goes to `log`.
+    fn start(dir: &Path, args: &[&str], log: &str, status_page: bool) -> Served {
+        let log = dir.join(log);
+        let mut all = vec!["serve", "--listen", "127.0.0.1:0"];
+        if status_page {
+            all.extend(["--status", "127.0.0.1:0"]);
+        }
+        all.extend(args);
+        let mut child = Command::new(env!("CARGO_BIN_EXE_camplace"))
+            .args(&all)
+            .current_dir(dir)
+            .stdout(Stdio::piped())
+            .stderr(std::fs::File::create(&log).unwrap())
+            .spawn()
+            .expect("camplace serve starts");
+        let mut out = BufReader::new(child.stdout.take().unwrap());
+        let port_of = |line: &str| -> u16 {
+            let at = line.find("127.0.0.1:").unwrap_or_else(|| panic!("no address in {line:?}")) + 10;
+            line[at..].split(|c: char| !c.is_ascii_digit()).next().unwrap().parse().unwrap()
+        };
+        let mut line = String::new();
+        out.read_line(&mut line).unwrap();
+        assert!(line.starts_with("robot interface CAMPLACE/1 on "), "{line:?}: {}", read(&log));
+        let port = port_of(&line);
+        let status_port = status_page.then(|| {
+            let mut line = String::new();
+            out.read_line(&mut line).unwrap();
+            port_of(&line)
+        });
+        Served { child, port, status_port, log }
+    }
+
+    fn connect(&self) -> TcpStream {
+        let s = TcpStream::connect(("127.0.0.1", self.port)).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+        s
+    }
+
+    /// Stops the service with SIGTERM and asserts it exits 0 having logged no panic.
+    fn stop(mut self) -> String {
+        let o = Command::new("kill").args(["-TERM", &self.child.id().to_string()]).output().unwrap();
+        assert!(o.status.success());
+        let status = self.child.wait().unwrap();
+        let log = read(&self.log);
+        assert!(status.success(), "serve ended with {status}: {log}");
+        assert!(!log.contains("panicked"), "{log}");
+        log
+    }
+}
+
+impl Drop for Served {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn read(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// One request, one reply line (without its line end).
+fn ask(stream: &mut TcpStream, request: &str) -> String {
+    stream.write_all(format!("{request}\n").as_bytes()).unwrap();
+    let mut reply = Vec::new();
+    let mut byte = [0u8; 1];
+    loop {
+        let n = stream.read(&mut byte).unwrap();
+        assert!(n == 1, "closed before a reply to {request:?}");
+        if byte[0] == b'\n' {
+            break;
+        }
+        reply.push(byte[0]);
+        assert!(reply.len() < 4096, "a reply line without end");
+    }
+    String::from_utf8(reply).expect("an ASCII reply")
+}
+
+/// A reply's status word, reason (REJECTED, BUSY, BAD_REQUEST) and key=value fields; panics
+/// when the line does not follow docs/robot-interface.md.
+fn parse_reply(line: &str) -> (String, Option<String>, std::collections::BTreeMap<String, String>) {
+    let mut words = line.split(' ');
+    let status = words.next().unwrap().to_string();
+    assert!(TRIGGER_STATUSES.contains(&status.as_str()), "status of {line:?}");
+    let mut reason = None;
+    let mut fields = std::collections::BTreeMap::new();
+    for (i, w) in words.enumerate() {
+        match w.split_once('=') {
+            Some((k, v)) => {
+                assert!(!k.is_empty() && !v.is_empty(), "{line:?}");
+                fields.insert(k.to_string(), v.to_string());
+            }
+            None => {
+                assert!(i == 0 && ["REJECTED", "BUSY", "BAD_REQUEST"].contains(&status.as_str()), "{line:?}");
+                reason = Some(w.to_string());
+            }
+        }
+    }
+    (status, reason, fields)
+}
+
+/// Where a frame of a dataset made for a test comes from.
+#[derive(Clone, Copy)]
+enum Frame {
+    /// That frame of the fixture's rendered dataset.
+    Rendered(usize),
+    /// The empty cell: the fixture's background images.
+    Empty,
+}
+
+/// A dataset at `to` with the fixture dataset `from`'s rig and background and `frames` in
+/// order (their images only).
+fn copy_dataset(from: &Path, to: &Path, frames: &[Frame]) {
+    std::fs::create_dir_all(to.join("background")).unwrap();
+    std::fs::copy(from.join("rig.json"), to.join("rig.json")).unwrap();
+    for side in ["left.png", "right.png"] {
+        std::fs::copy(from.join("background").join(side), to.join("background").join(side)).unwrap();
+    }
+    for (i, frame) in frames.iter().enumerate() {
+        let src = match frame {
+            Frame::Rendered(k) => from.join("frames").join(format!("{k:04}")),
+            Frame::Empty => from.join("background"),
+        };
+        let dst = to.join("frames").join(format!("{i:04}"));
+        std::fs::create_dir_all(&dst).unwrap();
+        for side in ["left.png", "right.png"] {
+            std::fs::copy(src.join(side), dst.join(side)).unwrap();
+        }
+    }
+}
+
+/// Replays the fixture's dataset under `cell` and returns each frame's record by name.
+fn replayed(root: &Path, cell: &str) -> std::collections::BTreeMap<String, FrameRecord> {
+    replayed_dataset(root, "data", &["--cell", cell])
+}
+
+/// Replays `dataset` in `root` with `tray.model` and returns each frame's record by name.
+fn replayed_dataset(root: &Path, dataset: &str, extra: &[&str]) -> std::collections::BTreeMap<String, FrameRecord> {
+    let mut args = vec!["replay", dataset, "--model", "tray.model"];
+    args.extend(extra);
+    let o = camplace(root, &args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    read(&root.join(dataset).join("poses.jsonl"))
+        .lines()
+        .map(|l| serde_json::from_str::<FrameRecord>(l).unwrap())
+        .map(|r| (r.frame.clone(), r))
+        .collect()
+}
+
+fn robot_cell(dir: &Path, name: &str, format: Option<RobotPoseFormat>) {
+    let t = [[0.0, -1.0, 0.0, 450.0], [1.0, 0.0, 0.0, -120.0], [0.0, 0.0, 1.0, 35.0], [0.0, 0.0, 0.0, 1.0]];
+    let rows: Vec<String> = t.iter().map(|r| format!("{r:?}")).collect();
+    let mut text = format!("[robot]\nT_robot_world = [{}]\n", rows.join(", "));
+    if let Some(f) = format {
+        text.push_str(&format!("pose_format = \"{f}\"\n"));
+    }
+    std::fs::write(dir.join(name), text).unwrap();
+}
+
+#[test]
+fn fifty_triggers_give_replays_poses_in_every_format() {
+    let f = fixture();
+    let dir = tempfile::tempdir().unwrap();
+    copy_dataset(
+        &f.root.join("data"),
+        &dir.path().join("data"),
+        &[Frame::Rendered(0), Frame::Rendered(1), Frame::Rendered(2), Frame::Rendered(3)],
+    );
+    std::fs::copy(f.root.join("tray.model"), dir.path().join("tray.model")).unwrap();
+    robot_cell(dir.path(), "serve-robot.toml", None);
+    let replay = replayed(dir.path(), "serve-robot.toml");
+    let mut oks = 0;
+    for (k, convention) in PoseConvention::ALL.into_iter().enumerate() {
+        // Each convention once, in mm and m by turns.
+        let unit = if k % 2 == 0 { LengthUnit::Mm } else { LengthUnit::M };
+        let format = RobotPoseFormat { convention, unit };
+        let cell = dir.path().join(format!("robot-{k}.toml"));
+        robot_cell(dir.path(), cell.file_name().unwrap().to_str().unwrap(), Some(format));
+        let served = Served::start(
+            dir.path(),
+            &["--source", "dir:data", "--model", "tray.model", "--cell", cell.to_str().unwrap()],
+            &format!("serve-{k}.log"),
+            false,
+        );
+        let mut robot = served.connect();
+        for i in 0..50 {
+            let line = ask(&mut robot, &format!("TRIGGER t{i}"));
+            let (status, reason, fields) = parse_reply(&line);
+            assert_eq!(fields["id"], format!("t{i}"), "{line}");
+            let frame = &fields["frame"];
+            let want = &replay[frame];
+            match status.as_str() {
+                "OK" => {
+                    assert!(want.accepted(), "{format}: {line} but replay: {:?}", want.verdict);
+                    let pose = parse_pose(&fields["pose"], format).unwrap_or_else(|e| panic!("{format}: {line}: {e}"));
+                    let truth = want.t_robot_tray.expect("replay gives an accepted pose in the robot's frame");
+                    for r in 0..4 {
+                        for c in 0..4 {
+                            assert!(
+                                (pose[r][c] - truth[r][c]).abs() <= 1e-9,
+                                "{format} [{r}][{c}]: {line} vs {truth:?}"
+                            );
+                        }
+                    }
+                    oks += 1;
+                }
+                "NO_POSE" => assert!(!want.found, "{line} vs {:?}", want.verdict),
+                "REJECTED" => {
+                    let said = format!("rejected: {}", reason.unwrap().replace('-', " "));
+                    assert_eq!(want.verdict.as_deref(), Some(said.as_str()), "{line}");
+                }
+                _ => panic!("{format}: {line}"),
+            }
+            let score: f32 = fields["score"].parse().unwrap();
+            assert!((score - want.verify_score.unwrap()).abs() <= 5e-5, "{line}");
+        }
+        served.stop();
+    }
+    // Not vacuous: most triggers were answered with a pose.
+    assert!(oks >= 7 * 25, "{oks} poses");
+}
+
+/// A connection answered `PONG`, tried again while the service says it has too many clients
+/// (bounded: two minutes).
+fn connect_when_free(served: &Served) -> TcpStream {
+    for _ in 0..240 {
+        let mut s = served.connect();
+        let _ = s.write_all(b"PING\n");
+        let mut reply = String::new();
+        // A refused client may find its connection reset before it reads the BUSY line.
+        let _ = BufReader::new(s.try_clone().unwrap()).read_line(&mut reply);
+        if reply == "PONG\n" {
+            return s;
+        }
+        assert!(reply.is_empty() || reply == "BUSY too-many-clients\n", "{reply:?}");
+        std::thread::sleep(Duration::from_millis(500));
+    }
+    panic!("the service never took another client");
+}
+
+#[test]
+fn hostile_clients_leave_the_service_answering() {
+    let f = fixture();
+    let dir = tempfile::tempdir().unwrap();
+    let data = format!("dir:{}", f.root.join("data").display());
+    let model = f.root.join("tray.model");
+    let served =
+        Served::start(dir.path(), &["--source", &data, "--model", model.to_str().unwrap()], "hostile.log", false);
+    let port = served.port;
+    let mut sent = 0;
+    let check = |line: &str| {
+        parse_reply(line);
+    };
+    // 50 clients at once, each one trigger: a reply each (a pose, or BUSY past the cap).
+    let clients: Vec<_> = (0..50)
+        .map(|i| {
+            std::thread::spawn(move || {
+                let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
+                s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+                let _ = s.write_all(format!("TRIGGER c{i}\n").as_bytes());
+                let mut line = String::new();
+                // A client past the cap may find its connection closed (reset) instead.
+                let _ = BufReader::new(s).read_line(&mut line);
+                line
+            })
+        })
+        .collect();
+    let mut answered = 0;
+    for c in clients {
+        let line = c.join().unwrap();
+        if !line.is_empty() {
+            assert!(line.ends_with('\n'), "{line:?}");
+            check(line.trim_end());
+            answered += 1;
+        }
+    }
+    assert!(answered >= 8, "{answered} of 50 clients got a reply");
+    sent += 50;
+    // A 1 MB line: refused as too long, the connection closed.
+    {
+        let mut s = served.connect();
+        let _ = s.write_all(&vec![b'A'; 1 << 20]);
+        let mut reply = String::new();
+        let _ = BufReader::new(s).read_line(&mut reply);
+        assert!(reply.is_empty() || reply.trim_end() == "BAD_REQUEST too-long", "{reply:?}");
+        sent += 1;
+    }
+    // Binary garbage, seeded: every line it makes gets a parsable reply or the connection closes.
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    for _ in 0..20 {
+        let mut bytes = Vec::with_capacity(300);
+        for _ in 0..300 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            bytes.push((state >> 32) as u8);
+        }
+        let mut s = served.connect();
+        s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+        let _ = s.write_all(&bytes);
+        let _ = s.write_all(b"\n");
+        let _ = s.shutdown(std::net::Shutdown::Write);
+        let mut text = Vec::new();
+        let _ = s.read_to_end(&mut text);
+        for line in String::from_utf8(text).expect("ASCII replies").lines() {
+            check(line);
+        }
+        sent += 1;
+    }
+    // A flood: 4 clients each sending 10 triggers in one write.
+    let flood: Vec<_> = (0..4)
+        .map(|_| {
+            std::thread::spawn(move || {
+                let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
+                s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+                s.write_all("TRIGGER\n".repeat(10).as_bytes()).unwrap();
+                let r = BufReader::new(s);
+                r.lines().take(10).map(Result::unwrap).collect::<Vec<_>>()
+            })
+        })
+        .collect();
+    for c in flood {
+        let lines = c.join().unwrap();
+        assert_eq!(lines.len(), 10);
+        lines.iter().for_each(|l| check(l));
+    }
+    sent += 40;
+    // Clients that leave mid-request and mid-reply.
+    for i in 0..20 {
+        let mut s = served.connect();
+        let _ = s.write_all(if i % 2 == 0 { b"TRIG".as_slice() } else { b"TRIGGER gone\n".as_slice() });
+        drop(s);
+        sent += 1;
+    }
+    // Requests the protocol does not take, one connection (once the clients that left are
+    // done: each keeps its place under the cap until its trigger is answered).
+    let mut s = connect_when_free(&served);
+    for (i, bad) in ["FIRE", "PING now", "TRIGGER a=b", "TRIGGER 123456789012345678901234567890123", "", "\u{7f}"]
+        .iter()
+        .cycle()
+        .take(200 - sent - 20)
+        .enumerate()
+    {
+        let reply = ask(&mut s, bad);
+        assert!(reply.starts_with("BAD_REQUEST "), "{i}: {bad:?} -> {reply}");
+        check(&reply);
+    }
+    // The rest: valid but unusual (lower case, CR LF).
+    for _ in 0..20 {
+        assert_eq!(ask(&mut s, "ping\r"), "PONG");
+    }
+    let mut fresh = connect_when_free(&served);
+    let status = ask(&mut fresh, "STATUS");
+    assert!(status.starts_with("STATUS triggers="), "{status}");
+    let log = served.stop();
+    // One log line per trigger that reached the worker, none about a panic.
+    assert!(log.lines().filter(|l| l.starts_with("OK ") || l.starts_with("REJECTED ")).count() >= 5, "{log}");
+}
+
+/// A private copy of the fixture with `frames`, and the model; returns the folder.
+fn dataset_of(frames: &[Frame]) -> tempfile::TempDir {
+    let f = fixture();
+    let dir = tempfile::tempdir().unwrap();
+    copy_dataset(&f.root.join("data"), &dir.path().join("data"), frames);
+    std::fs::copy(f.root.join("tray.model"), dir.path().join("tray.model")).unwrap();
+    dir
+}
+
+/// The fixture's frames `replay` accepts.
+fn accepted_frames() -> Vec<usize> {
+    let dir = dataset_of(&[Frame::Rendered(0), Frame::Rendered(1), Frame::Rendered(2), Frame::Rendered(3)]);
+    let records = replayed_dataset(dir.path(), "data", &[]);
+    let accepted: Vec<usize> = records.values().filter(|r| r.accepted()).map(|r| r.frame.parse().unwrap()).collect();
+    assert!(!accepted.is_empty(), "no frame of the fixture is accepted: {records:?}");
+    accepted
+}
+
+#[test]
+fn the_flight_recorder_keeps_the_refused_frames_for_replay() {
+    let accepted = accepted_frames();
+    // 20 frames, every fourth the empty cell.
+    let frames: Vec<Frame> = (0..20)
+        .map(|i| if i % 4 == 3 { Frame::Empty } else { Frame::Rendered(accepted[i % accepted.len()]) })
+        .collect();
+    let dir = dataset_of(&frames);
+    let served = Served::start(
+        dir.path(),
+        &["--source", "dir:data", "--model", "tray.model", "--record", "kept"],
+        "recorder.log",
+        false,
+    );
+    let mut robot = served.connect();
+    let mut refused = Vec::new();
+    for i in 0..20 {
+        let line = ask(&mut robot, &format!("TRIGGER {i}"));
+        let (status, reason, fields) = parse_reply(&line);
+        match status.as_str() {
+            "OK" => {}
+            "NO_POSE" => refused.push((fields["frame"].clone(), "rejected: no tray".to_string())),
+            "REJECTED" => {
+                refused.push((fields["frame"].clone(), format!("rejected: {}", reason.unwrap().replace('-', " "))))
+            }
+            _ => panic!("{line}"),
+        }
+    }
+    let log = served.stop();
+    assert_eq!(refused.len(), 5, "the 5 empty-cell frames and no other: {refused:?}\n{log}");
+    for (frame, _) in &refused {
+        assert_eq!(frame.parse::<usize>().unwrap() % 4, 3, "{refused:?}");
+    }
+    assert_eq!(log.matches(" recorded=").count(), 5, "{log}");
+    // The kept dataset replays unchanged, with the verdicts the service gave.
+    let kept = replayed_dataset(dir.path(), "kept", &[]);
+    assert_eq!(kept.len(), 5, "{kept:?}");
+    for (record, (frame, verdict)) in kept.values().zip(&refused) {
+        assert_eq!(record.verdict.as_deref(), Some(verdict.as_str()), "kept {} from frame {frame}", record.frame);
+    }
+}
+
+/// The body of an HTTP GET of `path` on `port`.
+fn http_get(port: u16, path: &str) -> Vec<u8> {
+    let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    s.write_all(format!("GET {path} HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n").as_bytes()).unwrap();
+    let mut all = Vec::new();
+    s.read_to_end(&mut all).unwrap();
+    let at = all.windows(4).position(|w| w == b"\r\n\r\n").expect("an HTTP response") + 4;
+    assert!(all.starts_with(b"HTTP/1.") && all[9..12] == *b"200", "{}", String::from_utf8_lossy(&all[..at]));
+    all[at..].to_vec()
+}
+
+#[test]
+fn the_status_page_shows_the_last_frame_the_outline_and_the_counts() {
+    let accepted = accepted_frames();
+    let dir = dataset_of(&[Frame::Empty, Frame::Rendered(accepted[0])]);
+    let served = Served::start(dir.path(), &["--source", "dir:data", "--model", "tray.model"], "page.log", true);
+    let mut robot = served.connect();
+    let mut counts = std::collections::BTreeMap::<String, u64>::new();
+    // Empty, tray, empty, tray: the last reply has a pose to outline.
+    for i in 0..4 {
+        let (status, _, _) = parse_reply(&ask(&mut robot, &format!("TRIGGER {i}")));
+        *counts.entry(status).or_default() += 1;
+    }
+    for bad in ["HELLO", "TRIGGER !"] {
+        let (status, _, _) = parse_reply(&ask(&mut robot, bad));
+        *counts.entry(status).or_default() += 1;
+    }
+    assert_eq!(counts.get("OK"), Some(&2), "{counts:?}");
+    let port = served.status_port.unwrap();
+    let png = http_get(port, "/frame.png");
+    assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"), "a PNG");
+    let html = String::from_utf8(http_get(port, "/")).unwrap();
+    assert!(html.contains("http-equiv=\"refresh\""), "the page refreshes itself");
+    let json: serde_json::Value = serde_json::from_slice(&http_get(port, "/status.json")).unwrap();
+    for status in TRIGGER_STATUSES {
+        assert_eq!(json["counts"][status].as_u64(), Some(counts.get(status).copied().unwrap_or(0)), "{status}: {json}");
+    }
+    assert!(json["outline"].as_array().unwrap().len() >= 3, "{json}");
+
+    let Some(browser) = ["chromium", "chromium-browser"].into_iter().find(|b| which(b)) else {
+        assert!(std::env::var_os("CAMPLACE_BROWSER").is_none(), "CAMPLACE_BROWSER is set but no chromium is installed");
+        eprintln!("no chromium: the status page's browser test is skipped (CI installs it and sets CAMPLACE_BROWSER)");
+        return;
+    };
+    // The page as served, with the server as its base and a probe that marks, once loaded,
+    // whether the image loaded and how large the outline is drawn over it.
+    let probe = "<script>window.addEventListener('load',()=>{const im=document.getElementById('frame');\
+        const o=document.getElementById('outline').getBoundingClientRect();\
+        const r=im.getBoundingClientRect();\
+        document.body.dataset.loaded=(im.complete&&im.naturalWidth>0)?1:0;\
+        document.body.dataset.outlineWidth=Math.round(o.width);\
+        document.body.dataset.outlineInside=(o.left>=r.left-1&&o.right<=r.right+1&&o.top>=r.top-1&&o.bottom<=r.bottom+1)?1:0;});</script>";
+    let page = html
+        .replace("<head>", &format!("<head><base href=\"http://127.0.0.1:{port}/\">"))
+        .replace("<meta http-equiv=\"refresh\" content=\"2\">", "")
+        .replace("</body>", &format!("{probe}</body>"));
+    let file = dir.path().join("page.html");
+    std::fs::write(&file, page).unwrap();
+    let o = Command::new(browser)
+        .args(["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", "--window-size=1280,1000"])
+        .args(["--virtual-time-budget=5000", "--dump-dom", &format!("file://{}", file.display())])
+        .output()
+        .expect("chromium runs");
+    let dom = String::from_utf8_lossy(&o.stdout).into_owned();
+    let attr = |name: &str| -> i64 {
+        let at = dom.find(&format!("{name}=\"")).unwrap_or_else(|| panic!("no {name} on the page: {}", stderr(&o)));
+        let v = &dom[at + name.len() + 2..];
+        v[..v.find('"').unwrap()].parse().unwrap()
+    };
+    assert_eq!(attr("data-loaded"), 1, "the frame loads");
+    assert!(attr("data-outline-width") >= 10, "the outline is drawn");
+    assert_eq!(attr("data-outline-inside"), 1, "the outline lies over the frame");
+    for status in TRIGGER_STATUSES {
+        let cell = format!("id=\"count-{status}\">");
+        let at = dom.find(&cell).unwrap_or_else(|| panic!("no count of {status}")) + cell.len();
+        let shown: u64 = dom[at..dom[at..].find('<').unwrap() + at].parse().unwrap();
+        assert_eq!(shown, counts.get(status).copied().unwrap_or(0), "{status}");
+    }
+    served.stop();
+}
+
+fn which(program: &str) -> bool {
+    std::env::var_os("PATH").is_some_and(|paths| std::env::split_paths(&paths).any(|p| p.join(program).is_file()))
+}
+
+/// `rows` (a rig.json camera's T_world_camera) turned by `deg` about the world x axis
+/// through `centre`.
+fn turned(rows: &serde_json::Value, deg: f64, centre: [f64; 3]) -> serde_json::Value {
+    let (s, c) = deg.to_radians().sin_cos();
+    let r = [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]];
+    let t: Vec<Vec<f64>> = (0..4).map(|i| (0..4).map(|j| rows[i][j].as_f64().unwrap()).collect()).collect();
+    let mut out = t.clone();
+    for i in 0..3 {
+        for j in 0..4 {
+            out[i][j] = (0..3).map(|k| r[i][k] * (t[k][j] - if j == 3 { centre[k] } else { 0.0 })).sum::<f64>()
+                + if j == 3 { centre[i] } else { 0.0 };
+        }
+    }
+    serde_json::to_value(out).unwrap()
+}
+
+/// Sends triggers until STATUS says the drift watch warns; returns how many it took.
+fn triggers_until_warning(served: &Served, most: usize) -> Option<usize> {
+    let mut robot = served.connect();
+    for n in 1..=most {
+        parse_reply(&ask(&mut robot, "TRIGGER"));
+        let status = ask(&mut robot, "STATUS");
+        assert!(status.contains(" drift="), "{status}");
+        if status.contains(" drift=warning") {
+            return Some(n);
+        }
+    }
+    None
+}
+
+#[test]
+fn the_drift_watch_sees_a_turned_rig_and_not_an_unmoved_one() {
+    let f = fixture();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // The rig turned 3° about the world x axis through its left camera; the scenes rendered
+    // by it while the service believes the calibration.
+    let mut rig: serde_json::Value = serde_json::from_str(&read(&f.root.join("data/rig.json"))).unwrap();
+    let left = &rig["left"]["T_world_camera"];
+    let centre = [0, 1, 2].map(|i| left[i][3].as_f64().unwrap());
+    for camera in ["left", "right", "projector"] {
+        if rig[camera].is_object() {
+            rig[camera]["T_world_camera"] = turned(&rig[camera]["T_world_camera"], 3.0, centre);
+        }
+    }
+    let o = camplace(d, &["init", "cell.toml"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut cell: toml::Table = read(&d.join("cell.toml")).parse().unwrap();
+    cell.insert("rig".into(), toml::Value::try_from(rig).unwrap());
+    std::fs::write(d.join("cell.toml"), toml::to_string(&cell).unwrap()).unwrap();
+    let o =
+        camplace(d, &["render", "--dataset", "--count", "3", "--cell", "cell.toml", "--seed", "1", "--out", "turned"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let nominal = f.root.join("data/rig.json");
+    let model = f.root.join("tray.model");
+    let served = Served::start(
+        d,
+        &["--source", "dir:turned", "--rig", nominal.to_str().unwrap(), "--model", model.to_str().unwrap()],
+        "turned.log",
+        false,
+    );
+    // docs/robot-interface.md: a move is reported by the third trigger after it.
+    let n = triggers_until_warning(&served, 3);
+    let log = served.stop();
+    assert!(n.is_some(), "no warning in 3 triggers: {log}");
+
+    // The unmoved rig: no warning over 200 triggers of the fixture's frames, cycled.
+    let data = format!("dir:{}", f.root.join("data").display());
+    let served = Served::start(d, &["--source", &data, "--model", model.to_str().unwrap()], "unmoved.log", false);
+    assert_eq!(triggers_until_warning(&served, 200), None);
+    served.stop();
+}
