@@ -89,8 +89,10 @@ fn tolerances_are_paired_tests_walked_out_and_resume_without_a_scene() {
     assert_eq!((report.scenarios, report.level), (6, 0.05));
     assert_eq!(report.axes.iter().map(|a| a.parameter.as_str()).collect::<Vec<_>>(), ["alpha", "vergence"]);
     for axis in &report.axes {
-        let (nominal_value, resolution) = if axis.parameter == "alpha" { (10.0, 1.0) } else { (5.0, 0.25) };
-        assert_eq!(axis.resolution, resolution);
+        // The walk's limits: ±30° alpha, ±6° vergence.
+        let (nominal_value, resolution, limit) =
+            if axis.parameter == "alpha" { (10.0, 1.0, 30.0) } else { (5.0, 0.25, 6.0) };
+        assert_eq!((axis.resolution, axis.limit), (resolution, limit));
         let placement_at = |offset: f64| moved(PLACEMENT, &axis.parameter, nominal_value, offset);
         // Every point: its rate and its paired test against the nominal, from the scenes.
         for p in axis.points.iter().filter(|p| p.offset != 0.0) {
@@ -113,9 +115,16 @@ fn tolerances_are_paired_tests_walked_out_and_resume_without_a_scene() {
                 }
                 (WalkEnd::RangeEnd, None) => {
                     assert_eq!(inside.offset, side.range, "{}: the range ended the walk", axis.parameter);
-                    let past = moved(PLACEMENT, &axis.parameter, nominal_value, side.range + side.sign * resolution);
-                    let o = camplace(dir.path(), &["evaluate", "--cell", &cell, "--placement", &past, "--out", "x"]);
-                    assert_eq!(o.status.code(), Some(2), "{past} is no placement: {}", stderr(&o));
+                    if side.at_walk_limit() {
+                        assert_eq!(side.range.abs(), limit, "{}: the walk's limit", axis.parameter);
+                    } else {
+                        assert!(side.range.abs() < limit, "{}: the placement's range ends first", axis.parameter);
+                        let past =
+                            moved(PLACEMENT, &axis.parameter, nominal_value, side.range + side.sign * resolution);
+                        let o =
+                            camplace(dir.path(), &["evaluate", "--cell", &cell, "--placement", &past, "--out", "x"]);
+                        assert_eq!(o.status.code(), Some(2), "{past} is no placement: {}", stderr(&o));
+                    }
                 }
                 other => panic!("{}: {other:?}", axis.parameter),
             }
