@@ -439,7 +439,7 @@ mod tests {
         assert!(!minus.at_walk_limit() && plus.at_walk_limit());
         assert_eq!(
             minus.text("alpha", "deg"),
-            "at least −12 deg: the placement's range ends there (alpha offset −12); 100.0 % [0.0–100.0 %] at 0"
+            "at least −12 deg: the placement's range ends there (alpha offset −12); 100.0 % [0.0 %–100.0 %] at 0"
         );
         assert!(
             plus.text("alpha", "deg").starts_with("at least +30 deg: the walk's limit (±30 deg"),
