@@ -4,12 +4,13 @@
 //! lies between a point inside and one outside a resolution further (or at the range's
 //! end), the corners are the box's, a second run resumes without a scene; and on a cell
 //! whose edge lies inside the walked range the walk finds the edge a walk in single
-//! resolution steps finds.
+//! resolution steps finds; a study's tolerances are the command's for the placement it
+//! recommends.
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use camplace_sim::{ToleranceReport, WalkEnd};
+use camplace_sim::{run_study, tolerance_dir, Method, Preset, Shard, StudyRequest, ToleranceReport, WalkEnd};
 
 use crate::camplace_cmd::{assert_one_line_error, camplace, stderr};
 
@@ -251,4 +252,67 @@ fn bad_tolerance_flags_are_one_line_errors() {
         let o = camplace(dir.path(), &["tolerance", flag, value, "--out", "t"]);
         assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &[flag, must]);
     }
+}
+
+#[test]
+fn a_studys_tolerances_are_the_tolerance_command_s_for_its_placement() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cell = camplace_config::Cell::load(Path::new(&small_cell())).unwrap();
+    // The study at its smallest: one grid cell, no search, alpha's tolerance on 4 scenes.
+    let preset = Preset {
+        name: "full",
+        x: "r=500:500:1".parse().unwrap(),
+        y: "alpha=20:20:1".parse().unwrap(),
+        sweep_scenarios: 2,
+        budget: 0,
+        search_scenarios: 2,
+        top: 1,
+        recheck_scenarios: 2,
+        tolerance_scenarios: 4,
+        tolerance_margin: 0.15,
+        tolerance_corner_fraction: 1.0,
+        tolerance_parameters: vec![1],
+    };
+    let study = d.join("study");
+    let request = StudyRequest {
+        out: &study,
+        cell: &cell,
+        seed: 3,
+        preset: &preset,
+        paper: false,
+        methods: vec![Method::OneShot],
+        shard: Shard::WHOLE,
+    };
+    run_study(&request, std::time::Instant::now(), |_| {}).unwrap();
+    let recommended: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(study.join("recommended.json")).unwrap()).unwrap();
+    let placement = recommended["placement"].as_str().unwrap();
+    let o = camplace(
+        d,
+        &[
+            "tolerance",
+            "--cell",
+            &small_cell(),
+            "--placement",
+            placement,
+            "--method",
+            "one-shot",
+            "--seed",
+            "3",
+            "--scenarios",
+            "4",
+            "--parameters",
+            "alpha",
+            "--out",
+            "alone",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let from_study = std::fs::read_to_string(tolerance_dir(&study, Method::OneShot).join("tolerance.json")).unwrap();
+    let alone = std::fs::read_to_string(d.join("alone/tolerance.json")).unwrap();
+    let report: ToleranceReport = serde_json::from_str(&alone).unwrap();
+    assert_eq!(report.axes.len(), 1);
+    assert!(report.axes[0].points.len() >= 3, "alpha walked: {}", report.table());
+    assert_eq!(from_study, alone, "the same placement, seed and scenes give the same tolerance.json");
 }
