@@ -41,6 +41,7 @@ fn tolerance_json(dir: &Path, placement: &str, mm: f64, deg: f64) {
         parameter: name.to_string(),
         unit: unit.to_string(),
         resolution: 1.0,
+        limit: 90.0,
         minus: t,
         minus_end: WalkEnd::Drop,
         minus_inside: point(-t),

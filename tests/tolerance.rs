@@ -4,12 +4,13 @@
 //! lies between a point inside and one outside a resolution further (or at the range's
 //! end), the corners are the box's, a second run resumes without a scene; and on a cell
 //! whose edge lies inside the walked range the walk finds the edge a walk in single
-//! resolution steps finds.
+//! resolution steps finds; a study's tolerances are the command's for the placement it
+//! recommends.
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use camplace_sim::{ToleranceReport, WalkEnd};
+use camplace_sim::{run_study, tolerance_dir, Method, Preset, Shard, StudyRequest, ToleranceReport, WalkEnd};
 
 use crate::camplace_cmd::{assert_one_line_error, camplace, stderr};
 
@@ -89,8 +90,10 @@ fn tolerances_are_paired_tests_walked_out_and_resume_without_a_scene() {
     assert_eq!((report.scenarios, report.level), (6, 0.05));
     assert_eq!(report.axes.iter().map(|a| a.parameter.as_str()).collect::<Vec<_>>(), ["alpha", "vergence"]);
     for axis in &report.axes {
-        let (nominal_value, resolution) = if axis.parameter == "alpha" { (10.0, 1.0) } else { (5.0, 0.25) };
-        assert_eq!(axis.resolution, resolution);
+        // The walk's limits: ±30° alpha, ±6° vergence.
+        let (nominal_value, resolution, limit) =
+            if axis.parameter == "alpha" { (10.0, 1.0, 30.0) } else { (5.0, 0.25, 6.0) };
+        assert_eq!((axis.resolution, axis.limit), (resolution, limit));
         let placement_at = |offset: f64| moved(PLACEMENT, &axis.parameter, nominal_value, offset);
         // Every point: its rate and its paired test against the nominal, from the scenes.
         for p in axis.points.iter().filter(|p| p.offset != 0.0) {
@@ -113,9 +116,16 @@ fn tolerances_are_paired_tests_walked_out_and_resume_without_a_scene() {
                 }
                 (WalkEnd::RangeEnd, None) => {
                     assert_eq!(inside.offset, side.range, "{}: the range ended the walk", axis.parameter);
-                    let past = moved(PLACEMENT, &axis.parameter, nominal_value, side.range + side.sign * resolution);
-                    let o = camplace(dir.path(), &["evaluate", "--cell", &cell, "--placement", &past, "--out", "x"]);
-                    assert_eq!(o.status.code(), Some(2), "{past} is no placement: {}", stderr(&o));
+                    if side.at_walk_limit() {
+                        assert_eq!(side.range.abs(), limit, "{}: the walk's limit", axis.parameter);
+                    } else {
+                        assert!(side.range.abs() < limit, "{}: the placement's range ends first", axis.parameter);
+                        let past =
+                            moved(PLACEMENT, &axis.parameter, nominal_value, side.range + side.sign * resolution);
+                        let o =
+                            camplace(dir.path(), &["evaluate", "--cell", &cell, "--placement", &past, "--out", "x"]);
+                        assert_eq!(o.status.code(), Some(2), "{past} is no placement: {}", stderr(&o));
+                    }
                 }
                 other => panic!("{}: {other:?}", axis.parameter),
             }
@@ -242,4 +252,67 @@ fn bad_tolerance_flags_are_one_line_errors() {
         let o = camplace(dir.path(), &["tolerance", flag, value, "--out", "t"]);
         assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &[flag, must]);
     }
+}
+
+#[test]
+fn a_studys_tolerances_are_the_tolerance_command_s_for_its_placement() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cell = camplace_config::Cell::load(Path::new(&small_cell())).unwrap();
+    // The study at its smallest: one grid cell, no search, alpha's tolerance on 4 scenes.
+    let preset = Preset {
+        name: "full",
+        x: "r=500:500:1".parse().unwrap(),
+        y: "alpha=20:20:1".parse().unwrap(),
+        sweep_scenarios: 2,
+        budget: 0,
+        search_scenarios: 2,
+        top: 1,
+        recheck_scenarios: 2,
+        tolerance_scenarios: 4,
+        tolerance_margin: 0.15,
+        tolerance_corner_fraction: 1.0,
+        tolerance_parameters: vec![1],
+    };
+    let study = d.join("study");
+    let request = StudyRequest {
+        out: &study,
+        cell: &cell,
+        seed: 3,
+        preset: &preset,
+        paper: false,
+        methods: vec![Method::OneShot],
+        shard: Shard::WHOLE,
+    };
+    run_study(&request, std::time::Instant::now(), |_| {}).unwrap();
+    let recommended: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(study.join("recommended.json")).unwrap()).unwrap();
+    let placement = recommended["placement"].as_str().unwrap();
+    let o = camplace(
+        d,
+        &[
+            "tolerance",
+            "--cell",
+            &small_cell(),
+            "--placement",
+            placement,
+            "--method",
+            "one-shot",
+            "--seed",
+            "3",
+            "--scenarios",
+            "4",
+            "--parameters",
+            "alpha",
+            "--out",
+            "alone",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let from_study = std::fs::read_to_string(tolerance_dir(&study, Method::OneShot).join("tolerance.json")).unwrap();
+    let alone = std::fs::read_to_string(d.join("alone/tolerance.json")).unwrap();
+    let report: ToleranceReport = serde_json::from_str(&alone).unwrap();
+    assert_eq!(report.axes.len(), 1);
+    assert!(report.axes[0].points.len() >= 3, "alpha walked: {}", report.table());
+    assert_eq!(from_study, alone, "the same placement, seed and scenes give the same tolerance.json");
 }

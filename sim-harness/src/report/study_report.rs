@@ -87,10 +87,13 @@ pub fn write_report(
         page.paragraph(&format!(
             "How far each parameter may be off, alone, before success is shown to drop from {} at the recommended \
              placement (seed {}): each side walked out in growing steps and bisected to the parameter's \
-             resolution; {}. \"At least\" only where the parameter's range ended before any point was outside.",
+             resolution; {}. Each side is walked at most {}: a rig mounted further off is plainly wrong, not \
+             within a tolerance. \"At least\" only where that limit, or the placement's own range, ended before \
+             any point was outside.",
             pct(t.nominal.success_rate),
             t.seed,
-            t.test_text()
+            t.test_text(),
+            t.limits_text().unwrap_or_else(|| "to the placement's range".to_string())
         ));
         let rows: Vec<Vec<String>> = t
             .axes
@@ -119,12 +122,21 @@ pub fn write_report(
                             o.gained,
                             o.p_lower
                         ),
-                        _ => format!("none: the range ends at {}", offset_text(side.range)),
+                        _ => format!("none: {}", side.range_text(&a.parameter, &a.unit)),
                     };
                     vec![
                         a.parameter.clone(),
                         edge,
-                        format!("{} (resolution {} {})", end_text(side.end), a.resolution, a.unit),
+                        format!(
+                            "{} (resolution {} {})",
+                            if side.end == WalkEnd::RangeEnd && side.at_walk_limit() {
+                                "walk limit"
+                            } else {
+                                end_text(side.end)
+                            },
+                            a.resolution,
+                            a.unit
+                        ),
                         rate(side.inside),
                         outside,
                     ]

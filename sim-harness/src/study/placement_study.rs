@@ -55,6 +55,9 @@ pub struct Preset {
     pub tolerance_margin: f64,
     /// The share of each found tolerance the corners of the box are placed at.
     pub tolerance_corner_fraction: f64,
+    /// The parameters whose tolerances are walked, as indices into
+    /// [`TOLERANCE_PARAMETERS`] (every one in both presets).
+    pub tolerance_parameters: Vec<usize>,
 }
 
 impl Preset {
@@ -74,6 +77,7 @@ impl Preset {
             tolerance_scenarios: 44,
             tolerance_margin: 0.15,
             tolerance_corner_fraction: 1.0,
+            tolerance_parameters: (0..TOLERANCE_PARAMETERS.len()).collect(),
         }
     }
 
@@ -92,6 +96,7 @@ impl Preset {
             tolerance_scenarios: 0,
             tolerance_margin: 0.15,
             tolerance_corner_fraction: 1.0,
+            tolerance_parameters: (0..TOLERANCE_PARAMETERS.len()).collect(),
         }
     }
 
@@ -396,7 +401,7 @@ fn tolerance(out: &Path, r: &Recommendation, seed: u64, preset: &Preset) -> Resu
         scenarios: preset.tolerance_scenarios,
         margin: preset.tolerance_margin,
         corner_fraction: preset.tolerance_corner_fraction,
-        parameters: (0..TOLERANCE_PARAMETERS.len()).collect(),
+        parameters: preset.tolerance_parameters.clone(),
     };
     let report = measure_tolerance(&dir, r.cells.clone(), &request)?;
     write_tolerance_plots(&dir, &report)?;

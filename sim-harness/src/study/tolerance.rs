@@ -16,7 +16,7 @@
 
 use std::path::Path;
 
-use camplace_config::{write_atomic, Cell, Placement, MAX_DISTANCE_MM};
+use camplace_config::{write_atomic, Cell, Placement};
 
 use super::findings::{drop_detection_power, Paired};
 use super::summary::Summary;
@@ -37,18 +37,26 @@ pub struct ToleranceParameter {
     pub resolution: f64,
     /// The first step out, in resolutions; each further step doubles.
     pub first_steps: u64,
-    /// The furthest offset walked on either side (the placement's own range may end first).
+    /// The furthest offset walked on either side: more than a bracket is ever off by (the
+    /// placement's own range may end first). A side still inside there is reported as "at
+    /// least" this far.
     pub walk_limit: f64,
 }
 
 /// The parameters, in the order of every offset array: r and baseline to 5 mm, alpha and
-/// azimuth to 1°, vergence to 0.25°; azimuth walked to half a turn either way.
+/// azimuth to 1°, vergence to 0.25°. Each is walked at most ±400 mm (r), ±30° (alpha),
+/// ±60 mm (baseline), ±6° (vergence, each camera's toe-in) or ±30° (azimuth): a rig
+/// mounted further off than that is plainly wrong, not within a tolerance. The first step
+/// is about an eighth of that range (40 mm, 4°, 10 mm, 0.75°, 4°), so a side that never
+/// drops costs four or five points, and the bisection starts from the first doubling that
+/// dropped: beyond an edge success is noisy (a point a little further may lose fewer
+/// scenes than one at the edge), and a wider first bracket can land on a further edge.
 pub const TOLERANCE_PARAMETERS: [ToleranceParameter; 5] = [
-    ToleranceParameter { name: "r", unit: "mm", resolution: 5.0, first_steps: 2, walk_limit: MAX_DISTANCE_MM },
-    ToleranceParameter { name: "alpha", unit: "deg", resolution: 1.0, first_steps: 2, walk_limit: 90.0 },
-    ToleranceParameter { name: "baseline", unit: "mm", resolution: 5.0, first_steps: 2, walk_limit: MAX_DISTANCE_MM },
-    ToleranceParameter { name: "vergence", unit: "deg", resolution: 0.25, first_steps: 2, walk_limit: 90.0 },
-    ToleranceParameter { name: "azimuth", unit: "deg", resolution: 1.0, first_steps: 4, walk_limit: 180.0 },
+    ToleranceParameter { name: "r", unit: "mm", resolution: 5.0, first_steps: 8, walk_limit: 400.0 },
+    ToleranceParameter { name: "alpha", unit: "deg", resolution: 1.0, first_steps: 4, walk_limit: 30.0 },
+    ToleranceParameter { name: "baseline", unit: "mm", resolution: 5.0, first_steps: 2, walk_limit: 60.0 },
+    ToleranceParameter { name: "vergence", unit: "deg", resolution: 0.25, first_steps: 3, walk_limit: 6.0 },
+    ToleranceParameter { name: "azimuth", unit: "deg", resolution: 1.0, first_steps: 4, walk_limit: 30.0 },
 ];
 
 /// The level of the one-sided paired test that puts a point outside.
@@ -281,6 +289,7 @@ pub fn measure_tolerance(
             parameter: param.name.to_string(),
             unit: param.unit.to_string(),
             resolution: param.resolution,
+            limit: param.walk_limit,
             minus,
             minus_end,
             minus_inside,
@@ -405,6 +414,47 @@ mod tests {
             lost: 0,
             gained: 0,
             p_lower: 1.0,
+        }
+    }
+
+    #[test]
+    fn a_range_end_names_what_ended_it() {
+        let axis = |minus_range: f64, plus_range: f64| AxisTolerance {
+            parameter: "alpha".into(),
+            unit: "deg".into(),
+            resolution: 1.0,
+            limit: 30.0,
+            minus: -minus_range,
+            minus_end: WalkEnd::RangeEnd,
+            minus_inside: point(1.0),
+            minus_outside: None,
+            minus_range,
+            plus: plus_range,
+            plus_end: WalkEnd::RangeEnd,
+            plus_inside: point(1.0),
+            plus_outside: None,
+            plus_range,
+            points: Vec::new(),
+        };
+        let a = axis(-12.0, 30.0);
+        let [minus, plus] = a.sides();
+        assert!(!minus.at_walk_limit() && plus.at_walk_limit());
+        assert_eq!(
+            minus.text("alpha", "deg"),
+            "at least −12 deg: the placement's range ends there (alpha offset −12); 100.0 % [0.0 %–100.0 %] at 0"
+        );
+        assert!(
+            plus.text("alpha", "deg").starts_with("at least +30 deg: the walk's limit (±30 deg"),
+            "{}",
+            plus.text("alpha", "deg")
+        );
+        // The walk's limits are whole resolutions, and the first step about an eighth of
+        // them: three or four doublings before the limit.
+        for p in TOLERANCE_PARAMETERS {
+            let cap = p.walk_limit / p.resolution;
+            assert_eq!(cap, cap.round(), "{}", p.name);
+            let doublings = (cap / p.first_steps as f64).log2();
+            assert!((2.5..=4.0).contains(&doublings), "{}: {doublings}", p.name);
         }
     }
 

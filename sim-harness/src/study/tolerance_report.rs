@@ -42,6 +42,10 @@ pub struct AxisTolerance {
     pub unit: String,
     /// The resolution the edge is found to (offsets are whole numbers of it).
     pub resolution: f64,
+    /// The furthest offset walked on either side (more than a bracket is ever off by); a
+    /// side ending at it without a drop is at least this far (0 in files that predate it).
+    #[serde(default)]
+    pub limit: f64,
     /// How far below the nominal value it may be (0 or more): the furthest point inside.
     pub minus: f64,
     /// Why the walk downwards stopped.
@@ -140,6 +144,9 @@ impl ToleranceReport {
             pct(self.nominal.success_rate),
             self.test_text()
         );
+        if let Some(limits) = self.limits_text() {
+            text.push_str(&format!("  each side walked at most {limits}\n"));
+        }
         for a in &self.axes {
             for side in a.sides() {
                 text.push_str(&format!("  {:<9} {}\n", a.parameter, side.text(&a.parameter, &a.unit)));
@@ -164,6 +171,17 @@ impl ToleranceReport {
             ));
         }
         text
+    }
+
+    /// How far each side was walked at most, in words ("±400 mm (r), ±30 deg (alpha)"), or
+    /// `None` for a file that predates the limits.
+    pub fn limits_text(&self) -> Option<String> {
+        if self.axes.iter().any(|a| a.limit <= 0.0) {
+            return None;
+        }
+        let each: Vec<String> =
+            self.axes.iter().map(|a| format!("±{} {} ({})", num(a.limit), a.unit, a.parameter)).collect();
+        Some(each.join(", "))
     }
 
     /// Where the corners are, in words.
@@ -226,7 +244,7 @@ impl ToleranceReport {
                 return Err(format!("{}: {} is given twice", key("parameter"), a.parameter));
             }
             seen.push(&a.parameter);
-            for (field, v) in [("minus", a.minus), ("plus", a.plus), ("resolution", a.resolution)] {
+            for (field, v) in [("minus", a.minus), ("plus", a.plus), ("resolution", a.resolution), ("limit", a.limit)] {
                 if !(v.is_finite() && (0.0..=bound).contains(&v)) {
                     return Err(format!(
                         "{}: expected a finite tolerance from 0 to {bound} {}, got {v}",
@@ -268,6 +286,8 @@ pub struct SideView<'a> {
     pub outside: Option<&'a TolerancePoint>,
     /// The range's end on this side (signed offset).
     pub range: f64,
+    /// The furthest offset walked (0: not recorded).
+    pub limit: f64,
 }
 
 impl AxisTolerance {
@@ -281,6 +301,7 @@ impl AxisTolerance {
                 inside: &self.minus_inside,
                 outside: self.minus_outside.as_ref(),
                 range: self.minus_range,
+                limit: self.limit,
             },
             SideView {
                 sign: 1.0,
@@ -289,14 +310,15 @@ impl AxisTolerance {
                 inside: &self.plus_inside,
                 outside: self.plus_outside.as_ref(),
                 range: self.plus_range,
+                limit: self.limit,
             },
         ]
     }
 }
 
 impl SideView<'_> {
-    /// "−35 mm (edge; 95.0 % [86.3–98.6 %] at −35, 78.3 % [66.4–86.9 %] at −40)" or
-    /// "at least −32 deg (range end: alpha = 0; 96.7 % [88.6–99.1 %] there)".
+    /// "−35 mm: inside 95.0 % [86.3–98.6 %] at −35; outside 78.3 % [66.4–86.9 %] at −40 (…)"
+    /// or "at least −32 deg: the placement's range ends there (alpha offset −32); …".
     pub fn text(&self, parameter: &str, unit: &str) -> String {
         let signed = |v: f64| if self.sign < 0.0 { format!("−{}", num(v)) } else { format!("+{}", num(v)) };
         let rate = |p: &TolerancePoint| {
@@ -319,11 +341,26 @@ impl SideView<'_> {
                 p_text(out.p_lower)
             ),
             _ => format!(
-                "at least {} {unit}: the range ends there ({parameter} offset {}); {}",
+                "at least {} {unit}: {}; {}",
                 signed(self.tolerance),
-                offset_text(self.range),
+                self.range_text(parameter, unit),
                 rate(self.inside)
             ),
+        }
+    }
+
+    /// Whether the walk's own limit ended this side, rather than the placement's range.
+    pub fn at_walk_limit(&self) -> bool {
+        self.limit > 0.0 && self.range.abs() >= self.limit - 1e-9
+    }
+
+    /// What ended the range on this side, in words: "the walk's limit (±400 mm) ends there"
+    /// or "the placement's range ends there (alpha offset −32)".
+    pub fn range_text(&self, parameter: &str, unit: &str) -> String {
+        if self.at_walk_limit() {
+            format!("the walk's limit (±{} {unit}, more than a bracket is off by) ends there", num(self.limit))
+        } else {
+            format!("the placement's range ends there ({parameter} offset {})", offset_text(self.range))
         }
     }
 }
