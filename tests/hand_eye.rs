@@ -13,7 +13,7 @@ use camplace_sim::HandEyeTruth;
 use nalgebra::Isometry3;
 
 use crate::camplace_cmd::{assert_one_line_error, camplace, stderr};
-use crate::deploy::{fixture, OPTIMUM};
+use crate::deploy::OPTIMUM;
 
 const BOARD: &str = "9x6@25";
 const POSES: &str = "8";
@@ -32,6 +32,35 @@ fn rendered() -> &'static Rendered {
         let o = camplace(
             &root,
             &["render", "--board", BOARD, "--hand-eye", POSES, "--placement", OPTIMUM, "--seed", "4", "--out", "he"],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        Rendered { _dir: dir, root }
+    })
+}
+
+/// Frames of the phase-12 dataset the chain is checked on.
+const FRAMES: usize = 3;
+
+/// A phase-12 dataset of `FRAMES` scenes at the recommended placement (the cell's camera
+/// noise, the paper's) and the phase-12 model of that placement from 12 viewpoints, made
+/// once: the precise sensor and a model whose closest viewpoint is at most 15° of turn
+/// from any scene, with which the estimator alone is within 0.4 mm and 0.08° there. The
+/// model measures no verification threshold (the cell's applies), to keep the test short.
+fn phase12() -> &'static Rendered {
+    static P: OnceLock<Rendered> = OnceLock::new();
+    P.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path().to_path_buf();
+        let count = FRAMES.to_string();
+        let common = ["--method", "phase-12", "--placement", OPTIMUM, "--seed", "1"];
+        let o =
+            camplace(&root, &[&["render", "--dataset", "--count", &count][..], &common, &["--out", "data"]].concat());
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::write(root.join("model.toml"), "[estimator]\nmodel_viewpoints = 12\n").unwrap();
+        let o = camplace(
+            &root,
+            &[&["model", "--cell", "model.toml"][..], &common, &["--verify-scenes", "0", "--out", "tray.model"]]
+                .concat(),
         );
         assert!(o.status.success(), "{}", stderr(&o));
         Rendered { _dir: dir, root }
@@ -88,12 +117,13 @@ fn hand_eye_to_the_cell_to_replay_gives_the_tray_in_the_robots_frame() {
     eprintln!("T_robot_world from {POSES} poses: {t:.3} mm, {a:.4}° off");
     assert!(t < 0.5 && a < 0.05, "T_robot_world {t} mm, {a}° off\n{out}");
 
-    // The deployed estimator's poses in the robot's frame, against the truth.
-    let f = fixture();
-    copy_dir(&f.root.join("data"), &root.join("data"));
+    // The deployed estimator's poses in the robot's frame, against the truth: the precise
+    // sensor (phase-12) at the recommended placement, with the paper's camera noise.
+    let p = phase12();
+    copy_dir(&p.root.join("data"), &root.join("data"));
     let o = camplace(
         root,
-        &["replay", "data", "--model", &f.root.join("tray.model").display().to_string(), "--cell", "robot.toml"],
+        &["replay", "data", "--model", &p.root.join("tray.model").display().to_string(), "--cell", "robot.toml"],
     );
     assert!(o.status.success(), "{}", stderr(&o));
     let mut checked = 0;
@@ -110,21 +140,21 @@ fn hand_eye_to_the_cell_to_replay_gives_the_tray_in_the_robots_frame() {
         let t_world_tray = isometry_from_rows(&rows("T_world_tray"));
         let truth = TruthFile::load(&root.join("data/frames").join(&frame).join("truth.json")).unwrap();
         let t_world_tray_truth = isometry_from_rows(&truth.t_world_tray);
-        // What the hand-eye calibration adds to the estimator's own error: the found pose
-        // taken into the robot's frame by the calibrated and by the true transform.
-        let (ht, ha) = errors(&t_robot_tray, &(t_robot_world_truth * t_world_tray));
-        // And the whole chain against the tray's true pose in the robot's frame.
+        // The whole chain against the tray's true pose in the robot's frame ...
         let (wt, wa) = errors(&t_robot_tray, &(t_robot_world_truth * t_world_tray_truth));
+        // ... and its two parts, for the message: the estimator alone, and what the
+        // hand-eye calibration adds (the found pose taken by the calibrated and the true
+        // transform).
         let (et, ea) = errors(&t_world_tray, &t_world_tray_truth);
+        let (ht, ha) = errors(&t_robot_tray, &(t_robot_world_truth * t_world_tray));
         eprintln!(
-            "frame {frame}: T_robot_tray {wt:.3} mm {wa:.4}° off the truth (hand-eye {ht:.3} mm {ha:.4}°, estimator \
-             alone {et:.3} mm {ea:.4}°)"
+            "frame {frame}: T_robot_tray {wt:.3} mm {wa:.4}° off the truth (estimator alone {et:.3} mm {ea:.4}°, \
+             hand-eye {ht:.3} mm {ha:.4}°)"
         );
-        assert!(ht < 1.0 && ha < 0.1, "frame {frame}: hand-eye adds {ht} mm, {ha}°");
-        assert!(wt < 1.0 + et && wa < 0.1 + ea, "frame {frame}: {wt} mm, {wa}°");
+        assert!(wt < 1.0 && wa < 0.1, "frame {frame}: T_robot_tray {wt} mm, {wa}° off the truth");
         checked += 1;
     }
-    assert!(checked >= 2, "only {checked} frames with a pose");
+    assert_eq!(checked, FRAMES, "every frame has an accepted pose");
 }
 
 #[test]

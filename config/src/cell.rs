@@ -257,8 +257,9 @@ pub enum EstimatorPreset {
 }
 
 /// The keys the paper preset sets, and to what (the feature radius from SRes).
-fn paper_preset_keys(surface_resolution: f64) -> [(&'static str, toml::Value); 4] {
+fn paper_preset_keys(surface_resolution: f64) -> [(&'static str, toml::Value); 5] {
     [
+        ("icp_on_table", toml::Value::Boolean(false)),
         ("ransac_sample", toml::Value::Integer(3)),
         ("feature_radius", toml::Value::Float(10.0 * surface_resolution)),
         ("turn_check", toml::Value::Boolean(false)),
@@ -328,6 +329,9 @@ pub struct EstimatorParams {
     pub icp_max_distance: f64,
     /// Share of the farthest ICP correspondences dropped each iteration (0 .. 0.9).
     pub icp_trim: f64,
+    /// Whether ICP keeps the tray resting on the table (bottom at z = 0, no tilt) and
+    /// refines only x, y and the turn about z (beyond the paper).
+    pub icp_on_table: bool,
     /// Whether the pose turned by quarter turns is scored too (beyond the paper).
     pub turn_check: bool,
     /// Whether the verification may reject a found pose (beyond the paper; its score is
@@ -343,11 +347,16 @@ pub struct EstimatorParams {
     /// Fill states the model builder captures per viewpoint, full to empty evenly apart
     /// (at most slots + 1, every state).
     pub model_fill_states: u32,
+    /// Turns of the tray about z the model is built from, 360° / model_viewpoints apart
+    /// (each one ICP cloud of the model).
+    pub model_viewpoints: u32,
 }
 
 /// The most fill states per viewpoint a model may be built from (a tray with more slots
 /// than this takes an evenly spread subset anyway).
 const MAX_MODEL_FILL_STATES: u32 = 1000;
+/// The most viewpoints a model is built from (a turn of 5°).
+const MAX_MODEL_VIEWPOINTS: u32 = 72;
 
 /// How a pose estimate is judged.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -663,6 +672,15 @@ impl Cell {
                 format!(
                     "expected a whole number of fill states from 1 (the full tray only) to {MAX_MODEL_FILL_STATES}, got {}",
                     e.model_fill_states
+                ),
+            ));
+        }
+        if !(1..=MAX_MODEL_VIEWPOINTS).contains(&e.model_viewpoints) {
+            return Err(Error::value(
+                "estimator.model_viewpoints",
+                format!(
+                    "expected a whole number of turns about z from 1 to {MAX_MODEL_VIEWPOINTS}, got {}",
+                    e.model_viewpoints
                 ),
             ));
         }

@@ -34,6 +34,7 @@ pub use render::{
 };
 pub use report::latency::write_latency_plot;
 pub use report::plot::SavedPlot;
+pub use report::recommended::Recommended;
 pub use report::sweep_panels::SweepResult;
 pub use report::tolerance_plot::write_tolerance_plots;
 pub use scene::as_built::{as_built, azimuth_difference, AsBuilt};

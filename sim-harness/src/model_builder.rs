@@ -1,5 +1,5 @@
 //! Builds the tray model the estimator loads, after the paper §3: the tray alone, turned
-//! about z in 60° steps, each turn captured full and then with the items closest to the
+//! about z in `model_viewpoints` steps (6: 60° apart), each turn captured full and then with the items closest to the
 //! sensor removed until empty — in the cell's `model_fill_states` steps, evenly apart, where
 //! the paper takes one item at a time — every capture rendered and reconstructed by the very sensor
 //! and estimator stages of the placement. Each capture's key points and descriptors are
@@ -20,9 +20,6 @@ use crate::scene::SceneSpec;
 use crate::seeds::noise_key;
 use crate::workers::each_index;
 use crate::{Error, Result};
-
-/// Turns of the tray about z, 360° / VIEWPOINTS apart.
-pub const VIEWPOINTS: usize = 6;
 
 /// Margin around the tray and its items kept in a capture, mm (the sensor's depth noise and
 /// a voxel's reach).
@@ -74,9 +71,11 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
         lamp_position: Point3::new(0.0, 0.0, light.lamp_distance),
         occluder: None,
     };
-    let poses: Vec<Isometry3<f64>> = (0..VIEWPOINTS)
+    // Turns of the tray about z, 360° / viewpoints apart.
+    let viewpoints = cell.estimator.model_viewpoints as usize;
+    let poses: Vec<Isometry3<f64>> = (0..viewpoints)
         .map(|v| {
-            let yaw = (v as f64 * 360.0 / VIEWPOINTS as f64).to_radians();
+            let yaw = (v as f64 * 360.0 / viewpoints as f64).to_radians();
             Isometry3::from_parts(Translation3::identity(), UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw))
         })
         .collect();
@@ -106,7 +105,7 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
         let features = FeatureExtractor::new(params, 1 << 16)?;
         Ok((sim, rec, features, Frame::default(), Reconstruction::default()))
     };
-    let captures = each_index(VIEWPOINTS * states, setup, |(sim, rec, features, frame, reconstruction), index| {
+    let captures = each_index(viewpoints * states, setup, |(sim, rec, features, frame, reconstruction), index| {
         let (v, state) = (index / states, index % states);
         let mut filled: Vec<usize> = removal[v][removed[state]..].to_vec();
         filled.sort_unstable();
@@ -131,7 +130,7 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
         origin: Some(origin),
         ..Model::default()
     };
-    for v in 0..VIEWPOINTS {
+    for v in 0..viewpoints {
         merge_fill_states(&captures[v * states..(v + 1) * states], params.surface_resolution as f32, &mut model);
     }
     let sres = params.surface_resolution as f32;

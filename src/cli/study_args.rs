@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use camplace_config::{Cell, Placement};
 use camplace_sim::{Method, Shard};
 
@@ -83,19 +83,6 @@ pub fn check_scenarios(n: u64) -> anyhow::Result<u64> {
 
 /// The recommended placement and its method from a study folder's `recommended.json`.
 pub fn recommended(dir: &Path) -> anyhow::Result<(Placement, Method)> {
-    let path = dir.join("recommended.json");
-    let text = camplace_config::read_text(&path)?;
-    let v: serde_json::Value = serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
-    let Some(p) = v["placement"].as_str() else {
-        bail!(
-            "{}: placement: expected a placement such as \"r=605,alpha=32,baseline=81,vergence=3.5\"",
-            path.display()
-        );
-    };
-    let method = v["method"]
-        .as_str()
-        .and_then(|m| m.parse::<Method>().ok())
-        .with_context(|| format!("{}: method: expected \"one-shot\" or \"phase-12\"", path.display()))?;
-    let base = Placement { r: 0.0, alpha: 0.0, baseline: 0.0, vergence: camplace_config::Vergence::Auto, azimuth: 0.0 };
-    Ok((base.with_overrides(p).with_context(|| format!("{}: placement", path.display()))?, method))
+    let r = camplace_sim::Recommended::load(dir)?;
+    Ok((r.placement, r.method))
 }

@@ -4,7 +4,10 @@
 //! Scene points are taken into the tray frame and matched to a nearest model point through a
 //! lookup grid per view, built once; pairs farther than `icp_max_distance` are ignored and the
 //! farthest `icp_trim` share of the rest is dropped, so clutter and items absent from the
-//! model do not drag the pose. Each step solves the linearised 6×6 normal equations.
+//! model do not drag the pose. Each step solves the linearised 6×6 normal equations; with
+//! `icp_on_table` the tray rests on the table (bottom at z = 0, no tilt) and each step solves
+//! the 3×3 part of x, y and the turn about z, since a tray lying on the table has no other
+//! freedom and a free fit only adds the reconstruction's tilt to the pose.
 
 use std::sync::Arc;
 
@@ -101,6 +104,8 @@ pub struct Icp {
     iterations: u32,
     max_distance: f32,
     trim: f32,
+    /// Whether the tray is kept resting on the table (x, y and yaw refined).
+    on_table: bool,
     grids: Vec<NearestGrid>,
     /// Scene points near the tray at the start pose, world frame.
     near: Vec<Point3<f32>>,
@@ -171,6 +176,7 @@ impl Icp {
             iterations: params.icp_iterations,
             max_distance: params.icp_max_distance as f32,
             trim: params.icp_trim as f32,
+            on_table: params.icp_on_table,
             grids,
             near: Vec::with_capacity(capacity),
             pairs: Vec::with_capacity(capacity),
@@ -183,7 +189,8 @@ impl Icp {
     /// Refines `start` (the tray's pose in the world) against `view` of the model, using the
     /// scene cloud `scene_points` seen from `sensor_position_world` (world frame). The
     /// result's `refined` is false, with the start pose, when too few scene points lie near
-    /// the model to fit.
+    /// the model to fit. With `icp_on_table` the start is first laid on the table (its x, y
+    /// and turn about z kept) and stays there.
     pub fn refine(
         &mut self,
         scene_points: &[Point3<f32>],
@@ -191,7 +198,8 @@ impl Icp {
         sensor_position_world: &Point3<f32>,
         start: &Isometry3<f64>,
     ) -> Result<IcpResult> {
-        let mut out = IcpResult { t_world_tray: *start, ..IcpResult::default() };
+        let start = if self.on_table { on_table(start) } else { *start };
+        let mut out = IcpResult { t_world_tray: start, ..IcpResult::default() };
         let model = Arc::clone(&self.model);
         let Some(model_view) = model.views.get(view) else {
             return Err(Error::new(
@@ -278,7 +286,20 @@ impl Icp {
             for k in 0..6 {
                 jtj[(k, k)] += damping;
             }
-            let Some(step) = jtj.cholesky().map(|c| c.solve(&(-jtr))) else {
+            let step = if self.on_table {
+                // The turn about the tray's z axis and the shift along its x and y: the tray
+                // frame's z is the world's while the tray lies on the table.
+                const FREE: [usize; 3] = [2, 3, 4];
+                let a = nalgebra::Matrix3::from_fn(|i, j| jtj[(FREE[i], FREE[j])]);
+                let b = Vector3::from_fn(|i, _| -jtr[FREE[i]]);
+                a.cholesky().map(|c| {
+                    let x = c.solve(&b);
+                    Vector6::new(0.0, 0.0, x[0], x[1], x[2], 0.0)
+                })
+            } else {
+                jtj.cholesky().map(|c| c.solve(&(-jtr)))
+            };
+            let Some(step) = step else {
                 out.refined = iteration > 1;
                 return Ok(out);
             };
@@ -382,6 +403,15 @@ impl Icp {
     }
 }
 
+/// `t_world_tray` laid on the table: the same x, y and turn about z (of the tray's x axis
+/// seen from above), its bottom at z = 0 and no tilt.
+pub fn on_table(t_world_tray: &Isometry3<f64>) -> Isometry3<f64> {
+    let x_axis = t_world_tray.rotation * Vector3::x();
+    let yaw = x_axis.y.atan2(x_axis.x);
+    let t = t_world_tray.translation.vector;
+    Isometry3::new(Vector3::new(t.x, t.y, 0.0), Vector3::new(0.0, 0.0, yaw))
+}
+
 /// The squared distance at or below which pairs are kept once the farthest `trim` share of
 /// them is dropped.
 fn trim_threshold(pairs: &[Pair], distances: &mut Vec<f32>, trim: f32) -> f32 {
@@ -457,6 +487,37 @@ mod tests {
             assert!(fine.refined);
             let (dt, dr) = pose_error(&fine.t_world_tray, &scene.t_world_tray);
             assert!(dt < 1.0 && dr < 0.5, "seed {seed}: {dt} mm {dr} deg {fine:?}");
+        }
+    }
+
+    /// On the table, a start tilted by a degree and lifted by 2 mm comes back flat on the
+    /// table with x, y and the turn refined (the free fit's errors printed beside).
+    #[test]
+    fn on_the_table_only_x_y_and_the_turn_are_refined() {
+        let model = Arc::new(testing::tray(false, 1));
+        let mut params = Cell::default().estimator;
+        assert!(params.icp_on_table, "the default");
+        let mut on_table = Icp::new(&params, model.clone()).unwrap();
+        params.icp_on_table = false;
+        let mut free = Icp::new(&params, model.clone()).unwrap();
+        for seed in 20..24 {
+            let spec = SceneSpec { seed, noise_mm: 0.5, ..SceneSpec::default() };
+            let scene = Scene::generate(&model, false, &spec);
+            let nudge = Isometry3::new(Vector3::new(1.5, -2.0, 2.0), Vector3::new(1.0, -0.5, 1.5) * 1f64.to_radians());
+            let start = scene.t_world_tray * nudge;
+            let view = model.closest_view(&start, &scene.sensor_position);
+            let out = on_table.refine(&scene.points, view, &scene.sensor_position, &start).unwrap();
+            assert!(out.refined && out.converged, "{out:?}");
+            let pose = out.t_world_tray;
+            assert_eq!(pose.translation.vector.z, 0.0, "seed {seed}");
+            assert!((pose.rotation * Vector3::z()).z > 1.0 - 1e-12, "seed {seed}: {pose:?}");
+            let (dt, dr) = pose_error(&pose, &scene.t_world_tray);
+            let (ft, fr) = pose_error(
+                &free.refine(&scene.points, view, &scene.sensor_position, &start).unwrap().t_world_tray,
+                &scene.t_world_tray,
+            );
+            eprintln!("seed {seed}: on the table {dt:.3} mm {dr:.4} deg, free {ft:.3} mm {fr:.4} deg");
+            assert!(dt < 0.5 && dr < 0.1, "seed {seed}: {dt} mm {dr} deg");
         }
     }
 

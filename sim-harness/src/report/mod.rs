@@ -10,6 +10,7 @@ pub mod heatmap;
 pub mod html;
 pub mod latency;
 pub mod plot;
+pub mod recommended;
 pub mod rig_sketch;
 pub mod study_report;
 pub mod sweep_panels;

@@ -197,13 +197,18 @@ impl ToleranceReport {
     /// regular text file within the text budget, holds anything after its JSON value, or a
     /// tolerance that is not a finite, non-negative number within its unit's bounds.
     pub fn load(path: &Path) -> Result<ToleranceReport> {
-        let at = |what: String| Error::Other(format!("{}: {what}", path.display()));
         let bytes = camplace_config::read_bounded(path, camplace_config::FileKind::Text)?;
+        Self::from_json(&bytes).map_err(|what| Error::Other(format!("{}: {what}", path.display())))
+    }
+
+    /// Decodes and checks the bytes of a `tolerance.json` (see [`ToleranceReport::load`]);
+    /// the error names the field, without the file.
+    pub fn from_json(bytes: &[u8]) -> std::result::Result<ToleranceReport, String> {
         // serde_json refuses anything but white space after the value.
-        let report: ToleranceReport = serde_json::from_slice(&bytes).map_err(|e| {
-            at(format!("expected the tolerance.json camplace tolerance or study writes (one JSON object): {e}"))
+        let report: ToleranceReport = serde_json::from_slice(bytes).map_err(|e| {
+            format!("expected the tolerance.json camplace tolerance or study writes (one JSON object): {e}")
         })?;
-        report.check().map_err(at)?;
+        report.check()?;
         Ok(report)
     }
 
