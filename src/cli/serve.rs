@@ -11,10 +11,10 @@ use std::time::Duration;
 
 use anyhow::{bail, Context};
 use camplace_config::{Cell, LengthUnit, PoseConvention, RobotPoseFormat};
-use camplace_estimator::Rig;
+use camplace_estimator::{Model, Rig};
 use camplace_hwio::{open_source, parse_source, DeploySource, FrameSource, RecordedSource, SourceSpec};
 use camplace_serve::{ConnectionLimits, DriftLimits, RecorderSettings, Service, Settings, Status};
-use camplace_sim::{estimator_for, load_model, load_model_for, method_for, ToleranceReport};
+use camplace_sim::{estimator_for, method_for, ToleranceReport};
 
 /// Flags of `camplace serve`.
 #[derive(clap::Args, Debug)]
@@ -144,8 +144,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let opened = DeploySource::open(&spec, a.rig.as_deref(), a.background.as_deref(), None)?;
     let rig = Rig::from_file(&opened.rig);
     let model = match &a.cell {
-        Some(path) => load_model_for(&a.model, &cell, path)?,
-        None => load_model(&a.model)?,
+        Some(path) => Model::load_for(&a.model, &cell, path)?,
+        None => Model::load(&a.model)?,
     };
     let shots = opened.source.shots();
     let method = method_for(shots);
