@@ -23,4 +23,5 @@ mod reconstruct_errors;
 mod study;
 mod study_folder;
 mod tolerance;
+mod trial;
 mod verify;

@@ -119,6 +119,9 @@ impl TrialPlan {
 
     /// Writes `plan.json` to `path` and `plan.csv` beside it; returns the CSV's path.
     pub fn save(&self, path: &Path) -> Result<std::path::PathBuf> {
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent).map_err(|e| camplace_config::Error::io(parent, &e))?;
+        }
         let json = serde_json::to_string_pretty(self).expect("a plan is plain data");
         write_atomic(path, format!("{json}\n").as_bytes())?;
         let csv = path.with_file_name(PLAN_CSV);
@@ -159,4 +162,46 @@ pub fn parse_placement(text: &str) -> std::result::Result<Placement, camplace_co
     let p = Placement { azimuth: 0.0, ..p }.with_overrides(text)?;
     p.validate("placement")?;
     Ok(p)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use camplace_config::Robot;
+
+    #[test]
+    fn each_flange_pose_carries_the_rig_to_its_placement_and_reads_back() {
+        let mut cell = Cell::default();
+        let turn = nalgebra::Isometry3::new(
+            nalgebra::Vector3::new(800.0, -120.0, 95.0),
+            nalgebra::Vector3::new(0.1, -0.2, 1.3),
+        );
+        let flange_rig = nalgebra::Isometry3::new(
+            nalgebra::Vector3::new(10.0, 55.0, 130.0),
+            nalgebra::Vector3::new(0.3, 0.05, -0.4),
+        );
+        cell.robot =
+            Some(Robot { t_robot_world: isometry_to_rows(&turn), t_flange_rig: Some(isometry_to_rows(&flange_rig)) });
+        let grid = Grid { x: "r=500:800:2".parse().unwrap(), y: "alpha=10:50:2".parse().unwrap() };
+        let ps = grid.placements(&cell.placement).unwrap();
+        let plan = TrialPlan::new(&cell, Some(grid), &ps).unwrap();
+        for (i, p) in ps.iter().enumerate() {
+            // The flange pose then the rig on it: the rig where the placement puts it.
+            let flange = isometry_from_rows(&plan.placements[i].t_robot_flange.unwrap());
+            let rig = turn.inverse() * flange * flange_rig;
+            let want = sensor_rig(&cell, p).left.t_world_camera;
+            assert!((rig.translation.vector - want.translation.vector).norm() < 1e-9);
+            assert!(rig.rotation.angle_to(&want.rotation) < 1e-12);
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("t").join(PLAN_FILE);
+        plan.save(&path).unwrap();
+        assert_eq!(TrialPlan::load(&path).unwrap(), plan);
+        let csv = std::fs::read_to_string(dir.path().join("t").join(PLAN_CSV)).unwrap();
+        assert_eq!(csv.lines().count(), 5);
+        assert_eq!(csv.lines().nth(1).unwrap().split(',').count(), 13);
+        std::fs::write(&path, "{\"placements\": []}").unwrap();
+        let e = TrialPlan::load(&path).unwrap_err().to_string();
+        assert!(e.contains("placements") && e.contains(PLAN_FILE), "{e}");
+    }
 }
