@@ -24,4 +24,5 @@ mod serve;
 mod study;
 mod study_folder;
 mod tolerance;
+mod trial;
 mod verify;

@@ -5,7 +5,7 @@
 //! The stages are private modules — `scene` (scene, trays, scenarios, placement geometry),
 //! `render` (rasterizer, shading, patterns, noise, frame files), `study` (evaluation, jobs,
 //! results, sweep, search, merge, the study), `search` (the surrogate optimizer) and
-//! `report` (plots, tables, report.html) — with `seeds` keying every random stream; what
+//! `report` (plots, tables, report.html), `trial` (the real-world trial) — with `seeds` keying every random stream; what
 //! other crates use is exported here.
 
 mod error;
@@ -18,6 +18,7 @@ mod scene;
 mod search;
 mod seeds;
 mod study;
+mod trial;
 mod workers;
 
 pub use error::{Error, Result};
@@ -64,3 +65,14 @@ pub use study::tolerance::{
 };
 pub use study::verified::{clopper_pearson_upper, precision_recall, Scored, VerifiedSummary};
 pub use study::{median, score, Evaluator, FrameRecord, Score, Summary};
+pub use trial::judge::{
+    append_label, frame_names, read_labels, read_poses, JudgedDataset, Judgement, Label, Mark, LABELS_FILE,
+};
+pub use trial::layout::{check_placement_rig, placement_dir, placement_folder_name};
+pub use trial::mock::{hidden_truth_path, make_mock_trial, scripted_marks};
+pub use trial::plan::{parse_placement, PlannedPlacement, TrialPlan, PLAN_CSV, PLAN_FILE};
+pub use trial::rank::{spearman, RankCorrelation};
+pub use trial::report::{
+    rho_text, study_grid, sweep_folder, trial_report, PlacementRow, TrialReport, REPORT_HTML, REPORT_JSON,
+};
+pub use trial::review_page::review_page;

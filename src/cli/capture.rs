@@ -1,7 +1,8 @@
 //! `camplace capture`: frames from any source saved as a recorded dataset — the images of a
 //! calibration board, the empty cell's background, or frames to replay later. Each frame
 //! is appended as `frames/NNNN/` (the next number), so captures can be taken one run at a
-//! time, e.g. one board pose each.
+//! time, e.g. one board pose each. With `--trial DIR --placement I` the dataset is the trial's
+//! folder of that placement.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -9,6 +10,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::bail;
 use camplace_hwio::{append_frame, open_source, parse_source, write_background, write_table_view, Frames, SourceSpec};
+use camplace_sim::{placement_dir, TrialPlan, PLAN_FILE};
 
 /// The most frames one run may capture.
 const MAX_COUNT: u64 = 1_000_000;
@@ -22,8 +24,15 @@ pub struct Args {
     #[arg(long, value_name = "SPEC")]
     source: String,
     /// The dataset folder the frames are added to (created when missing).
-    #[arg(long, value_name = "DIR")]
-    out: PathBuf,
+    #[arg(long, value_name = "DIR", required_unless_present = "trial", conflicts_with = "trial")]
+    out: Option<PathBuf>,
+    /// A trial folder (with the plan.json of `camplace trial plan`): the frames go to the
+    /// dataset of placement --placement, `DIR/NNN/`.
+    #[arg(long, value_name = "DIR", requires = "placement")]
+    trial: Option<PathBuf>,
+    /// With --trial: the placement's number in the plan, 0 … n−1.
+    #[arg(long, value_name = "I", requires = "trial")]
+    placement: Option<usize>,
     /// Frames to capture.
     #[arg(long, default_value_t = 1)]
     count: u64,
@@ -60,6 +69,21 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if a.table && a.count != 1 {
         bail!("--table: the table view is one frame; leave out --count {}", a.count);
     }
+    let out = match (&a.out, &a.trial, a.placement) {
+        (Some(out), _, _) => out.clone(),
+        (None, Some(trial), Some(i)) => {
+            let plan = TrialPlan::load(&trial.join(PLAN_FILE))?;
+            if i >= plan.placements.len() {
+                bail!(
+                    "--placement {i}: expected a placement of {} (0 to {})",
+                    trial.join(PLAN_FILE).display(),
+                    plan.placements.len() - 1
+                );
+            }
+            placement_dir(trial, i)
+        }
+        _ => bail!("--out DIR or --trial DIR --placement I: expected where the frames go"),
+    };
     let spec = parse_source(&a.source)?;
     let rig = match (&a.rig, &spec) {
         (Some(r), _) => Some(r.clone()),
@@ -88,11 +112,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         }
         let Some(info) = info else { break };
         let dir = if a.background {
-            write_background(&a.out, &frames, rig.as_deref())?
+            write_background(&out, &frames, rig.as_deref())?
         } else if a.table {
-            write_table_view(&a.out, &frames, rig.as_deref())?
+            write_table_view(&out, &frames, rig.as_deref())?
         } else {
-            append_frame(&a.out, &frames, rig.as_deref())?
+            append_frame(&out, &frames, rig.as_deref())?
         };
         captured += 1;
         outln!(
@@ -110,8 +134,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if captured < a.count {
         noteln!("note: the source ended after {captured} of {} frames", a.count);
     }
-    if rig.is_none() && !a.out.join("rig.json").exists() {
-        noteln!("note: {} has no rig.json yet; calibrate the rig and copy it there (or pass --rig)", a.out.display());
+    if rig.is_none() && !out.join("rig.json").exists() {
+        noteln!("note: {} has no rig.json yet; calibrate the rig and copy it there (or pass --rig)", out.display());
     }
     Ok(ExitCode::SUCCESS)
 }

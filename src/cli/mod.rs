@@ -22,12 +22,14 @@ mod project;
 mod reconstruct;
 mod render;
 mod replay;
+mod review;
 mod run;
 mod serve;
 mod study;
 mod study_args;
 mod sweep;
 mod tolerance;
+mod trial;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -85,6 +87,10 @@ enum Command {
     Devices(devices::Args),
     /// Show the projector's pattern full screen (and capture each one in step).
     Project(project::Args),
+    /// The real-world trial: plan, mock trial, estimate, scripted marks, report against the study.
+    Trial(trial::Args),
+    /// The review page of a dataset without truth: mark each pose correct, wrong or unsure.
+    Review(review::Args),
 }
 
 /// Parses the command line and runs the subcommand.
@@ -124,6 +130,8 @@ pub fn dispatch() -> anyhow::Result<ExitCode> {
         Command::Capture(a) => capture::run(a),
         Command::Devices(a) => devices::run(a),
         Command::Project(a) => project::run(a),
+        Command::Trial(a) => trial::run(a),
+        Command::Review(a) => review::run(a),
     }
 }
 

@@ -1,0 +1,314 @@
+//! The real-world trial end to end on a mock trial: plan, mock (truth hidden), estimate,
+//! scripted marks, report; the review page driven in headless Chromium; bad trial folders.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::OnceLock;
+
+use serde_json::Value;
+
+use crate::camplace_cmd::{assert_one_line_error, camplace, stderr};
+
+/// The small cell: 320 × 240 cameras, few RANSAC iterations.
+fn small_cell() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/small_cell.toml")
+}
+
+fn run_ok(dir: &Path, args: &[&str]) -> String {
+    let o = camplace(dir, args);
+    assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// A 2 × 2 sweep (5 scenes each), a mock trial of its 4 placements × 6 frames rendered
+/// with another seed, noise and blur, its truth hidden, the tray model, every placement
+/// estimated. Returns the folder holding `sweep/`, `trial/`, `hidden/`, `tray.model`.
+fn fixture() -> &'static Path {
+    static FOLDER: OnceLock<tempfile::TempDir> = OnceLock::new();
+    FOLDER
+        .get_or_init(|| {
+            let dir = tempfile::tempdir().unwrap();
+            let d = dir.path();
+            let cell = small_cell();
+            let cell = cell.to_str().unwrap();
+            run_ok(
+                d,
+                &[
+                    "sweep",
+                    "--cell",
+                    cell,
+                    "--x",
+                    "r=500:800:2",
+                    "--y",
+                    "alpha=10:50:2",
+                    "--scenarios",
+                    "5",
+                    "--out",
+                    "sweep",
+                ],
+            );
+            run_ok(d, &["trial", "plan", "--cell", cell, "--study", "sweep", "--out", "plan.json"]);
+            run_ok(
+                d,
+                &[
+                    "trial",
+                    "mock",
+                    "--plan",
+                    "plan.json",
+                    "--cell",
+                    cell,
+                    "--noise-amplitude",
+                    "5",
+                    "--blur",
+                    "3",
+                    "--seed",
+                    "4242",
+                    "--frames",
+                    "6",
+                    "--hidden",
+                    "hidden",
+                    "--out",
+                    "trial",
+                ],
+            );
+            run_ok(d, &["model", "--cell", cell, "--verify-scenes", "5", "--out", "tray.model"]);
+            run_ok(d, &["trial", "estimate", "--trial", "trial", "--model", "tray.model", "--cell", cell]);
+            dir
+        })
+        .path()
+}
+
+fn json(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// Copies a folder tree.
+fn copy_tree(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let target = to.join(e.file_name());
+        if e.file_type().unwrap().is_dir() {
+            copy_tree(&e.path(), &target);
+        } else {
+            std::fs::copy(e.path(), target).unwrap();
+        }
+    }
+}
+
+/// Successes at placement `i` by the hidden truth, counted another way than the trial's:
+/// the placement's frames copied with their truth.json put back and replayed.
+fn hidden_successes(d: &Path, i: usize) -> u64 {
+    let copy = tempfile::tempdir().unwrap();
+    let ds = copy.path().join("ds");
+    copy_tree(&d.join(format!("trial/{i:03}")), &ds);
+    for f in ["poses.jsonl", "labels.jsonl"] {
+        let _ = std::fs::remove_file(ds.join(f));
+    }
+    for e in std::fs::read_dir(d.join(format!("hidden/{i:03}"))).unwrap() {
+        let p = e.unwrap().path();
+        let name = p.file_stem().unwrap().to_str().unwrap().to_string();
+        std::fs::copy(&p, ds.join("frames").join(name).join("truth.json")).unwrap();
+    }
+    let cell = small_cell();
+    run_ok(d, &["replay", ds.to_str().unwrap(), "--model", "tray.model", "--cell", cell.to_str().unwrap()]);
+    json(&ds.join("summary.json"))["successes"].as_u64().unwrap()
+}
+
+#[test]
+fn a_mock_trial_reports_every_placements_real_success_as_the_hidden_truth_counts_it() {
+    let d = fixture();
+    let trial = tempfile::tempdir().unwrap();
+    let t = trial.path().join("trial");
+    copy_tree(&d.join("trial"), &t);
+    // The trial folder holds no truth: the mock moved it aside.
+    for i in 0..4 {
+        let frame = t.join(format!("{i:03}/frames/0000"));
+        assert!(
+            frame.join("left.png").is_file()
+                && !frame.join("truth.json").exists()
+                && !frame.join("depth_left.pfm").exists()
+        );
+    }
+    let cell = small_cell();
+    let cell = cell.to_str().unwrap();
+    let t_arg = t.to_str().unwrap();
+    let hidden = d.join("hidden");
+    run_ok(d, &["trial", "mark", "--trial", t_arg, "--hidden", hidden.to_str().unwrap(), "--cell", cell]);
+    let out = run_ok(d, &["trial", "report", "--trial", t_arg, "--study", "sweep", "--cell", cell]);
+    let r = json(&t.join("trial_report.json"));
+    let rows = r["placements"].as_array().unwrap();
+    assert_eq!(rows.len(), 4);
+    let sweep = json(&d.join("sweep/summary.json"));
+    for (i, row) in rows.iter().enumerate() {
+        assert_eq!(row["real"]["frames"], 6, "{row}");
+        assert_eq!(row["real"]["successes"].as_u64().unwrap(), hidden_successes(d, i), "placement {i}: {row}");
+        // The simulated side is the sweep's own count at the same placement.
+        let s = &sweep[i];
+        assert_eq!(row["placement"], s["placement"]);
+        assert_eq!(row["simulated"]["successes"], s["successes"], "{row}");
+        assert_eq!(row["simulated"]["frames"], s["scored"], "{row}");
+    }
+    // Both maps, the correlation as the rows give it, the verdict and the paired difference.
+    for m in ["trial_map_real.svg", "trial_map_simulated.svg"] {
+        assert!(t.join(m).is_file(), "{m}");
+    }
+    let real: Vec<f64> = rows.iter().map(|x| x["real"]["success_rate"].as_f64().unwrap()).collect();
+    let sim: Vec<f64> = rows.iter().map(|x| x["simulated"]["success_rate"].as_f64().unwrap()).collect();
+    let constant = |v: &[f64]| v.iter().all(|x| *x == v[0]);
+    if constant(&real) || constant(&sim) {
+        assert!(r["rank_correlation"].is_null(), "{r}");
+    } else {
+        let rho = r["rank_correlation"]["rho"].as_f64().unwrap();
+        assert!((-1.0..=1.0).contains(&rho));
+        assert!(r["rank_correlation"]["interval"].is_array());
+    }
+    assert!(out.contains("ρ"), "{out}");
+    let best = r["simulated_best"].as_u64().unwrap() as usize;
+    let best_sim = sim.iter().cloned().fold(f64::MIN, f64::max);
+    assert_eq!(sim[best], best_sim, "the simulation's best is its highest");
+    assert_eq!(r["simulated_best_in_real_top_set"], rows[best]["in_real_top_set"]);
+    assert_eq!(r["paired_difference"]["frames"], 6);
+    let html = std::fs::read_to_string(t.join("trial_report.html")).unwrap();
+    assert!(html.matches("<svg").count() >= 2 && html.contains("data-key=\"rank_correlation\""));
+}
+
+/// The first stdout line of `camplace review --listen` names the address.
+fn serve(d: &Path, dataset: &Path) -> (std::process::Child, String) {
+    let cell = small_cell();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_camplace"))
+        .args([
+            "review",
+            dataset.to_str().unwrap(),
+            "--cell",
+            cell.to_str().unwrap(),
+            "--listen",
+            "127.0.0.1:0",
+            "--idle-exit",
+            "60",
+        ])
+        .current_dir(d)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.as_mut().unwrap()).read_line(&mut line).unwrap();
+    let url =
+        line.split_whitespace().find(|w| w.starts_with("http://")).unwrap_or_else(|| panic!("{line}")).to_string();
+    (child, url)
+}
+
+/// The `<body ...>` attributes of the page after the script ran.
+fn drive(browser: &str, url: &str) -> String {
+    let o = Command::new(browser)
+        .args(["--headless", "--no-sandbox", "--disable-gpu", "--virtual-time-budget=20000", "--dump-dom", url])
+        .output()
+        .expect("chromium runs");
+    let dom = String::from_utf8_lossy(&o.stdout).into_owned();
+    let at = dom.find("<body").unwrap_or_else(|| panic!("no page: {}", stderr(&o)));
+    dom[at..at + dom[at..].find('>').unwrap()].to_string()
+}
+
+fn attr(body: &str, name: &str) -> String {
+    let at = body.find(&format!("{name}=\"")).unwrap_or_else(|| panic!("no {name} in {body}"));
+    let v = &body[at + name.len() + 2..];
+    v[..v.find('"').unwrap()].to_string()
+}
+
+#[test]
+fn the_review_page_driven_by_key_presses_in_chromium_saves_the_scripted_marks_and_resumes() {
+    let Some(browser) = ["chromium", "chromium-browser"].into_iter().find(|b| which(b)) else {
+        assert!(std::env::var_os("CAMPLACE_BROWSER").is_none(), "CAMPLACE_BROWSER is set but no chromium is installed");
+        eprintln!("no chromium: the review page's browser test is skipped (CI installs it and sets CAMPLACE_BROWSER)");
+        return;
+    };
+    let d = fixture();
+    let work = tempfile::tempdir().unwrap();
+    // The scripted reviewer's marks, from the hidden truth, on a copy of the trial.
+    let scripted = work.path().join("scripted");
+    copy_tree(&d.join("trial"), &scripted);
+    let cell = small_cell();
+    run_ok(
+        d,
+        &[
+            "trial",
+            "mark",
+            "--trial",
+            scripted.to_str().unwrap(),
+            "--hidden",
+            "hidden",
+            "--cell",
+            cell.to_str().unwrap(),
+        ],
+    );
+    let expected = std::fs::read_to_string(scripted.join("002/labels.jsonl")).unwrap();
+    let keys: String = expected.lines().map(|l| if l.contains("\"correct\"") { 'c' } else { 'w' }).collect();
+    assert_eq!(keys.len(), 6);
+    // The dataset under review: placement 002 without marks.
+    let ds = work.path().join("ds");
+    copy_tree(&d.join("trial/002"), &ds);
+    // First sitting: three frames, then the page is closed.
+    let (mut server, url) = serve(d, &ds);
+    let body = drive(browser, &format!("{url}#script={}&quit", &keys[..3]));
+    assert!(server.wait().unwrap().success());
+    assert_eq!(attr(&body, "data-start"), "0000");
+    assert_eq!(attr(&body, "data-script-done"), "1");
+    let saved = std::fs::read_to_string(ds.join("labels.jsonl")).unwrap();
+    let first: Vec<&str> = expected.lines().take(3).collect();
+    assert_eq!(saved.lines().collect::<Vec<_>>(), first, "the first sitting's marks");
+    // Reopened: the page starts at the first open frame and the rest are marked.
+    let (mut server, url) = serve(d, &ds);
+    let body = drive(browser, &format!("{url}#script={}&quit", &keys[3..]));
+    assert!(server.wait().unwrap().success());
+    assert_eq!(attr(&body, "data-start"), "0003", "resumes at the first frame without a mark");
+    assert_eq!(attr(&body, "data-judged"), "6");
+    assert_eq!(std::fs::read_to_string(ds.join("labels.jsonl")).unwrap(), expected, "every mark as scripted");
+    assert_eq!(attr(&body, "data-marks"), keys);
+}
+
+fn which(program: &str) -> bool {
+    std::env::var_os("PATH").is_some_and(|paths| std::env::split_paths(&paths).any(|p| p.join(program).is_file()))
+}
+
+#[test]
+fn bad_trial_folders_end_with_one_line_naming_the_file_and_key() {
+    let d = fixture();
+    let cell = small_cell();
+    let cell = cell.to_str().unwrap();
+    // A placement folder with another cell's rig: the default cell's 640 × 480 cameras.
+    let w = tempfile::tempdir().unwrap();
+    let t = w.path().join("trial");
+    copy_tree(&d.join("trial"), &t);
+    run_ok(w.path(), &["render", "--out", "other"]);
+    std::fs::copy(w.path().join("other/rig.json"), t.join("001/rig.json")).unwrap();
+    let o = camplace(w.path(), &["trial", "report", "--trial", "trial", "--cell", cell]);
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["001/rig.json", "left.width", "camera_resolution"]);
+    // Labels for a frame that does not exist.
+    let t = w.path().join("trial2");
+    copy_tree(&d.join("trial"), &t);
+    std::fs::write(
+        t.join("000/labels.jsonl"),
+        "{\"frame\":\"0000\",\"mark\":\"correct\"}\n{\"frame\":\"0042\",\"mark\":\"wrong\"}\n",
+    )
+    .unwrap();
+    let o = camplace(w.path(), &["trial", "report", "--trial", "trial2", "--cell", cell]);
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["000/labels.jsonl", "line 2", "frame", "0042"]);
+    let o = camplace(w.path(), &["review", "trial2/000", "--cell", cell]);
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["000/labels.jsonl", "frame", "0042"]);
+    // A plan with no placements.
+    let t = w.path().join("trial3");
+    copy_tree(&d.join("trial"), &t);
+    std::fs::write(t.join("plan.json"), "{\"placements\": []}\n").unwrap();
+    for args in [
+        &["trial", "report", "--trial", "trial3", "--cell", cell][..],
+        &["trial", "estimate", "--trial", "trial3", "--model", "x.model"][..],
+        &["capture", "--source", "dir:x", "--trial", "trial3", "--placement", "0"][..],
+    ] {
+        let o = camplace(w.path(), args);
+        assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["trial3/plan.json", "placements"]);
+    }
+    let o = camplace(w.path(), &["trial", "plan", "--placements", " ; ", "--out", "p.json"]);
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["--placements", "at least one"]);
+}
