@@ -9,11 +9,10 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Context};
 use camplace_config::Cell;
-use camplace_estimator::Method;
+use camplace_estimator::{Method, Model};
 use camplace_sim::{
-    append_label, check_placement_rig, estimate_dataset, frame_names, load_model, load_model_for, make_mock_trial,
-    placement_dir, rho_text, scripted_marks, study_grid, trial_report, Axis, Grid, TrialPlan, LABELS_FILE, PLAN_FILE,
-    REPORT_HTML, REPORT_JSON,
+    append_label, check_placement_rig, estimate_dataset, frame_names, make_mock_trial, placement_dir, rho_text,
+    scripted_marks, study_grid, trial_report, Axis, Grid, TrialPlan, LABELS_FILE, PLAN_FILE, REPORT_HTML, REPORT_JSON,
 };
 
 use super::cell_args::CellArgs;
@@ -226,8 +225,8 @@ fn estimate(a: EstimateArgs) -> anyhow::Result<ExitCode> {
         }
         check_placement_rig(&dir, &cell, &plan.placement(i))?;
         let model = match &a.cell {
-            Some(p) => load_model_for(&a.model, &cell, p)?,
-            None => load_model(&a.model)?,
+            Some(p) => Model::load_for(&a.model, &cell, p)?,
+            None => Model::load(&a.model)?,
         };
         let (records, method) = estimate_dataset(&cell, model, &dir)?;
         let found = records.iter().filter(|r| r.found).count();

@@ -180,8 +180,11 @@ mod tests {
             nalgebra::Vector3::new(10.0, 55.0, 130.0),
             nalgebra::Vector3::new(0.3, 0.05, -0.4),
         );
-        cell.robot =
-            Some(Robot { t_robot_world: isometry_to_rows(&turn), t_flange_rig: Some(isometry_to_rows(&flange_rig)) });
+        cell.robot = Some(Robot {
+            t_robot_world: isometry_to_rows(&turn),
+            t_flange_rig: Some(isometry_to_rows(&flange_rig)),
+            pose_format: None,
+        });
         let grid = Grid { x: "r=500:800:2".parse().unwrap(), y: "alpha=10:50:2".parse().unwrap() };
         let ps = grid.placements(&cell.placement).unwrap();
         let plan = TrialPlan::new(&cell, Some(grid), &ps).unwrap();
