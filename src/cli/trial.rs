@@ -217,6 +217,11 @@ fn mock(a: MockArgs) -> anyhow::Result<ExitCode> {
 fn estimate(a: EstimateArgs) -> anyhow::Result<ExitCode> {
     let cell = cell_of(&a.cell)?;
     let plan = TrialPlan::load(&a.trial.join(PLAN_FILE))?;
+    // One model for every placement: read and checked once.
+    let model = match &a.cell {
+        Some(p) => Model::load_for(&a.model, &cell, p)?,
+        None => Model::load(&a.model)?,
+    };
     for i in 0..plan.placements.len() {
         let dir = placement_dir(&a.trial, i);
         if !dir.exists() {
@@ -224,11 +229,7 @@ fn estimate(a: EstimateArgs) -> anyhow::Result<ExitCode> {
             continue;
         }
         check_placement_rig(&dir, &cell, &plan.placement(i))?;
-        let model = match &a.cell {
-            Some(p) => Model::load_for(&a.model, &cell, p)?,
-            None => Model::load(&a.model)?,
-        };
-        let (records, method) = estimate_dataset(&cell, model, &dir)?;
+        let (records, method) = estimate_dataset(&cell, model.clone(), &dir)?;
         let found = records.iter().filter(|r| r.found).count();
         let accepted = records.iter().filter(|r| r.accepted()).count();
         outln!(
