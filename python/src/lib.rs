@@ -155,11 +155,7 @@ impl Estimator {
     ) -> PyResult<Self> {
         let method = method_of(method)?;
         let cell_value = load_cell(cell.as_deref(), tray)?;
-        let model = match &cell {
-            Some(path) => Model::load_for(&model, &cell_value, path),
-            None => Model::load(&model),
-        }
-        .map_err(fail)?;
+        let model = Model::load_checked(&model, &cell_value, cell.as_deref()).map_err(fail)?;
         let rig = match &rig {
             Some(path) => Rig::from_file(&RigFile::load(path).map_err(fail)?),
             None => sensor_rig(&cell_value, &placement_of(&cell_value, placement)?),

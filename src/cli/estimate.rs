@@ -34,10 +34,7 @@ pub struct Args {
 /// Runs `camplace estimate`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (cell, placement) = a.cell.load()?;
-    let model = match &a.cell.cell {
-        Some(cell_file) => Model::load_for(&a.model, &cell, cell_file)?,
-        None => Model::load(&a.model)?,
-    };
+    let model = Model::load_checked(&a.model, &cell, a.cell.cell.as_deref())?;
     if let Some(dir) = &a.dataset {
         return dataset(&cell, model, dir);
     }

@@ -111,10 +111,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     };
     let opened = DeploySource::open(&spec, a.rig.as_deref(), a.background.as_deref(), a.fps)?;
     let rig = Rig::from_file(&opened.rig);
-    let model = match &a.cell {
-        Some(path) => Model::load_for(&a.model, &cell, path)?,
-        None => Model::load(&a.model)?,
-    };
+    let model = Model::load_checked(&a.model, &cell, a.cell.as_deref())?;
     let method = method_for(opened.source.shots());
     let threshold = camplace_estimator::Verifier::for_model(&cell.estimator, &model).threshold_in_force();
     let max_wrong = cell.estimator.verify_max_wrong;

@@ -143,10 +143,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     // camera reported before anything listens.
     let opened = DeploySource::open(&spec, a.rig.as_deref(), a.background.as_deref(), None)?;
     let rig = Rig::from_file(&opened.rig);
-    let model = match &a.cell {
-        Some(path) => Model::load_for(&a.model, &cell, path)?,
-        None => Model::load(&a.model)?,
-    };
+    let model = Model::load_checked(&a.model, &cell, a.cell.as_deref())?;
     let shots = opened.source.shots();
     let method = method_for(shots);
     let estimator = estimator_for(&cell, model, &rig, &opened.rig_path, method, opened.background.as_ref())?;

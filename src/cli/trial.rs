@@ -218,10 +218,7 @@ fn estimate(a: EstimateArgs) -> anyhow::Result<ExitCode> {
     let cell = cell_of(&a.cell)?;
     let plan = TrialPlan::load(&a.trial.join(PLAN_FILE))?;
     // One model for every placement: read and checked once.
-    let model = match &a.cell {
-        Some(p) => Model::load_for(&a.model, &cell, p)?,
-        None => Model::load(&a.model)?,
-    };
+    let model = Model::load_checked(&a.model, &cell, a.cell.as_deref())?;
     for i in 0..plan.placements.len() {
         let dir = placement_dir(&a.trial, i);
         if !dir.exists() {

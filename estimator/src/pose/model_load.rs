@@ -1,5 +1,5 @@
 //! A model file read from disk, and the check that it was built for the tray a cell holds:
-//! the one place `estimate`, `replay`, `run` and embedders load a model. The bytes come
+//! the one place `estimate`, `replay`, `run`, `serve`, `trial` and embedders load a model. The bytes come
 //! through camplace-config's bounded reader (the model's size budget); decoding is
 //! `Model::from_bytes`'s.
 
@@ -14,6 +14,16 @@ fn from_config(e: camplace_config::Error) -> Error {
 }
 
 impl Model {
+    /// Reads the model file at `path` for `cell`: checked against the cell's tray
+    /// ([`Model::load_for`]) when the cell was read from `cell_file`, as read
+    /// ([`Model::load`]) when it is the built-in default.
+    pub fn load_checked(path: &Path, cell: &Cell, cell_file: Option<&Path>) -> Result<Model> {
+        match cell_file {
+            Some(file) => Model::load_for(path, cell, file),
+            None => Model::load(path),
+        }
+    }
+
     /// Reads and decodes the model file at `path`; errors name the file.
     pub fn load(path: &Path) -> Result<Model> {
         let bytes = camplace_config::read_bounded(path, FileKind::Model).map_err(from_config)?;
