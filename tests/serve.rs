@@ -29,13 +29,22 @@ struct Served {
 impl Served {
     /// Starts `camplace serve` in `dir` with `args` on free loopback ports; its log goes to `log`.
     fn start(dir: &Path, args: &[&str], log: &str, status_page: bool) -> Served {
-        let log = dir.join(log);
-        let mut all = vec!["serve", "--listen", "127.0.0.1:0"];
+        let mut all = vec![];
         if status_page {
             all.extend(["--status", "127.0.0.1:0"]);
         }
         all.extend(args);
-        let mut child = Command::new(env!("CARGO_BIN_EXE_camplace"))
+        Served::start_with(Command::new(env!("CARGO_BIN_EXE_camplace")), dir, &all, log)
+    }
+
+    /// Starts `command` (the camplace binary, with its environment set) as `serve` with
+    /// `args` on a free loopback port (and the status page's when `args` ask for it).
+    fn start_with(mut command: Command, dir: &Path, args: &[&str], log: &str) -> Served {
+        let log = dir.join(log);
+        let status_page = args.contains(&"--status");
+        let mut all = vec!["serve", "--listen", "127.0.0.1:0"];
+        all.extend(args);
+        let mut child = command
             .args(&all)
             .current_dir(dir)
             .stdout(Stdio::piped())
@@ -603,4 +612,121 @@ fn the_drift_watch_sees_a_turned_rig_and_not_an_unmoved_one() {
     let served = Served::start(d, &["--source", &data, "--model", model.to_str().unwrap()], "unmoved.log", false);
     assert_eq!(triggers_until_warning(&served, 200), None);
     served.stop();
+}
+
+/// `serve --project phase-12` under a virtual X server: the 12 fringes are shown on the
+/// projector window one by one and each is read in step from a one-image camera. The camera
+/// here is a recording whose consecutive frames are the shots of a rendered phase-12 frame,
+/// so the frame put together in step is that frame, and its reply must be `replay`'s of the
+/// phase-12 recording. Skips (saying why) without Xvfb.
+#[cfg(feature = "display")]
+#[test]
+fn projected_phase_12_triggers_give_replays_poses() {
+    use crate::deploy::OPTIMUM;
+    use std::time::Instant;
+
+    let Some(n) = (400..500).find(|n| {
+        !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
+    }) else {
+        return;
+    };
+    let display = format!(":{n}");
+    let Ok(mut xvfb) = Command::new("Xvfb")
+        .args([display.as_str(), "-screen", "0", "1280x800x24", "-nolisten", "tcp"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+    else {
+        println!("skipped: Xvfb is not installed");
+        return;
+    };
+    let start = Instant::now();
+    while !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && start.elapsed() < Duration::from_secs(10) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let common = ["--method", "phase-12", "--placement", OPTIMUM, "--seed", "1"];
+    let o = camplace(d, &[&["render", "--dataset", "--count", "1"][..], &common, &["--out", "data"]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = camplace(d, &[&["model"][..], &common, &["--verify-scenes", "0", "--out", "tray.model"]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let replay = replayed_dataset(d, "data", &[]);
+    let want = &replay["0000"];
+    assert!(want.found, "{want:?}");
+    // The camera: shot i of frame 0000 as one-image frame i.
+    let shots = d.join("camera");
+    std::fs::create_dir_all(&shots).unwrap();
+    std::fs::copy(d.join("data/rig.json"), shots.join("rig.json")).unwrap();
+    for i in 0..12 {
+        let to = shots.join("frames").join(format!("{i:04}"));
+        std::fs::create_dir_all(&to).unwrap();
+        for side in ["left", "right"] {
+            let from = d.join("data/frames/0000").join(format!("{side}_{i:02}.png"));
+            std::fs::copy(from, to.join(format!("{side}.png"))).unwrap();
+        }
+    }
+    let mut command = Command::new(env!("CARGO_BIN_EXE_camplace"));
+    command.env("DISPLAY", &display);
+    let served = Served::start_with(
+        command,
+        d,
+        &[
+            "--source",
+            "dir:camera",
+            "--model",
+            "tray.model",
+            "--background",
+            "data/background",
+            "--project",
+            "phase-12",
+            "--settle-ms",
+            "5",
+            "--skip",
+            "0",
+        ],
+        "projected.log",
+    );
+    let mut robot = served.connect();
+    // The camera recording ends after its 12th frame and is opened again from its start, in
+    // step again: each trigger puts frame 0000 together anew.
+    for k in 0..2 {
+        let line = ask(&mut robot, &format!("TRIGGER p{k}"));
+        let (status, reason, fields) = parse_reply(&line);
+        assert_eq!(fields["frame"], "0000", "{line}");
+        let score: f32 = fields["score"].parse().unwrap();
+        assert!((score - want.verify_score.unwrap()).abs() <= 5e-5, "{line} vs {:?}", want.verify_score);
+        match status.as_str() {
+            "OK" => {
+                let format = RobotPoseFormat { convention: PoseConvention::Matrix, unit: LengthUnit::Mm };
+                let pose = parse_pose(&fields["pose"], format).unwrap();
+                let truth = want.t_robot_tray.unwrap_or(want.t_world_tray);
+                for r in 0..4 {
+                    for c in 0..4 {
+                        assert!((pose[r][c] - truth[r][c]).abs() <= 1e-9, "[{r}][{c}]: {line} vs {truth:?}");
+                    }
+                }
+            }
+            "REJECTED" => {
+                let said = format!("rejected: {}", reason.unwrap().replace('-', " "));
+                assert_eq!(want.verdict.as_deref(), Some(said.as_str()), "{line}");
+            }
+            _ => panic!("{line} vs replay's {want:?}"),
+        }
+    }
+    served.stop();
+    let _ = xvfb.kill();
+    let _ = xvfb.wait();
+}
+
+#[cfg(not(feature = "display"))]
+#[test]
+fn project_without_the_display_feature_says_how_to_build_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = camplace(
+        dir.path(),
+        &["serve", "--source", "dir:none", "--model", "none.model", "--listen", "127.0.0.1:0", "--project", "phase-12"],
+    );
+    let code = o.status.code().unwrap_or(-1);
+    crate::camplace_cmd::assert_one_line_error(code, &stderr(&o), &["--project", "`display`", "--features display"]);
 }

@@ -19,6 +19,7 @@ use winit::platform::x11::EventLoopBuilderExtX11;
 use winit::window::{Fullscreen, Window, WindowId};
 
 use crate::frames::{FrameSource, Frames};
+use crate::in_step::{capture_in_step, PatternScreen};
 use crate::{Error, ErrorKind, Result};
 
 /// How long to wait for the window to appear before giving up.
@@ -111,20 +112,11 @@ impl Projector {
     ) -> Result<Frames> {
         let mut shot = Frames::new(source.shots());
         let mut frame = Frames::new(patterns.len());
-        for (i, p) in patterns.iter().enumerate() {
-            self.show(p, settle_ms)?;
-            for _ in 0..=skip {
-                if source.next(&mut shot)?.is_none() {
-                    return Err(Error::new(
-                        ErrorKind::Device,
-                        format!("the source ended before pattern {i} was captured"),
-                    ));
-                }
-            }
-            std::mem::swap(&mut frame.left[i], &mut shot.left[0]);
-            std::mem::swap(&mut frame.right[i], &mut shot.right[0]);
+        let mut show = |i: usize| self.show(&patterns[i], settle_ms);
+        match capture_in_step(&mut show, source, patterns.len(), skip, &mut shot, &mut frame)? {
+            Some(_) => Ok(frame),
+            None => Err(Error::new(ErrorKind::Device, "the source ended before pattern 0 was captured")),
         }
-        Ok(frame)
     }
 
     fn pump(&mut self, timeout: Duration) -> Result<()> {
@@ -227,4 +219,81 @@ impl ApplicationHandler for App {
 
 fn display_error(what: &str, e: impl std::fmt::Display) -> Error {
     Error::new(ErrorKind::Display, format!("projector window: {what} failed: {e}"))
+}
+
+/// The projector window on a thread of its own, for a capture that runs on another thread
+/// (the window's event loop stays on the thread that made it): `show(i)` sends pattern `i`
+/// of the list given at the start and waits until it has settled. A pattern already on
+/// show is not shown again, so one-shot's single pattern costs its settle time once.
+pub struct ProjectorThread {
+    ask: crossbeam_channel::Sender<(usize, crossbeam_channel::Sender<Result<()>>)>,
+    patterns: usize,
+    size: (u32, u32),
+}
+
+impl ProjectorThread {
+    /// Opens the window on monitor `monitor` on a new thread showing `patterns`, each left
+    /// `settle_ms` before `show` returns. Winit allows one window loop a process: open one
+    /// and share it.
+    pub fn open(monitor: Option<usize>, patterns: Vec<GrayImage>, settle_ms: u64) -> Result<ProjectorThread> {
+        if patterns.is_empty() {
+            return Err(Error::new(ErrorKind::Display, "the projector thread needs at least one pattern"));
+        }
+        let count = patterns.len();
+        let (ask, asked) = crossbeam_channel::unbounded::<(usize, crossbeam_channel::Sender<Result<()>>)>();
+        let (opened, on_open) = crossbeam_channel::bounded::<Result<(u32, u32)>>(1);
+        std::thread::Builder::new()
+            .name("camplace-projector".into())
+            .spawn(move || {
+                let mut projector = match Projector::open(monitor) {
+                    Ok(p) => {
+                        let _ = opened.send(Ok(p.size()));
+                        p
+                    }
+                    Err(e) => {
+                        let _ = opened.send(Err(e));
+                        return;
+                    }
+                };
+                let mut on_show = None;
+                for (i, reply) in asked {
+                    let result = if on_show == Some(i) {
+                        Ok(())
+                    } else {
+                        on_show = None;
+                        projector.show(&patterns[i], settle_ms).map(|()| on_show = Some(i))
+                    };
+                    let _ = reply.send(result);
+                }
+            })
+            .map_err(|e| Error::new(ErrorKind::Display, format!("cannot start the projector thread: {e}")))?;
+        let size = on_open
+            .recv()
+            .map_err(|_| Error::new(ErrorKind::Display, "the projector thread ended before its window opened"))??;
+        Ok(ProjectorThread { ask, patterns: count, size })
+    }
+
+    /// The window's size in pixels.
+    pub fn size(&self) -> (u32, u32) {
+        self.size
+    }
+}
+
+impl PatternScreen for ProjectorThread {
+    fn patterns(&self) -> usize {
+        self.patterns
+    }
+
+    fn show(&self, index: usize) -> Result<()> {
+        if index >= self.patterns {
+            return Err(Error::new(
+                ErrorKind::Display,
+                format!("pattern {index}: the projector holds {} patterns", self.patterns),
+            ));
+        }
+        let ended = || Error::new(ErrorKind::Display, "the projector thread has ended");
+        let (reply, answer) = crossbeam_channel::bounded(1);
+        self.ask.send((index, reply)).map_err(|_| ended())?;
+        answer.recv().map_err(|_| ended())?
+    }
 }

@@ -4,146 +4,19 @@
 //! skips (saying why) when neither Xvfb nor a DISPLAY is there, or xwd is missing.
 #![cfg(feature = "display")]
 
-use std::path::Path;
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+mod common;
 
-use camplace_config::GrayImage;
-use camplace_hwio::{FrameInfo, FrameSource, Frames, Projector};
-use rand::{RngExt, SeedableRng};
-use rand_chacha::ChaCha8Rng;
-
-const W: usize = 160;
-const H: usize = 120;
-
-/// An Xvfb server killed when dropped.
-struct Xvfb(Child);
-
-impl Drop for Xvfb {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn on_path(tool: &str) -> bool {
-    std::env::var_os("PATH").is_some_and(|p| std::env::split_paths(&p).any(|d| d.join(tool).is_file()))
-}
-
-/// Starts Xvfb on a free display number; returns it and its name (":N").
-fn start_xvfb() -> Option<(Xvfb, String)> {
-    let n = (90..200).find(|n| {
-        !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
-    })?;
-    let name = format!(":{n}");
-    let child = Command::new("Xvfb")
-        .args([name.as_str(), "-screen", "0", &format!("{W}x{H}x24"), "-nolisten", "tcp"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .ok()?;
-    let server = Xvfb(child);
-    let start = Instant::now();
-    while !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
-        if start.elapsed() > Duration::from_secs(10) {
-            return None;
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    Some((server, name))
-}
-
-/// The root window as grey (checking r = g = b), read from `xwd`'s output.
-fn screenshot(display: &str) -> GrayImage {
-    let out = Command::new("xwd").args(["-root", "-silent", "-display", display]).output().expect("xwd runs");
-    assert!(out.status.success(), "xwd failed: {}", String::from_utf8_lossy(&out.stderr));
-    let d = out.stdout;
-    // The XWD header is big-endian 32-bit words whatever the machine.
-    let word = |i: usize| u32::from_be_bytes(d[4 * i..4 * i + 4].try_into().unwrap()) as usize;
-    let (header_size, width, height) = (word(0), word(4), word(5));
-    let (byte_order, bits_per_pixel, bytes_per_line, ncolors) = (word(7), word(11), word(12), word(19));
-    assert_eq!(bits_per_pixel, 32, "expected a 24-bit visual in 32-bit pixels");
-    let start = header_size + 12 * ncolors;
-    let mut img = GrayImage::new(width, height, 0);
-    for y in 0..height {
-        for x in 0..width {
-            let p = &d[start + y * bytes_per_line + 4 * x..][..4];
-            let px = if byte_order == 0 {
-                u32::from_le_bytes(p.try_into().unwrap())
-            } else {
-                u32::from_be_bytes(p.try_into().unwrap())
-            };
-            let (r, g, b) = ((px >> 16) & 0xff, (px >> 8) & 0xff, px & 0xff);
-            assert!(r == g && g == b, "pixel ({x},{y}) is not grey: {px:06x}");
-            img.set(x, y, r as u8);
-        }
-    }
-    img
-}
-
-/// A camera that sees the whole screen: each frame is one screenshot, on both sides.
-struct ScreenCamera {
-    display: String,
-    reads: usize,
-}
-
-impl FrameSource for ScreenCamera {
-    fn next(&mut self, frames: &mut Frames) -> camplace_hwio::Result<Option<FrameInfo>> {
-        let shot = screenshot(&self.display);
-        *frames = Frames::new(1);
-        frames.left[0] = shot.clone();
-        frames.right[0] = shot;
-        self.reads += 1;
-        Ok(Some(FrameInfo { index: self.reads as u64 - 1, name: String::new(), timestamp_us: 0 }))
-    }
-
-    fn shots(&self) -> usize {
-        1
-    }
-}
+use camplace_hwio::Projector;
+use common::{assert_shots_are_patterns, display, patterns, ScreenCamera};
 
 #[test]
 fn patterns_reach_the_screen_pixel_for_pixel() {
-    if !on_path("xwd") {
-        println!("skipped: xwd (x11-apps) is not installed");
-        return;
-    }
-    let server = if on_path("Xvfb") { start_xvfb() } else { None };
-    let display = match (&server, std::env::var("DISPLAY")) {
-        // One test in this binary, so no other thread reads the environment meanwhile.
-        (Some((_, name)), _) => {
-            std::env::set_var("DISPLAY", name);
-            name.clone()
-        }
-        (None, Ok(d)) => d,
-        (None, Err(_)) => {
-            println!("skipped: no Xvfb could be started and no DISPLAY is set");
-            return;
-        }
-    };
-    let mut rng = ChaCha8Rng::seed_from_u64(7);
-    let noise = GrayImage::from_vec(W, H, (0..W * H).map(|_| rng.random::<u8>()).collect()).unwrap();
-    let ramp = GrayImage::from_vec(W, H, (0..W * H).map(|i| ((i % W) * 255 / (W - 1)) as u8).collect()).unwrap();
-    // Smaller than the screen: the rest must be black.
-    let small = GrayImage::new(W / 2, H / 3, 200);
-    let patterns = [noise, ramp, small];
-    let mut camera = ScreenCamera { display: display.clone(), reads: 0 };
+    let Some((_server, display)) = display() else { return };
+    let patterns = patterns();
+    let mut camera = ScreenCamera { display, reads: 0 };
     let mut projector = Projector::open(None).unwrap();
     // One frame thrown away after each pattern settled: two reads a pattern.
-    let frame = projector.capture(&mut camera, &patterns[..3], 150, 1).unwrap();
+    let frame = projector.capture(&mut camera, &patterns, 150, 1).unwrap();
     assert_eq!(camera.reads, 6);
-    let seen: Vec<(usize, GrayImage)> = (0..3).map(|i| (i, frame.left[i].clone())).collect();
-    for i in 0..3 {
-        assert_eq!(frame.left[i].data, frame.right[i].data);
-    }
-    for (i, shot) in &seen {
-        let p = &patterns[*i];
-        assert_eq!((shot.width, shot.height), (W, H));
-        for y in 0..H {
-            for x in 0..W {
-                let want = if x < p.width && y < p.height { p.get(x, y) } else { 0 };
-                assert_eq!(shot.get(x, y), want, "pattern {i} at ({x},{y})");
-            }
-        }
-    }
+    assert_shots_are_patterns(&frame, &patterns);
 }

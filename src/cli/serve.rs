@@ -12,9 +12,14 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use camplace_config::{Cell, LengthUnit, PoseConvention, RobotPoseFormat};
 use camplace_estimator::{Model, Rig};
-use camplace_hwio::{open_source, parse_source, DeploySource, FrameSource, RecordedSource, SourceSpec};
+use camplace_hwio::{
+    open_source, parse_source, read_background, DeploySource, FrameSource, InStepSource, PatternScreen, RecordedSource,
+    SourceSpec,
+};
 use camplace_serve::{ConnectionLimits, DriftLimits, RecorderSettings, Service, Settings, Status};
-use camplace_sim::{estimator_for, method_for, ToleranceReport};
+use camplace_sim::{estimator_for, method_for, Method, ToleranceReport};
+#[cfg(feature = "display")]
+use camplace_sim::{fringe_set, one_shot};
 
 /// Flags of `camplace serve`.
 #[derive(clap::Args, Debug)]
@@ -36,8 +41,8 @@ pub struct Args {
     /// Calibration of the cameras (needed for cameras; a dataset's own rig.json otherwise).
     #[arg(long, value_name = "FILE")]
     rig: Option<PathBuf>,
-    /// A folder with the empty cell's images (left.png, right.png); a dataset's own
-    /// background/ otherwise.
+    /// A folder with the empty cell's images (left.png, right.png; with --project phase-12 a
+    /// shot per pattern, left_00.png … right_11.png); a dataset's own background/ otherwise.
     #[arg(long, value_name = "DIR")]
     background: Option<PathBuf>,
     /// The robot interface's address, e.g. 0.0.0.0:50010 (port 0: any free port, printed).
@@ -68,6 +73,25 @@ pub struct Args {
     /// A frame not captured within this is a CAMERA_ERROR and the camera is opened again, ms.
     #[arg(long, value_name = "MS", default_value_t = 2000)]
     camera_timeout_ms: u64,
+    /// Show the structured-light patterns on the projector (feature `display`) and take each
+    /// camera frame in step with them, as `project --source` does: phase-12's 12 fringes per
+    /// trigger, or one-shot's random dots (shown once and left on).
+    #[arg(long, value_name = "METHOD")]
+    project: Option<Method>,
+    /// With --project: the projector's monitor, an index in the X server's list (default: the
+    /// primary).
+    #[arg(long, value_name = "N", requires = "project")]
+    monitor: Option<usize>,
+    /// With --project: time a pattern stays on screen before the cameras are read, ms.
+    #[arg(long, value_name = "MS", default_value_t = 150, requires = "project")]
+    settle_ms: u64,
+    /// With --project: camera frames thrown away after each pattern settled.
+    #[arg(long, value_name = "N", default_value_t = 1, requires = "project")]
+    skip: usize,
+    /// With --project one-shot: the random dots' seed (default: the cell's scenarios.seed, as
+    /// `camplace model` uses).
+    #[arg(long, requires = "project")]
+    seed: Option<u64>,
 }
 
 /// The drift limits when neither --tolerance nor the flags give them: the tolerance walk's
@@ -108,14 +132,46 @@ fn drift_limits(a: &Args) -> anyhow::Result<DriftLimits> {
 }
 
 /// Opens `spec` again each time the service asks (at the start, after a failure, at the end
-/// of a recording).
-fn opener(spec: SourceSpec) -> camplace_serve::SourceOpener {
+/// of a recording), read in step with `screen` when the projector is driven.
+fn opener(spec: SourceSpec, screen: Option<(Arc<dyn PatternScreen>, usize)>) -> camplace_serve::SourceOpener {
     Box::new(move || -> camplace_hwio::Result<Box<dyn FrameSource + Send>> {
-        match &spec {
-            SourceSpec::Recorded(dir) => Ok(Box::new(RecordedSource::open(dir)?)),
-            other => open_source(other),
-        }
+        let camera: Box<dyn FrameSource + Send> = match &spec {
+            SourceSpec::Recorded(dir) => Box::new(RecordedSource::open(dir)?),
+            other => open_source(other)?,
+        };
+        Ok(match &screen {
+            Some((screen, skip)) => Box::new(InStepSource::new(camera, screen.clone(), *skip)),
+            None => camera,
+        })
     })
+}
+
+/// The projector showing `method`'s patterns on its own thread (`--project`).
+#[cfg(feature = "display")]
+fn projector(a: &Args, cell: &Cell, method: Method) -> anyhow::Result<Arc<dyn PatternScreen>> {
+    let patterns = match method {
+        Method::OneShot => vec![one_shot(&cell.sensor, a.seed.unwrap_or(cell.scenarios.seed))],
+        Method::Phase12 => fringe_set(&cell.sensor),
+    };
+    let screen = camplace_hwio::ProjectorThread::open(a.monitor, patterns, a.settle_ms)?;
+    let (w, h) = screen.size();
+    let [pw, ph] = cell.sensor.projector_resolution;
+    if (w, h) != (pw, ph) {
+        noteln!(
+            "note: the monitor is {w}x{h} but the cell's projector is {pw}x{ph}; the pattern is shown \
+             at the top-left pixel for pixel (set the projector to its native resolution)"
+        );
+    }
+    Ok(Arc::new(screen))
+}
+
+/// The projector showing `method`'s patterns (`--project`): not in this build.
+#[cfg(not(feature = "display"))]
+fn projector(_a: &Args, _cell: &Cell, _method: Method) -> anyhow::Result<Arc<dyn PatternScreen>> {
+    bail!(
+        "--project: the projector window needs the `display` feature, which this build lacks; \
+         rebuild with `cargo build --release --features display`"
+    )
 }
 
 /// Runs `camplace serve`.
@@ -126,6 +182,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let quota_bytes = (positive(a.record_quota_mb, "--record-quota-mb")? * 1e6) as u64;
     if a.camera_timeout_ms == 0 {
         bail!("--camera-timeout-ms 0: expected at least 1");
+    }
+    if a.project.is_some() && !cfg!(feature = "display") {
+        projector(&a, &Cell::default(), Method::OneShot)?;
     }
     let spec = parse_source(&a.source)?;
     let cell = match &a.cell {
@@ -141,10 +200,35 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     };
     // The source opened once here: its calibration, background and shots, and a missing
     // camera reported before anything listens.
-    let opened = DeploySource::open(&spec, a.rig.as_deref(), a.background.as_deref(), None)?;
+    // With the projector driven, the background holds a shot per pattern and is read below.
+    let given_background = if a.project.is_some() { None } else { a.background.as_deref() };
+    let mut opened = DeploySource::open(&spec, a.rig.as_deref(), given_background, None)?;
     let rig = Rig::from_file(&opened.rig);
     let model = Model::load_checked(&a.model, &cell, a.cell.as_deref())?;
-    let shots = opened.source.shots();
+    let screen = match a.project {
+        Some(method) => {
+            if opened.source.shots() != 1 {
+                bail!(
+                    "--project with --source {}: expected a camera giving one image a side, which the \
+                     projector's patterns are captured from; this source gives {} a frame",
+                    a.source,
+                    opened.source.shots()
+                );
+            }
+            Some((projector(&a, &cell, method)?, a.skip))
+        }
+        None => None,
+    };
+    let shots = screen.as_ref().map_or(opened.source.shots(), |(s, _)| s.patterns());
+    if screen.is_some() {
+        opened.background =
+            match &a.background {
+                Some(dir) => Some(read_background(dir, &opened.rig, shots).map_err(|e| {
+                    anyhow::anyhow!("--background: expected {shots} images per side, one a pattern: {e}")
+                })?),
+                None => None,
+            };
+    }
     let method = method_for(shots);
     let estimator = estimator_for(&cell, model, &rig, &opened.rig_path, method, opened.background.as_ref())?;
     if opened.background.is_none() {
@@ -179,7 +263,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         outln!("status page on http://{addr}/");
     }
     let log: camplace_serve::Log = Arc::new(|line: &str| noteln!("{line}"));
-    let served = service.run(estimator, opener(spec), stop, log)?;
+    let served = service.run(estimator, opener(spec, screen), stop, log)?;
     let counts: Vec<String> =
         Status::ALL.iter().map(|s| format!("{} {}", s.as_str(), served.counts[s.index()])).collect();
     noteln!("stopped: {}", counts.join(", "));
