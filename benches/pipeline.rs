@@ -1,12 +1,14 @@
 //! Bench of the whole deployed pipeline, camera to pose: one rendered one-shot stereo frame
 //! at the paper's optimum, with the model built at that placement; and the pose stages alone
 //! (down-sampling, normals, features, matching, RANSAC, ICP) on that frame's world cloud;
-//! and the verification of that frame's pose alone (`pose/verify`).
+//! and the verification of that frame's pose alone (`pose/verify`); and `serve`'s drift
+//! watch on that frame's disparity (`serve/drift_check`).
 
 use std::hint::black_box;
 
 use camplace_config::Cell;
 use camplace_estimator::{Estimator, EstimatorConfig};
+use camplace_serve::{DriftLimits, DriftWatch};
 use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
 use criterion::Criterion;
 
@@ -39,4 +41,12 @@ pub fn benches(c: &mut Criterion) {
     let pose = estimator.process_cloud(&cloud).expect("valid");
     eprintln!("pose/verify: {:?}", pose.verification);
     c.bench_function("pose/verify", |b| b.iter(|| estimator.verify(black_box(&pose.t_world_tray))));
+
+    // The drift watch after a trigger: the table plane from the frame's disparity.
+    estimator.process(&frame.left, &frame.right).expect("the frame is valid");
+    let limits = DriftLimits { rotation_deg: 1.0, translation_mm: 5.0, from: "bench".into() };
+    let mut watch = DriftWatch::new(limits);
+    let (disparity, camera) = (&estimator.reconstruction().disparity, estimator.rectified_camera());
+    eprintln!("serve/drift_check: {:?}", watch.check(disparity, camera));
+    c.bench_function("serve/drift_check", |b| b.iter(|| watch.check(black_box(disparity), camera).warning));
 }

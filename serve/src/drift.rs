@@ -54,7 +54,7 @@ pub struct DriftState {
 }
 
 /// The drift watch over the frames of one rig.
-pub(crate) struct DriftWatch {
+pub struct DriftWatch {
     limits: DriftLimits,
     recent: VecDeque<(f64, f64)>,
     points: Vec<Point3<f64>>,
@@ -62,7 +62,8 @@ pub(crate) struct DriftWatch {
 }
 
 impl DriftWatch {
-    pub(crate) fn new(limits: DriftLimits) -> DriftWatch {
+    /// A watch warning past `limits`, with no check made yet.
+    pub fn new(limits: DriftLimits) -> DriftWatch {
         DriftWatch {
             limits,
             recent: VecDeque::with_capacity(DRIFT_WINDOW),
@@ -72,7 +73,7 @@ impl DriftWatch {
     }
 
     /// Checks the frame whose rectified-left `disparity` the estimator just computed.
-    pub(crate) fn check(&mut self, disparity: &FloatImage, camera: &RectifiedCamera) -> &DriftState {
+    pub fn check(&mut self, disparity: &FloatImage, camera: &RectifiedCamera) -> &DriftState {
         let Some((rotation_deg, translation_mm)) = self.implied_motion(disparity, camera) else {
             return &self.state;
         };

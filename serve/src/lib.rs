@@ -28,7 +28,7 @@ use camplace_hwio::Frames;
 
 pub use camera::SourceOpener;
 pub use connections::ConnectionLimits;
-pub use drift::{DriftLimits, DriftState, DRIFT_WINDOW};
+pub use drift::{DriftLimits, DriftState, DriftWatch, DRIFT_WINDOW};
 pub use error::{Error, ErrorKind, Result};
 pub use protocol::{parse_request, BadRequest, Request, Status, TriggerReply, MAX_REQUEST_BYTES, PROTOCOL};
 pub use recorder::RecorderSettings;
