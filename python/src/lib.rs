@@ -236,7 +236,7 @@ fn shots<'py>(py: Python<'py>, images: &[camplace_config::GrayImage]) -> PyResul
 /// camera's axis, inf where nothing is seen), "T_world_tray" (4 x 4, None for the
 /// background), "filled" (the slots holding an item)}.
 #[pyfunction]
-#[pyo3(signature = (cell=None, placement=None, seed=None, scenario=Some(0), method="one-shot"))]
+#[pyo3(signature = (cell=None, placement=None, seed=None, scenario=Some(0), method="one-shot"), text_signature = "(cell=None, placement=None, seed=None, scenario=0, method='one-shot')")]
 fn render<'py>(
     py: Python<'py>,
     cell: Option<PathBuf>,

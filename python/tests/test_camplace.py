@@ -2,9 +2,11 @@
 the frame read in place (its address reaches the estimator), and bad input raising
 camplace.Error. Needs the camplace binary (CAMPLACE_BIN, default target/debug/camplace)."""
 
+import inspect
 import json
 import os
 import pathlib
+import pydoc
 import subprocess
 
 import numpy as np
@@ -126,3 +128,7 @@ def test_help_documents_every_call():
     for name in ["process", "set_background"]:
         assert getattr(camplace.Estimator, name).__doc__, name
     assert "process(left, right)" in camplace.__doc__
+    # Every default reads as written (a default pyo3 cannot show would read "Ellipsis").
+    text = pydoc.render_doc(camplace, renderer=pydoc.plaintext)
+    assert "Ellipsis" not in text
+    assert str(inspect.signature(camplace.render)).startswith("(cell=None, placement=None, seed=None, scenario=0,")
