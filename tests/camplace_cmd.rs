@@ -22,3 +22,51 @@ pub fn assert_one_line_error(code: i32, err: &str, must_name: &[&str]) {
         assert!(err.contains(s), "{s:?} missing from: {err}");
     }
 }
+
+/// A virtual X server for the projector's tests, killed when dropped.
+#[cfg(feature = "display")]
+pub struct Xvfb {
+    child: std::process::Child,
+    /// Its display name, ":N".
+    pub display: String,
+}
+
+#[cfg(feature = "display")]
+impl Xvfb {
+    /// Starts Xvfb (1280x800) on the first free display number in `numbers`; `None` (after
+    /// saying why) when there is none or Xvfb is not installed.
+    pub fn start(numbers: std::ops::Range<u32>) -> Option<Xvfb> {
+        use std::process::Stdio;
+        use std::time::{Duration, Instant};
+        let free = |n: &u32| {
+            !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
+        };
+        let Some(n) = numbers.clone().find(free) else {
+            println!("skipped: no free X display number in {numbers:?}");
+            return None;
+        };
+        let display = format!(":{n}");
+        let Ok(child) = Command::new("Xvfb")
+            .args([display.as_str(), "-screen", "0", "1280x800x24", "-nolisten", "tcp"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+        else {
+            println!("skipped: Xvfb is not installed");
+            return None;
+        };
+        let start = Instant::now();
+        while !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && start.elapsed() < Duration::from_secs(10) {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        Some(Xvfb { child, display })
+    }
+}
+
+#[cfg(feature = "display")]
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}

@@ -357,28 +357,10 @@ fn project_without_the_display_feature_says_how_to_build_it() {
 #[cfg(feature = "display")]
 #[test]
 fn project_captures_a_frame_in_step_under_xvfb() {
-    use std::process::{Command, Stdio};
-    use std::time::{Duration, Instant};
+    use std::process::Command;
 
-    let Some(n) = (300..400).find(|n| {
-        !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
-    }) else {
-        return;
-    };
-    let display = format!(":{n}");
-    let Ok(mut xvfb) = Command::new("Xvfb")
-        .args([display.as_str(), "-screen", "0", "1280x800x24", "-nolisten", "tcp"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-    else {
-        println!("skipped: Xvfb is not installed");
-        return;
-    };
-    let start = Instant::now();
-    while !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && start.elapsed() < Duration::from_secs(10) {
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let Some(xvfb) = crate::camplace_cmd::Xvfb::start(300..400) else { return };
+    let display = xvfb.display.clone();
     // A dataset of its own: the model of the shared fixture is not needed here.
     let out = tempfile::tempdir().unwrap();
     let o = camplace(out.path(), &["render", "--dataset", "--count", "1", "--placement", OPTIMUM, "--out", "data"]);
@@ -399,8 +381,7 @@ fn project_captures_a_frame_in_step_under_xvfb() {
             .unwrap()
     };
     let (first, second) = (run(), run());
-    let _ = xvfb.kill();
-    let _ = xvfb.wait();
+    drop(xvfb);
     for o in [&first, &second] {
         assert!(o.status.success(), "{}", stderr(o));
     }

@@ -623,27 +623,8 @@ fn the_drift_watch_sees_a_turned_rig_and_not_an_unmoved_one() {
 #[test]
 fn projected_phase_12_triggers_give_replays_poses() {
     use crate::deploy::OPTIMUM;
-    use std::time::Instant;
 
-    let Some(n) = (400..500).find(|n| {
-        !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
-    }) else {
-        return;
-    };
-    let display = format!(":{n}");
-    let Ok(mut xvfb) = Command::new("Xvfb")
-        .args([display.as_str(), "-screen", "0", "1280x800x24", "-nolisten", "tcp"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-    else {
-        println!("skipped: Xvfb is not installed");
-        return;
-    };
-    let start = Instant::now();
-    while !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && start.elapsed() < Duration::from_secs(10) {
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let Some(xvfb) = crate::camplace_cmd::Xvfb::start(400..500) else { return };
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let common = ["--method", "phase-12", "--placement", OPTIMUM, "--seed", "1"];
@@ -667,7 +648,7 @@ fn projected_phase_12_triggers_give_replays_poses() {
         }
     }
     let mut command = Command::new(env!("CARGO_BIN_EXE_camplace"));
-    command.env("DISPLAY", &display);
+    command.env("DISPLAY", &xvfb.display);
     let served = Served::start_with(
         command,
         d,
@@ -715,8 +696,6 @@ fn projected_phase_12_triggers_give_replays_poses() {
         }
     }
     served.stop();
-    let _ = xvfb.kill();
-    let _ = xvfb.wait();
 }
 
 #[cfg(not(feature = "display"))]

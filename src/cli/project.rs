@@ -58,6 +58,32 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     shown::run(a)
 }
 
+/// The patterns `method` projects: one-shot's random dots of `seed` (default: the cell's
+/// scenarios.seed, as `camplace model` uses), or phase-12's 12 fringes.
+#[cfg(feature = "display")]
+pub(crate) fn patterns(
+    cell: &camplace_config::Cell,
+    method: Method,
+    seed: Option<u64>,
+) -> Vec<camplace_config::GrayImage> {
+    match method {
+        Method::OneShot => vec![camplace_sim::one_shot(&cell.sensor, seed.unwrap_or(cell.scenarios.seed))],
+        Method::Phase12 => camplace_sim::fringe_set(&cell.sensor),
+    }
+}
+
+/// Says so when the monitor of size `(w, h)` is not the cell's projector resolution.
+#[cfg(feature = "display")]
+pub(crate) fn note_monitor_size((w, h): (u32, u32), cell: &camplace_config::Cell) {
+    let [pw, ph] = cell.sensor.projector_resolution;
+    if (w, h) != (pw, ph) {
+        noteln!(
+            "note: the monitor is {w}x{h} but the cell's projector is {pw}x{ph}; the pattern is shown \
+             at the top-left pixel for pixel (set the projector to its native resolution)"
+        );
+    }
+}
+
 #[cfg(feature = "display")]
 mod shown {
     use super::Args;
@@ -66,8 +92,6 @@ mod shown {
     use camplace_config::GrayImage;
     use camplace_hwio::Projector;
     use camplace_hwio::{append_frame, open_source, parse_source, FrameSource};
-    use camplace_sim::Method;
-    use camplace_sim::{fringe_set, one_shot};
     use std::path::Path;
     use std::process::ExitCode;
     use std::sync::atomic::{AtomicBool, Ordering};
@@ -78,21 +102,11 @@ mod shown {
             Some(path) => Cell::load(path)?,
             None => Cell::default(),
         };
-        let patterns = match a.method {
-            Method::OneShot => vec![one_shot(&cell.sensor, a.seed.unwrap_or(cell.scenarios.seed))],
-            Method::Phase12 => fringe_set(&cell.sensor),
-        };
+        let patterns = super::patterns(&cell, a.method, a.seed);
         // The source first: a missing camera is reported before a window opens.
         let source = a.source.as_deref().map(|s| open_source(&parse_source(s)?)).transpose()?;
         let mut projector = Projector::open(a.monitor)?;
-        let (w, h) = projector.size();
-        let [pw, ph] = cell.sensor.projector_resolution;
-        if (w, h) != (pw, ph) {
-            noteln!(
-                "note: the monitor is {w}x{h} but the cell's projector is {pw}x{ph}; the pattern is shown \
-                 at the top-left pixel for pixel (set the projector to its native resolution)"
-            );
-        }
+        super::note_monitor_size(projector.size(), &cell);
         match (source, &a.out) {
             (Some(source), Some(out)) => capture(&a, source, &mut projector, &patterns, out),
             _ => until_interrupted(&a, &mut projector, &patterns),

@@ -18,8 +18,6 @@ use camplace_hwio::{
 };
 use camplace_serve::{ConnectionLimits, DriftLimits, RecorderSettings, Service, Settings, Status};
 use camplace_sim::{estimator_for, method_for, Method, ToleranceReport};
-#[cfg(feature = "display")]
-use camplace_sim::{fringe_set, one_shot};
 
 /// Flags of `camplace serve`.
 #[derive(clap::Args, Debug)]
@@ -149,19 +147,9 @@ fn opener(spec: SourceSpec, screen: Option<(Arc<dyn PatternScreen>, usize)>) -> 
 /// The projector showing `method`'s patterns on its own thread (`--project`).
 #[cfg(feature = "display")]
 fn projector(a: &Args, cell: &Cell, method: Method) -> anyhow::Result<Arc<dyn PatternScreen>> {
-    let patterns = match method {
-        Method::OneShot => vec![one_shot(&cell.sensor, a.seed.unwrap_or(cell.scenarios.seed))],
-        Method::Phase12 => fringe_set(&cell.sensor),
-    };
+    let patterns = super::project::patterns(cell, method, a.seed);
     let screen = camplace_hwio::ProjectorThread::open(a.monitor, patterns, a.settle_ms)?;
-    let (w, h) = screen.size();
-    let [pw, ph] = cell.sensor.projector_resolution;
-    if (w, h) != (pw, ph) {
-        noteln!(
-            "note: the monitor is {w}x{h} but the cell's projector is {pw}x{ph}; the pattern is shown \
-             at the top-left pixel for pixel (set the projector to its native resolution)"
-        );
-    }
+    super::project::note_monitor_size(screen.size(), cell);
     Ok(Arc::new(screen))
 }
 
