@@ -8,6 +8,7 @@ mod accept;
 mod calibrate;
 mod capture;
 mod cell_args;
+mod deploy_args;
 mod devices;
 mod estimate;
 mod evaluate;

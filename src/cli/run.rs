@@ -6,7 +6,6 @@
 //! see.
 
 use anyhow::{bail, Context};
-use camplace_config::Cell;
 use camplace_estimator::{Model, Rig};
 use camplace_hwio::{parse_source, DeploySource, Deployment};
 use camplace_sim::{
@@ -19,33 +18,16 @@ use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
+use super::deploy_args::DeployArgs;
+
 /// Flags of `camplace run`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Where frames come from: dir:PATH, v4l2:LEFT,RIGHT, v4l2-sbs:DEV, v4l2-16:DEV or dc1394[:GUID]
-    /// (see docs/hardware.md).
-    #[arg(long, value_name = "SPEC")]
-    source: String,
-    /// The tray model (from `camplace model`).
-    #[arg(long, value_name = "FILE")]
-    model: PathBuf,
+    #[command(flatten)]
+    deploy: DeployArgs,
     /// Write the JSON lines here instead of stdout.
     #[arg(long, value_name = "FILE")]
     out: Option<PathBuf>,
-    /// Cell file (TOML) with the estimator settings; the built-in default when not given. The
-    /// model must have been built for its tray.
-    #[arg(long, value_name = "FILE")]
-    cell: Option<PathBuf>,
-    /// Which of the cell's listed trays (`[[trays]]` name) when it lists several.
-    #[arg(long, value_name = "NAME")]
-    tray: Option<String>,
-    /// Calibration of the cameras (needed for cameras; a dataset's own rig.json otherwise).
-    #[arg(long, value_name = "FILE")]
-    rig: Option<PathBuf>,
-    /// A folder with the empty cell's images, named as a frame's (left.png, right.png); a
-    /// dataset's own background/ otherwise.
-    #[arg(long, value_name = "DIR")]
-    background: Option<PathBuf>,
     /// Pace a dir: source like a camera at this many frames per second (frames may then be
     /// dropped); default: every frame, as fast as the estimator goes.
     #[arg(long, value_name = "F")]
@@ -103,15 +85,12 @@ fn frame_budget_ms(method: Method) -> f64 {
 
 /// Runs `camplace run`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    let spec = parse_source(&a.source)?;
+    let spec = parse_source(&a.deploy.source)?;
     let plot = a.latency_plot.as_deref().map(plot_target).transpose()?;
-    let cell = match &a.cell {
-        Some(path) => Cell::load(path)?.one_tray(a.tray.as_deref()).map_err(|e| e.in_file(path))?,
-        None => Cell::default().one_tray(a.tray.as_deref())?,
-    };
-    let opened = DeploySource::open(&spec, a.rig.as_deref(), a.background.as_deref(), a.fps)?;
+    let cell = a.deploy.cell()?;
+    let opened = DeploySource::open(&spec, a.deploy.rig.as_deref(), a.deploy.background.as_deref(), a.fps)?;
     let rig = Rig::from_file(&opened.rig);
-    let model = Model::load_checked(&a.model, &cell, a.cell.as_deref())?;
+    let model = Model::load_checked(&a.deploy.model, &cell, a.deploy.cell.as_deref())?;
     let method = method_for(opened.source.shots());
     let threshold = camplace_estimator::Verifier::for_model(&cell.estimator, &model).threshold_in_force();
     let max_wrong = cell.estimator.verify_max_wrong;

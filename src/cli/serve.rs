@@ -19,30 +19,13 @@ use camplace_hwio::{
 use camplace_serve::{ConnectionLimits, DriftLimits, RecorderSettings, Service, Settings, Status};
 use camplace_sim::{estimator_for, method_for, Method, ToleranceReport};
 
+use super::deploy_args::DeployArgs;
+
 /// Flags of `camplace serve`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Where frames come from: dir:PATH (a recorded dataset, served from its first frame
-    /// again after its last), v4l2:LEFT,RIGHT, v4l2-sbs:DEV, v4l2-16:DEV or dc1394[:GUID].
-    #[arg(long, value_name = "SPEC")]
-    source: String,
-    /// The tray model (from `camplace model`).
-    #[arg(long, value_name = "FILE")]
-    model: PathBuf,
-    /// Cell file (TOML): estimator settings, and `[robot]` (T_robot_world, pose_format) for
-    /// the replies; the built-in default when not given.
-    #[arg(long, value_name = "FILE")]
-    cell: Option<PathBuf>,
-    /// Which of the cell's listed trays (`[[trays]]` name) when it lists several.
-    #[arg(long, value_name = "NAME")]
-    tray: Option<String>,
-    /// Calibration of the cameras (needed for cameras; a dataset's own rig.json otherwise).
-    #[arg(long, value_name = "FILE")]
-    rig: Option<PathBuf>,
-    /// A folder with the empty cell's images (left.png, right.png; with --project phase-12 a
-    /// shot per pattern, left_00.png … right_11.png); a dataset's own background/ otherwise.
-    #[arg(long, value_name = "DIR")]
-    background: Option<PathBuf>,
+    #[command(flatten)]
+    deploy: DeployArgs,
     /// The robot interface's address, e.g. 0.0.0.0:50010 (port 0: any free port, printed).
     #[arg(long, value_name = "ADDR:PORT")]
     listen: String,
@@ -174,13 +157,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if a.project.is_some() && !cfg!(feature = "display") {
         projector(&a, &Cell::default(), Method::OneShot)?;
     }
-    let spec = parse_source(&a.source)?;
-    let cell = match &a.cell {
-        Some(path) => Cell::load(path)?.one_tray(a.tray.as_deref()).map_err(|e| e.in_file(path))?,
-        None => Cell::default().one_tray(a.tray.as_deref())?,
-    };
+    let spec = parse_source(&a.deploy.source)?;
+    let cell = a.deploy.cell()?;
     let pose_format = match &cell.robot {
-        Some(r) => r.reply_format().map_err(|e| match &a.cell {
+        Some(r) => r.reply_format().map_err(|e| match &a.deploy.cell {
             Some(path) => e.in_file(path),
             None => e,
         })?,
@@ -189,17 +169,17 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     // The source opened once here: its calibration, background and shots, and a missing
     // camera reported before anything listens.
     // With the projector driven, the background holds a shot per pattern and is read below.
-    let given_background = if a.project.is_some() { None } else { a.background.as_deref() };
-    let mut opened = DeploySource::open(&spec, a.rig.as_deref(), given_background, None)?;
+    let given_background = if a.project.is_some() { None } else { a.deploy.background.as_deref() };
+    let mut opened = DeploySource::open(&spec, a.deploy.rig.as_deref(), given_background, None)?;
     let rig = Rig::from_file(&opened.rig);
-    let model = Model::load_checked(&a.model, &cell, a.cell.as_deref())?;
+    let model = Model::load_checked(&a.deploy.model, &cell, a.deploy.cell.as_deref())?;
     let screen = match a.project {
         Some(method) => {
             if opened.source.shots() != 1 {
                 bail!(
                     "--project with --source {}: expected a camera giving one image a side, which the \
                      projector's patterns are captured from; this source gives {} a frame",
-                    a.source,
+                    a.deploy.source,
                     opened.source.shots()
                 );
             }
@@ -210,7 +190,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let shots = screen.as_ref().map_or(opened.source.shots(), |(s, _)| s.patterns());
     if screen.is_some() {
         opened.background =
-            match &a.background {
+            match &a.deploy.background {
                 Some(dir) => Some(read_background(dir, &opened.rig, shots).map_err(|e| {
                     anyhow::anyhow!("--background: expected {shots} images per side, one a pattern: {e}")
                 })?),
