@@ -8,7 +8,7 @@ use std::ptr;
 
 use camplace_config::GrayImage;
 
-use crate::devices::FirewireDevice;
+use crate::device_list::FirewireDevice;
 use crate::frames::{frame_name, FrameInfo, FrameSource, Frames};
 use crate::pixels::{self, InterleavedOrder};
 use crate::{Error, Result};

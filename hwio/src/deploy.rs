@@ -20,9 +20,10 @@ use camplace_estimator::{Estimator, PoseEstimate, StageTimings};
 use crate::capture::{Capture, WhenBehind};
 use crate::cpu_time::process_cpu_time;
 use crate::frames::{FrameInfo, FrameSource, Frames};
+use crate::open::open_source;
 use crate::paced::Paced;
 use crate::recorded::{read_background, RecordedSource};
-use crate::spec::{open_source, SourceSpec};
+use crate::spec::SourceSpec;
 use crate::{Error, ErrorKind, Result};
 
 /// Frame buffers between the capture and the estimator: one being filled, one being

@@ -8,12 +8,14 @@ mod cpu_time;
 #[cfg(feature = "dc1394")]
 mod dc1394;
 mod deploy;
+mod device_list;
 mod devices;
 #[cfg(feature = "display")]
 mod display;
 mod error;
 mod frames;
 mod in_step;
+mod open;
 mod paced;
 mod pixels;
 mod recorded;
@@ -29,7 +31,8 @@ pub use display::{Projector, ProjectorThread};
 pub use error::{Error, ErrorKind, Result};
 pub use frames::{FrameInfo, FrameSource, Frames};
 pub use in_step::{capture_in_step, InStepSource, PatternScreen};
+pub use open::open_source;
 pub use paced::Paced;
 pub use pixels::{deinterleave16, luma601, split_side_by_side, to_gray, InterleavedOrder, PixelFormat};
 pub use recorded::{append_frame, read_background, write_background, write_table_view, RecordedSource};
-pub use spec::{open_source, parse_source, SourceSpec, SOURCE_FORMS};
+pub use spec::{parse_source, SourceSpec, SOURCE_FORMS};
