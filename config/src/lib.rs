@@ -29,7 +29,7 @@ pub use cell::{
 };
 pub use cell_hash::{CellHashes, ContentHash, MeshHash};
 pub use error::{Error, ErrorKind};
-pub use formats::dataset::{frame_name, image_name, is_image_name, DATASET_FILES, FRAME_FILES};
+pub use formats::dataset::{frame_folders, frame_name, image_name, is_image_name, DATASET_FILES, FRAME_FILES};
 pub use formats::mesh::{decode_obj, decode_stl, load_mesh, Mesh};
 pub use formats::pfm::{decode_pfm, encode_pfm, read_pfm, write_pfm};
 pub use formats::ply::{decode_ply, encode_cloud, read_cloud, read_ply, write_cloud, PlyCloud, PlyData};

@@ -107,21 +107,6 @@ struct FoundPair {
     corners: [Result<Vec<nalgebra::Point2<f64>>, String>; 2],
 }
 
-/// The board views' folders under `images` (`frames/NNNN/`), in order; hidden folders
-/// (a capture's frame still being written) are not views.
-pub fn board_view_folders(images: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    let frames = images.join("frames");
-    let mut folders: Vec<PathBuf> = std::fs::read_dir(&frames)
-        .with_context(|| format!("{}: cannot list the board views (frames/NNNN/)", frames.display()))?
-        .flatten()
-        .filter(|e| !e.file_name().to_string_lossy().starts_with('.'))
-        .map(|e| e.path())
-        .filter(|p| p.is_dir())
-        .collect();
-    folders.sort();
-    Ok(folders)
-}
-
 /// Runs `camplace calibrate`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let board = parse_board(&a.board)?;
@@ -173,7 +158,8 @@ fn calibrate_rig(
     out: &Path,
 ) -> anyhow::Result<Rig> {
     let board = *board;
-    let mut folders = board_view_folders(&a.images)?;
+    let mut folders =
+        camplace_config::frame_folders(&a.images).context("cannot list the board views (frames/NNNN/)")?;
     let table = a.images.join("table");
     if !table.is_dir() {
         bail!(

@@ -81,7 +81,7 @@ pub fn load_rig(path: &Path) -> anyhow::Result<Rig> {
 pub fn run(a: HandEyeArgs<'_>, board: &CalibrationBoard) -> anyhow::Result<ExitCode> {
     let poses: RobotPoses = read_robot_poses(a.robot_poses, a.formats.format()?)?;
     let frames = a.images.join("frames");
-    let folders = super::calibrate::board_view_folders(a.images)?;
+    let folders = camplace_config::frame_folders(a.images).context("cannot list the board views (frames/NNNN/)")?;
     if folders.len() != poses.poses.len() {
         bail!(
             "{}: {} poses, but {} holds {} frames; expected one pose a frame, in the frames' order",

@@ -3,6 +3,23 @@
 //! simulator writes them and hwio reads them, so both take the names from here. Also the
 //! other files camplace writes into a dataset, so a folder can be told to hold only those.
 
+use std::path::{Path, PathBuf};
+
+/// The frame folders of the dataset `dir` (`frames/NNNN/`), in name order; hidden folders (a
+/// frame still being written) are not frames.
+pub fn frame_folders(dir: &Path) -> Result<Vec<PathBuf>, crate::Error> {
+    let frames = dir.join("frames");
+    let entries = std::fs::read_dir(&frames).map_err(|e| crate::Error::io(&frames, &e))?;
+    let mut folders: Vec<PathBuf> = entries
+        .flatten()
+        .filter(|e| !e.file_name().to_string_lossy().starts_with('.'))
+        .map(|e| e.path())
+        .filter(|p| p.is_dir())
+        .collect();
+    folders.sort();
+    Ok(folders)
+}
+
 /// Name of frame `index`'s folder inside `frames/` (`7` -> `"0007"`).
 pub fn frame_name(index: u64) -> String {
     format!("{index:04}")
