@@ -11,7 +11,8 @@
 use camplace_config::StereoParams;
 use rayon::prelude::*;
 
-use super::dense::{match_row, DisparityRange, Kernel, Search, Side, VectorPrior, INVALID};
+use super::cost::{DisparityRange, Kernel};
+use super::dense::{match_row, Search, Side, VectorPrior, INVALID};
 use super::descriptor::{DescriptorImage, BORDER};
 use super::postprocess::{interpolate_gaps, remove_speckles, SpeckleScratch};
 use super::subpixel::{refine_subpixel, SubpixelScratch};

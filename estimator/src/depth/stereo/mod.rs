@@ -1,6 +1,7 @@
 //! Dense stereo on rectified image pairs: the matcher trait the pipeline calls and the
 //! one-shot ELAS-class matcher behind it. Rectification itself lives in `rectify`.
 
+mod cost;
 mod dense;
 mod descriptor;
 mod elas;

@@ -4,7 +4,7 @@
 
 use rayon::prelude::*;
 
-use super::dense::{run_costs, DisparityRange, Kernel};
+use super::cost::{run_costs, DisparityRange, Kernel};
 use super::descriptor::{sad, texture, DescriptorImage, BORDER};
 
 /// Marks a grid node without a support point.

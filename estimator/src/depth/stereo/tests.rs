@@ -7,7 +7,8 @@ use camplace_config::{Cell, StereoParams};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::dense::{Kernel, INVALID};
+use super::cost::Kernel;
+use super::dense::INVALID;
 use super::{DisparityMatcher, Elas};
 use crate::cpu::{Avx2, Avx512};
 use crate::{FloatImage, GrayImage};

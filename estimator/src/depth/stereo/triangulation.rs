@@ -18,7 +18,7 @@
 
 use rayon::prelude::*;
 
-use super::dense::DisparityRange;
+use super::cost::DisparityRange;
 use super::support::{SupportGrid, SupportPoint, NONE};
 
 /// The filled support grid and the per-pixel plane priors it gives (NaN where no triangle).
