@@ -22,40 +22,14 @@
 //! dots from aliasing at a quarter of the cost of four sub-samples.
 
 use camplace_config::{FloatImage, GrayImage};
-use nalgebra::Point3;
 use rayon::prelude::*;
 
-use crate::render::defocus::ThinLens;
 use crate::render::noise::read_out;
 use crate::render::pattern::{LightRun, ProjectorImage};
 use crate::render::raster::{View, ZBuffer};
+pub use crate::render::terms::Lights;
 use crate::render::terms::{terms_row, Context, Homographies, Row, TriangleTerms};
 use crate::scene::{SceneTriangle, ID_TABLE};
-
-/// A point is in shadow only when the occluder is nearer to the light than this, mm.
-pub const SHADOW_BIAS_MM: f64 = 1.0;
-
-/// The lights of a scene as the shader sees them.
-#[derive(Debug, Clone, Copy)]
-pub struct Lights<'a> {
-    /// Ambient light, units of full white.
-    pub ambient: f64,
-    /// Lamp strength, units of full white on a surface facing it.
-    pub lamp_strength: f64,
-    /// Lamp position, world mm.
-    pub lamp_position: Point3<f64>,
-    /// The lamp's view and shadow map; `None` when nothing can cast a lamp shadow.
-    pub lamp_shadow: Option<(&'a View, &'a ZBuffer)>,
-    /// The projector's view.
-    pub projector: &'a View,
-    /// The projector's shadow map.
-    pub projector_shadow: &'a ZBuffer,
-    /// Projector brightness on a surface facing it, units of full white.
-    pub projector_gain: f64,
-    /// The projector's lens, when its defocus is rendered, and the top level of the
-    /// patterns' blur stacks.
-    pub projector_lens: Option<(ThinLens, usize)>,
-}
 
 /// Per pixel of one camera, the parts of its grey level that do not depend on the pattern.
 #[derive(Debug, Clone, Default)]

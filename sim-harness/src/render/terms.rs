@@ -16,12 +16,36 @@
 // The passes index several fixed-size arrays by pixel: the shape the vectoriser turns into lanes.
 #![allow(clippy::needless_range_loop)]
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, Point3, Vector3};
 
-use crate::render::defocus::{level_weight, LEVELS};
+use crate::render::defocus::{level_weight, ThinLens, LEVELS};
 use crate::render::raster::{MapPixel, View, ZBuffer, NO_TRIANGLE};
-use crate::render::shade::{Lights, SHADOW_BIAS_MM};
 use crate::scene::{Gloss, SceneTriangle, ID_TABLE};
+
+/// A point is in shadow only when the occluder is nearer to the light than this, mm.
+pub const SHADOW_BIAS_MM: f64 = 1.0;
+
+/// The lights of a scene as the shader sees them.
+#[derive(Debug, Clone, Copy)]
+pub struct Lights<'a> {
+    /// Ambient light, units of full white.
+    pub ambient: f64,
+    /// Lamp strength, units of full white on a surface facing it.
+    pub lamp_strength: f64,
+    /// Lamp position, world mm.
+    pub lamp_position: Point3<f64>,
+    /// The lamp's view and shadow map; `None` when nothing can cast a lamp shadow.
+    pub lamp_shadow: Option<(&'a View, &'a ZBuffer)>,
+    /// The projector's view.
+    pub projector: &'a View,
+    /// The projector's shadow map.
+    pub projector_shadow: &'a ZBuffer,
+    /// Projector brightness on a surface facing it, units of full white.
+    pub projector_gain: f64,
+    /// The projector's lens, when its defocus is rendered, and the top level of the
+    /// patterns' blur stacks.
+    pub projector_lens: Option<(ThinLens, usize)>,
+}
 
 /// Longest run of pixels taken in one set of passes (their buffers, one set per row, live on
 /// the stack).

@@ -11,6 +11,7 @@ mod evaluate;
 pub mod findings;
 pub mod folder;
 pub mod grid;
+mod intervals;
 pub mod jobs;
 pub mod lock;
 pub mod merge;

@@ -165,7 +165,7 @@ impl Judge<'_> {
                     let failed: Vec<Option<bool>> = nominal.iter().map(|o| o.map(|_| false)).collect();
                     let mut summary = Summary::from_records(&[]);
                     summary.scored = failed.iter().flatten().count();
-                    summary.success_interval = super::summary::wilson_interval(0, summary.scored);
+                    summary.success_interval = super::intervals::wilson_interval(0, summary.scored);
                     (Paired::from_outcomes(&failed, nominal), summary)
                 }
                 Err(e) => return Err(e),

@@ -7,8 +7,8 @@
 use camplace_estimator::{ModelVerification, Verdict};
 use serde::{Deserialize, Serialize};
 
+use super::intervals::wilson_interval;
 use super::record::FrameRecord;
-use super::summary::wilson_interval;
 
 /// One-sided confidence of the upper bound on the wrong share.
 const UPPER_CONFIDENCE: f64 = 0.95;
