@@ -284,10 +284,9 @@ fn a_studys_tolerances_are_the_tolerance_command_s_for_its_placement() {
         methods: vec![Method::OneShot],
         shard: Shard::WHOLE,
     };
-    run_study(&request, std::time::Instant::now(), |_| {}).unwrap();
-    let recommended: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(study.join("recommended.json")).unwrap()).unwrap();
-    let placement = recommended["placement"].as_str().unwrap();
+    let outcome = run_study(&request, |_| {}).unwrap().expect("the whole study ran");
+    let placement = outcome.recommendation.as_ref().expect("a recommendation").placement.to_string();
+    let placement = placement.as_str();
     let o = camplace(
         d,
         &[

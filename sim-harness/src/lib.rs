@@ -36,6 +36,7 @@ pub use render::{
 pub use report::latency::write_latency_plot;
 pub use report::plot::SavedPlot;
 pub use report::recommended::Recommended;
+pub use report::study_report::write_report;
 pub use report::sweep_panels::SweepResult;
 pub use report::tolerance_plot::write_tolerance_plots;
 pub use scene::as_built::{as_built, azimuth_difference, AsBuilt};
@@ -53,7 +54,7 @@ pub use study::merge::merge;
 pub use study::one_placement::{acceptance_summary, evaluate_placement, measure_verification};
 pub use study::optimize::{SearchParameter, SearchPlan};
 pub use study::placement_search::optimize;
-pub use study::placement_study::{run_study, tolerance_dir, Preset, StudyRequest};
+pub use study::placement_study::{run_study, tolerance_dir, Preset, StudyOutcome, StudyRequest};
 pub use study::recording::{
     estimate_dataset, estimator_for, method_for, record as frame_record, truth_path, DATASET_SUMMARY,
 };

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use camplace_config::Cell;
-use camplace_sim::{run_study, Method, Preset, Shard, StudyRequest};
+use camplace_sim::{run_study, write_report, Method, Preset, Shard, StudyRequest};
 
 /// Flags of `camplace study`.
 #[derive(clap::Args, Debug)]
@@ -58,8 +58,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     // The whole run holds the folder: a second run on it is refused naming this one.
     let _lock = camplace_sim::lock_folder(&a.out)?;
     let request = StudyRequest { out: &a.out, cell: &cell, seed, preset: &preset, paper: a.paper, methods, shard };
-    match run_study(&request, started, |line| outln!("{line}"))? {
-        Some(report) => outln!("wrote {} ({:.0} s)", report.display(), started.elapsed().as_secs_f64()),
+    match run_study(&request, |line| outln!("{line}"))? {
+        Some(outcome) => {
+            let report = write_report(&request, &outcome, started)?;
+            outln!("wrote {} ({:.0} s)", report.display(), started.elapsed().as_secs_f64())
+        }
         None => outln!(
             "shard {shard} of the sweeps done into {}; merge the parts, then run camplace study on the merged folder",
             a.out.display()

@@ -19,31 +19,22 @@ use crate::scene::scenario::draw_scenario;
 use crate::scene::tray::TrayModel;
 use crate::seeds::noise_key;
 use crate::study::findings::{compare_paired, Paired, Verdict};
-use crate::study::grid::{Axis, Grid};
+use crate::study::grid::Axis;
 use crate::study::optimize::recheck_seed;
-use crate::study::placement_study::{tolerance_dir, Combination, Preset, Recommendation, StudyRequest};
-use crate::study::tolerance::{ToleranceReport, WalkEnd};
+use crate::study::pct;
+use crate::study::placement_study::{tolerance_dir, Combination, Preset, Recommendation, StudyOutcome, StudyRequest};
+use crate::study::tolerance::WalkEnd;
 use crate::study::tolerance_report::{end_text, offset_text};
 use crate::study::Summary;
 use crate::{Error, Result};
 use camplace_estimator::Camera;
 
 /// A rate as a percentage with one decimal.
-pub fn pct(r: f64) -> String {
-    format!("{:.1} %", 100.0 * r)
-}
-
 /// Writes `report.html` (and its plots, and `recommended.json`) into the study folder.
-pub fn write_report(
-    out: &Path,
-    req: &StudyRequest,
-    grid: &Grid,
-    combos: &[Combination],
-    recommendation: Option<&Recommendation>,
-    tolerance: Option<&ToleranceReport>,
-    started: Instant,
-) -> Result<PathBuf> {
-    let (preset, seed, base_cell) = (req.preset, req.seed, req.cell);
+pub fn write_report(req: &StudyRequest, outcome: &StudyOutcome, started: Instant) -> Result<PathBuf> {
+    let (out, preset, seed, base_cell) = (req.out, req.preset, req.seed, req.cell);
+    let (grid, combos) = (&outcome.grid, &outcome.combinations[..]);
+    let (recommendation, tolerance) = (outcome.recommendation.as_ref(), outcome.tolerance.as_ref());
     let title =
         if preset.is_preview() { "camplace placement study (quick preview)" } else { "camplace placement study" };
     let mut page = HtmlPage::new(title);

@@ -34,4 +34,4 @@ pub mod verified;
 
 pub use evaluate::Evaluator;
 pub use record::{score, FrameRecord, Score};
-pub use summary::{median, Summary};
+pub use summary::{median, pct, Summary};

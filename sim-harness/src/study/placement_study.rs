@@ -11,12 +11,12 @@
 //! outputs to `all-trays/METHOD/`); re-running resumes.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use camplace_config::{Cell, Placement, TrayKind};
 
 use super::grid::{Axis, Grid};
 use super::optimize::{recheck_seed, SearchOutcome, SearchParameter, SearchPlan};
+use super::pct;
 use super::placement_search::optimize_set;
 use super::shard::Shard;
 use super::summary::Summary;
@@ -24,7 +24,6 @@ use super::sweep::sweep;
 use super::tolerance::{measure_tolerance, ToleranceReport, ToleranceRequest, TOLERANCE_PARAMETERS};
 use super::tray_set::{lowest, margin_order, TraySet};
 use crate::render::Method;
-use crate::report::study_report::{pct, write_report};
 use crate::report::sweep_panels::SweepResult;
 use crate::report::table::{write_summary_csv, SummaryRow};
 use crate::report::tolerance_plot::write_tolerance_plots;
@@ -196,14 +195,28 @@ impl Combination {
     }
 }
 
+/// What a whole study found: each combination's sweeps, search and re-checks, the
+/// recommended placement and its mounting tolerances. `write_report` lays it out as
+/// `report.html` and `recommended.json`.
+pub struct StudyOutcome {
+    /// The sweep grid.
+    pub grid: Grid,
+    /// Each group of trays with each method, in the order they ran.
+    pub combinations: Vec<Combination>,
+    /// The placement to mount by, when any combination has one.
+    pub recommendation: Option<Recommendation>,
+    /// The recommendation's mounting tolerances, when the preset measures them.
+    pub tolerance: Option<ToleranceReport>,
+}
+
 /// Runs the study: every combination's sweep (only shard `shard`'s part of each when it is
-/// not the whole), then its search and re-checks, the recommendation and its tolerances,
-/// and `report.html`. `say` is handed one line per finished step; returns the report's
-/// path, or `None` when only a shard of the sweeps was run.
-pub fn run_study(req: &StudyRequest, started: Instant, mut say: impl FnMut(&str)) -> Result<Option<PathBuf>> {
+/// not the whole), then its search and re-checks, the recommendation and its tolerances.
+/// `say` is handed one line per finished step; returns what the study found, or `None` when
+/// only a shard of the sweeps was run.
+pub fn run_study(req: &StudyRequest, mut say: impl FnMut(&str)) -> Result<Option<StudyOutcome>> {
     let (out, preset, seed, shard) = (req.out, req.preset, req.seed, req.shard);
     let grid = Grid { x: preset.x.clone(), y: preset.y.clone() };
-    // report.html is written here; each tray's folder is cleaned as it is opened.
+    // The report is written here later; each tray's folder is cleaned as it is opened.
     camplace_config::remove_stale_temp_files(out)?;
     let groups: Vec<Vec<(String, Cell)>> = if req.paper {
         [("tray-8", TrayKind::Tray8), ("tray-4", TrayKind::Tray4)]
@@ -238,8 +251,7 @@ pub fn run_study(req: &StudyRequest, started: Instant, mut say: impl FnMut(&str)
         }
         _ => None,
     };
-    let report = write_report(out, req, &grid, &combos, recommendation.as_ref(), tolerance.as_ref(), started)?;
-    Ok(Some(report))
+    Ok(Some(StudyOutcome { grid, combinations: combos, recommendation, tolerance }))
 }
 
 /// Where a study's tolerances of a placement measured with `method` are.

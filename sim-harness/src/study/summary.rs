@@ -122,6 +122,11 @@ impl Summary {
     }
 }
 
+/// A rate as a percentage with one decimal: `0.9712` -> `"97.1 %"`.
+pub fn pct(r: f64) -> String {
+    format!("{:.1} %", 100.0 * r)
+}
+
 /// Median of `values` (mean of the middle two for an even count); `None` when empty.
 pub fn median(values: &[f64]) -> Option<f64> {
     if values.is_empty() {

@@ -8,6 +8,7 @@ use std::path::Path;
 use camplace_config::{Placement, Vergence, MAX_DISTANCE_MM};
 use serde::{Deserialize, Serialize};
 
+use super::pct;
 pub use super::tolerance_walk::WalkEnd;
 use crate::{Error, Result};
 
@@ -385,10 +386,6 @@ pub fn offset_text(v: f64) -> String {
 fn num(v: f64) -> String {
     let text = format!("{v:.3}");
     text.trim_end_matches('0').trim_end_matches('.').to_string()
-}
-
-fn pct(r: f64) -> String {
-    format!("{:.1} %", 100.0 * r)
 }
 
 /// "= 0.031", or "< 0.001".
