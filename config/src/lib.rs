@@ -15,6 +15,8 @@ mod rig;
 mod robot_pose;
 #[cfg(test)]
 mod same_checks_tests;
+#[cfg(test)]
+mod test_draw;
 mod trays;
 mod truth;
 

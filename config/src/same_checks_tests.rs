@@ -3,25 +3,15 @@
 //! `[tray]` and `[items]` against each `[[trays]]` entry. Seeded random values, valid and
 //! not, each judged in every place; the verdicts must agree.
 
+use crate::test_draw::Draw;
 use crate::{Cell, RigFile, TrayEntry};
 
-/// A small seeded generator (SplitMix64): the same cases on every run.
-struct Draw(u64);
+/// Draws beyond the shared stream's.
+trait Wild {
+    fn wild(&mut self) -> f64;
+}
 
-impl Draw {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [lo, hi).
-    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
+impl Wild for Draw {
     /// A number of any sign and scale, now and then not finite.
     fn wild(&mut self) -> f64 {
         match self.next() % 16 {

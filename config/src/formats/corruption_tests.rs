@@ -6,30 +6,19 @@
 use std::path::Path;
 
 use super::{mesh, pfm, ply};
+use crate::test_draw::Draw;
 use crate::{Cell, RigFile, TruthFile};
 
-/// SplitMix64: a seeded stream of test damage, the same on every run.
-struct Damage(u64);
+/// Seeded test damage, the same on every run.
+struct Damage(Draw);
 
 impl Damage {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-
     /// `good` with one to four bytes replaced by random ones.
     fn flip(&mut self, good: &[u8]) -> Vec<u8> {
         let mut b = good.to_vec();
-        for _ in 0..1 + self.below(4) {
-            let i = self.below(b.len());
-            b[i] = self.next() as u8;
+        for _ in 0..1 + self.0.below(4) {
+            let i = self.0.below(b.len());
+            b[i] = self.0.next() as u8;
         }
         b
     }
@@ -41,7 +30,7 @@ fn torture(good: &[u8], max_cuts: usize, flips: usize, seed: u64, decode: impl F
     assert!(decode(good), "the undamaged sample must decode");
     let step = good.len().div_ceil(max_cuts).max(1);
     let accepted = (0..good.len()).step_by(step).filter(|&n| decode(&good[..n])).count();
-    let mut d = Damage(seed);
+    let mut d = Damage(Draw(seed));
     for _ in 0..flips {
         decode(&d.flip(good));
     }
