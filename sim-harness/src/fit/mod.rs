@@ -83,6 +83,8 @@ pub struct AmbientFit {
     pub lamp_mean: f64,
     /// See `lamp_mean`.
     pub lamp_sd: f64,
+    /// How the range was found.
+    pub note: String,
 }
 
 /// Everything the fit found.
@@ -487,7 +489,20 @@ fn fit_ambient(cell: &Cell, levels: &[f64]) -> AmbientFit {
     let (lamp_mean, lamp_var) = mean_var(&lamp);
     let (mean, var) = mean_var(levels);
     let centre = mean - lamp_mean;
-    let half = (3.0 * (var - lamp_var).max(0.0)).sqrt();
+    let (half, note) = if var > lamp_var {
+        ((3.0 * (var - lamp_var)).sqrt(), "the frames' mean and variance".to_string())
+    } else {
+        // The frames vary less than the lamp alone would make them vary: their spread tells
+        // nothing of the ambient light's, and the cell's width is kept.
+        (
+            (cell.lighting.ambient[1] - cell.lighting.ambient[0]) / 2.0,
+            format!(
+                "the frames' mean, and the cell's width: the frames vary less (sd {:.3}) than the cell's lamp alone \
+                 would make them",
+                var.max(0.0).sqrt()
+            ),
+        )
+    };
     let lo = round_to((centre - half).max(0.0), 3);
     let hi = round_to((centre + half).max(lo), 3);
     AmbientFit {
@@ -496,6 +511,7 @@ fn fit_ambient(cell: &Cell, levels: &[f64]) -> AmbientFit {
         frame_levels: levels.to_vec(),
         lamp_mean,
         lamp_sd: lamp_var.sqrt(),
+        note,
     }
 }
 

@@ -61,14 +61,15 @@ pub fn fragment(fit: &SensorFit) -> String {
     let (mean, sd) = mean_sd(&a.frame_levels);
     t.push_str(&format!(
         "\n[lighting]\n# The frames' light on the table besides the projector's: mean {} sd {} (units of full\n\
-         # white, {} frames), less the cell's lamp share (mean {:.3}, sd {:.3}); was [{}, {}].\n",
+         # white, {} frames), less the cell's lamp share (mean {:.3}, sd {:.3}); was [{}, {}];\n# {}.\n",
         or_none(mean, 3),
         or_none(sd, 3),
         a.frame_levels.len(),
         a.lamp_mean,
         a.lamp_sd,
         a.cell_range[0],
-        a.cell_range[1]
+        a.cell_range[1],
+        a.note
     ));
     t.push_str(&format!("ambient = [{}, {}]\n", a.range[0], a.range[1]));
     t
@@ -153,7 +154,7 @@ fn page(fit: &SensorFit) -> HtmlPage {
     page.paragraph(&format!(
         "lighting.ambient fitted [{}, {}] (the cell's [{}, {}]): the frames' light on the table besides the projector's has \
          mean {} and sd {} over {} frames; the cell's lamp adds mean {:.3}, sd {:.3} at the table's centre. The fitted \
-         range plus that lamp has the frames' mean and variance.",
+         range, with that lamp added, has {}.",
         a.range[0],
         a.range[1],
         a.cell_range[0],
@@ -162,7 +163,8 @@ fn page(fit: &SensorFit) -> HtmlPage {
         or_none(sd, 3),
         a.frame_levels.len(),
         a.lamp_mean,
-        a.lamp_sd
+        a.lamp_sd,
+        a.note
     ));
     page.heading(2, "The noise's structure function");
     page.paragraph(

@@ -78,7 +78,8 @@ fn tiles_on(mask: &[bool], width: usize, height: usize) -> Vec<(usize, usize)> {
 pub fn difference_stats(a: &GrayImage, b: &GrayImage, mask: &[bool]) -> DifferenceStats {
     let (w, h) = (a.width, a.height);
     debug_assert!(b.width == w && b.height == h && mask.len() == w * h);
-    let mut per_tile: Vec<((usize, usize), [f64; MAX_LAG], [f64; MAX_LAG])> = Vec::new();
+    // Each tile's own pairs, its corner the one tile it keeps.
+    let mut per_tile: Vec<DifferenceStats> = Vec::new();
     for (x0, y0) in tiles_on(mask, w, h) {
         let clipped = (y0..y0 + TILE).any(|y| {
             let span = y * w + x0..y * w + x0 + TILE;
@@ -103,17 +104,16 @@ pub fn difference_stats(a: &GrayImage, b: &GrayImage, mask: &[bool]) -> Differen
                 }
             }
         }
-        per_tile.push(((x0, y0), sums, counts));
+        per_tile.push(DifferenceStats { sums, counts, tiles: vec![(x0, y0)] });
     }
-    let mut far: Vec<f64> = per_tile.iter().map(|(_, s, c)| s[MAX_LAG - 1] / c[MAX_LAG - 1]).collect();
-    far.sort_by(f64::total_cmp);
+    let far = |t: &DifferenceStats| t.sums[MAX_LAG - 1] / t.counts[MAX_LAG - 1];
+    let mut sorted: Vec<f64> = per_tile.iter().map(far).collect();
+    sorted.sort_by(f64::total_cmp);
     let mut out = DifferenceStats::default();
-    let Some(&median) = far.get(far.len() / 2) else { return out };
-    for (corner, sums, counts) in per_tile {
-        if sums[MAX_LAG - 1] / counts[MAX_LAG - 1] <= CHANGED_TILE * median {
-            out.add(&DifferenceStats { sums, counts, tiles: Vec::new() });
-            out.tiles.push(corner);
-        }
+    let Some(&median) = sorted.get(sorted.len() / 2) else { return out };
+    for tile in per_tile.iter().filter(|t| far(t) <= CHANGED_TILE * median) {
+        out.add(tile);
+        out.tiles.extend_from_slice(&tile.tiles);
     }
     out
 }
