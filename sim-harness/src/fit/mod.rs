@@ -180,14 +180,8 @@ pub fn fit_sensor(dataset: &Path, cell: &Cell, max_frames: usize) -> Result<Sens
     let mut frame = Frames::new(shots);
     let mut tiles = 0;
     for i in 0..frames {
+        // The background was read with the frames' shots, so both have as many.
         source.read_into(i, &mut frame)?;
-        if frame.shots() != shots {
-            return Err(Error::Other(format!(
-                "{}: expected {shots} shots per camera as background/ has, found {}",
-                source.frame_dirs()[i].display(),
-                frame.shots()
-            )));
-        }
         let mut this = DifferenceStats::default();
         let mut kept: [Vec<(usize, usize)>; 2] = Default::default();
         let mut means = Vec::with_capacity(shots);
@@ -256,7 +250,7 @@ pub fn fit_sensor(dataset: &Path, cell: &Cell, max_frames: usize) -> Result<Sens
             projector_gain: if cell.sensor.projector_gain > 0.0 { cell.sensor.projector_gain } else { 0.5 },
             dot_size,
         };
-        let (keys, ambient, sim) = fit_gain(&mut empty, start, &real_pattern, filtered_noise, albedo, bg_key)?;
+        let (keys, ambient, sim) = fit_gain(&mut empty, &masks, start, &real_pattern, filtered_noise, albedo, bg_key)?;
         let shape: f64 = sim.shape.iter().zip(&real_pattern.shape).map(|(a, b)| (a - b).powi(2)).sum();
         candidates.push((keys, ambient, sim, shape));
     }
@@ -392,19 +386,19 @@ pub fn fit_sensor(dataset: &Path, cell: &Cell, max_frames: usize) -> Result<Sens
 /// taken off both) and moves the ambient light by the difference of the means.
 fn fit_gain(
     empty: &mut EmptyCell,
+    masks: &[Vec<bool>; 2],
     start: SensorKeys,
     real: &PatternStats,
     filtered_noise: f64,
     albedo: f64,
     key: u64,
 ) -> Result<(SensorKeys, f64, PatternStats)> {
-    let masks = empty.table_masks()?;
     let mut keys = start;
     let mut ambient = 0.2;
     let noise_share = filtered_noise + 1.0 / 12.0;
     let mut last = None;
     for _ in 0..GAIN_ROUNDS {
-        let sim = simulated_pattern(empty, &keys, ambient, &masks, key)?;
+        let sim = simulated_pattern(empty, &keys, ambient, masks, key)?;
         let done = (sim.contrast / real.contrast - 1.0).abs() < 0.002 && (sim.mean - real.mean).abs() < 0.2;
         let pattern_ratio =
             (real.contrast.powi(2) - noise_share).max(1e-6) / (sim.contrast.powi(2) - noise_share).max(1e-6);
