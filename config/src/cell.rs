@@ -416,6 +416,20 @@ impl Cell {
         Ok(cell)
     }
 
+    /// This cell with the cell text `fragment` laid over it key by key, as a cell file is
+    /// laid over the default (a fragment from `camplace fit-sensor`, say); mesh paths of the
+    /// fragment are resolved against `base`, and every value is checked again.
+    pub fn overlaid(&self, fragment: &str, base: &Path) -> Result<Cell, Error> {
+        let fragment: toml::Table = fragment.parse().map_err(|e: toml::de::Error| {
+            let (key, line) = toml_error_place(fragment, e.span().map_or(0, |s| s.start));
+            let msg = e.message().to_string();
+            Error::new(ErrorKind::Format, key, format!("line {line}: not valid TOML: {msg}")).with_source(e)
+        })?;
+        let mut merged: toml::Table = self.to_toml_string().parse().expect("a cell's own text parses");
+        merge(&mut merged, fragment);
+        Cell::from_toml_str(&toml::to_string(&merged).expect("a table serialises"), base)
+    }
+
     /// The cell as TOML text (no comments; `camplace init` writes the commented file).
     pub fn to_toml_string(&self) -> String {
         toml::to_string(self).expect("a cell always serialises")
@@ -1024,5 +1038,25 @@ mod tests {
             let text = format!("[estimator]\nmodel_fill_states = {good}\n");
             assert_eq!(Cell::from_toml_str(&text, Path::new(".")).unwrap().estimator.model_fill_states, good);
         }
+    }
+
+    #[test]
+    fn a_fragment_laid_over_a_cell_replaces_only_its_keys() {
+        let mut own = Cell::default();
+        own.sensor.camera_resolution = [320, 240];
+        own.table.albedo = 0.3;
+        let fitted = own
+            .overlaid("[sensor]\nblur = 5\nnoise_amplitude = 17\n[lighting]\nambient = [0.1, 0.2]\n", Path::new("."))
+            .unwrap();
+        assert_eq!((fitted.sensor.blur, fitted.sensor.noise_amplitude), (5, 17));
+        assert_eq!(fitted.lighting.ambient, [0.1, 0.2]);
+        let mut want = own.clone();
+        want.sensor.blur = 5;
+        want.sensor.noise_amplitude = 17;
+        want.lighting.ambient = [0.1, 0.2];
+        assert_eq!(fitted, want);
+        let bad = own.overlaid("[sensor]\nblur = 4\n", Path::new(".")).unwrap_err();
+        assert!(bad.to_string().contains("sensor.blur"), "{bad}");
+        assert!(own.overlaid("[sensor\n", Path::new(".")).is_err());
     }
 }

@@ -5,10 +5,12 @@
 //! The stages are private modules — `scene` (scene, trays, scenarios, placement geometry),
 //! `render` (rasterizer, shading, patterns, noise, frame files), `study` (evaluation, jobs,
 //! results, sweep, search, merge, the study), `search` (the surrogate optimizer) and
-//! `report` (plots, tables, report.html), `trial` (the real-world trial) — with `seeds` keying every random stream; what
+//! `report` (plots, tables, report.html), `trial` (the real-world trial), `fit` (the
+//! simulated sensor fitted to a real one) — with `seeds` keying every random stream; what
 //! other crates use is exported here.
 
 mod error;
+mod fit;
 mod model_builder;
 mod progress;
 mod reconstruction;
@@ -22,6 +24,7 @@ mod trial;
 mod workers;
 
 pub use error::{Error, Result};
+pub use fit::{fit_sensor, write_fit, AmbientFit, KeyFit, SensorFit, FIT_FRAGMENT, FIT_HTML, FIT_JSON, MAX_FIT_FRAMES};
 pub use model_builder::{build_model, model_origin, model_points};
 pub use progress::{set_progress, ProgressCallback, ProgressEvent};
 pub use reconstruction::{

@@ -12,6 +12,7 @@ mod deploy_args;
 mod devices;
 mod estimate;
 mod evaluate;
+mod fit_sensor;
 mod hand_eye;
 mod init;
 mod merge;
@@ -92,6 +93,8 @@ enum Command {
     Trial(trial::Args),
     /// The review page of a dataset without truth: mark each pose correct, wrong or unsure.
     Review(review::Args),
+    /// Fit the cell's sensor keys (noise, blur, projector gain and dots, ambient) to a real dataset.
+    FitSensor(fit_sensor::Args),
 }
 
 /// Parses the command line and runs the subcommand.
@@ -133,6 +136,7 @@ pub fn dispatch() -> anyhow::Result<ExitCode> {
         Command::Project(a) => project::run(a),
         Command::Trial(a) => trial::run(a),
         Command::Review(a) => review::run(a),
+        Command::FitSensor(a) => fit_sensor::run(a),
     }
 }
 

@@ -182,6 +182,16 @@ impl Simulator {
         })
     }
 
+    /// Sets the sensor's levels that leave the patterns as they are: the projector's gain,
+    /// the camera noise's amplitude and the mean filter's side (odd, at most 15, as
+    /// [`Simulator::new`] checks it).
+    pub(crate) fn set_levels(&mut self, projector_gain: f64, noise_amplitude: u32, blur: u32) {
+        debug_assert!(blur % 2 == 1 && blur <= 15);
+        self.projector_gain = projector_gain;
+        self.noise_amplitude = noise_amplitude;
+        self.blur = blur as usize;
+    }
+
     /// The calibrated rig (cameras and projector) this sensor renders with.
     pub fn rig(&self) -> &Rig {
         &self.rig
