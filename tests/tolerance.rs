@@ -167,8 +167,12 @@ fn tolerances_are_paired_tests_walked_out_and_resume_without_a_scene() {
 }
 
 /// The small cell with a narrow camera: moving the rig closer soon loses the tray from view.
-const NARROW_CELL: &str =
-    "[sensor]\ncamera_resolution = [320, 240]\ncamera_hfov = 24.0\n\n[estimator]\nransac_iterations = 2000\n";
+/// Its poses are handed on as fitted: laid on the table, the poses of the rigs just past the
+/// edge come out right more often, and on 6 scenes success there rises and falls again
+/// (33 % at −355 mm, 17 % at −360, the single steps' drop at −310), so the edge is no
+/// longer one place that both walks must find.
+const NARROW_CELL: &str = "[sensor]\ncamera_resolution = [320, 240]\ncamera_hfov = 24.0\n\n\
+                           [estimator]\nransac_iterations = 2000\npose_on_table = false\n";
 
 #[test]
 fn an_edge_inside_the_range_is_found_as_a_walk_in_single_steps_finds_it() {

@@ -6,7 +6,7 @@
 use camplace_config::{Cell, TrayKind};
 use camplace_estimator::{Estimator, EstimatorConfig, PoseEstimate, Verdict};
 use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
-use nalgebra::{Point3, Translation3};
+use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 
 use crate::meshes::tray_stl;
 
@@ -113,4 +113,42 @@ fn every_verdict_reads_back_from_its_text() {
         assert_eq!(Verdict::parse(v.as_str()), Some(v));
         assert_eq!(v.accepted(), v.as_str() == "accepted");
     }
+}
+
+/// A cloud moved as a miscalibrated rig moves it (lifted 2 mm and tilted 1°): the free fit
+/// follows it, and with `pose_on_table` the pose handed on is that fit laid on the table,
+/// its x, y and turn kept; the verification is the free fit's either way.
+#[test]
+fn a_fit_resting_on_the_table_is_handed_on_laid_on_it() {
+    let cell = Cell::default();
+    assert!(cell.estimator.pose_on_table, "on by default");
+    let seed = 2;
+    let (mut sim, mut laid) = setup(&cell, seed);
+    let mut free_cell = cell.clone();
+    free_cell.estimator.pose_on_table = false;
+    let mut free =
+        Estimator::new(&EstimatorConfig::from(&free_cell), sim.rig(), laid.model().clone(), Method::OneShot).unwrap();
+    let mut frame = Frame::default();
+    sim.render(&background_scene(&cell, seed), Method::OneShot, noise_key(seed, 0, true), &mut frame);
+    free.set_background(&frame.left, &frame.right).unwrap();
+    sim.render(&draw_scenario(&cell, seed, 0).scene(), Method::OneShot, noise_key(seed, 0, false), &mut frame);
+    laid.process(&frame.left, &frame.right).unwrap();
+    let moved = Isometry3::new(Vector3::new(0.0, 0.0, 2.0), Vector3::new(1f32.to_radians(), 0.0, 0.0));
+    let cloud: Vec<Point3<f32>> = laid.reconstruction().cloud.points.iter().map(|p| moved * p).collect();
+    let (a, b) = (laid.process_cloud(&cloud).unwrap(), free.process_cloud(&cloud).unwrap());
+    assert!(a.found && b.found);
+    assert_eq!(a.verification, b.verification);
+    assert!(b.verification.rests_on_table(), "{:?}", b.verification);
+    let (pa, pb) = (a.t_world_tray, b.t_world_tray);
+    let (z, tilt) = (pb.translation.vector.z, (pb.rotation * Vector3::z()).z.acos().to_degrees());
+    eprintln!("the free fit: {z:.2} mm above the table, tilted {tilt:.2} deg");
+    assert!(z > 1.0 && tilt > 0.5, "the free fit follows the moved cloud: {z} mm, {tilt} deg");
+    assert_eq!(pa.translation.vector.z, 0.0);
+    assert!((pa.rotation * Vector3::z()).z > 1.0 - 1e-12, "{pa:?}");
+    assert_eq!((pa.translation.x, pa.translation.y), (pb.translation.x, pb.translation.y));
+    let yaw = |p: &nalgebra::Isometry3<f64>| {
+        let x = p.rotation * Vector3::x();
+        x.y.atan2(x.x)
+    };
+    assert!((yaw(&pa) - yaw(&pb)).abs() < 1e-9, "{} against {}", yaw(&pa), yaw(&pb));
 }

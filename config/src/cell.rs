@@ -257,9 +257,10 @@ pub enum EstimatorPreset {
 }
 
 /// The keys the paper preset sets, and to what (the feature radius from SRes).
-fn paper_preset_keys(surface_resolution: f64) -> [(&'static str, toml::Value); 5] {
+fn paper_preset_keys(surface_resolution: f64) -> [(&'static str, toml::Value); 6] {
     [
         ("icp_on_table", toml::Value::Boolean(false)),
+        ("pose_on_table", toml::Value::Boolean(false)),
         ("ransac_sample", toml::Value::Integer(3)),
         ("feature_radius", toml::Value::Float(10.0 * surface_resolution)),
         ("turn_check", toml::Value::Boolean(false)),
@@ -304,7 +305,8 @@ fn apply_preset(merged: &mut toml::Table, user: &toml::Table) -> Result<(), Erro
 #[serde(deny_unknown_fields)]
 pub struct EstimatorParams {
     /// "ours" (the keys as given) or "paper": the paper's estimator, which sets
-    /// `ransac_sample`, `feature_radius`, `turn_check` and `verify` (see [`EstimatorPreset`]).
+    /// `ransac_sample`, `feature_radius`, `turn_check`, `icp_on_table`, `pose_on_table` and
+    /// `verify` (see [`EstimatorPreset`]).
     pub preset: EstimatorPreset,
     pub surface_resolution: f64,
     /// Radius of the neighbourhood a normal is fitted to, mm.
@@ -332,6 +334,9 @@ pub struct EstimatorParams {
     /// Whether ICP keeps the tray resting on the table (bottom at z = 0, no tilt) and
     /// refines only x, y and the turn about z (beyond the paper).
     pub icp_on_table: bool,
+    /// Whether the pose handed on is the fit laid on the table (its x, y and turn about z,
+    /// bottom at z = 0, no tilt) when the fit rests on it (beyond the paper).
+    pub pose_on_table: bool,
     /// Whether the pose turned by quarter turns is scored too (beyond the paper).
     pub turn_check: bool,
     /// Whether the verification may reject a found pose (beyond the paper; its score is

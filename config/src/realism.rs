@@ -303,8 +303,10 @@ mod tests {
             Cell::from_toml_str("[estimator]\npreset = \"paper\"\nsurface_resolution = 2.5", Path::new(".")).unwrap();
         assert_eq!(c.estimator.preset, crate::EstimatorPreset::Paper);
         assert_eq!((c.estimator.ransac_sample, c.estimator.feature_radius, c.estimator.turn_check), (3, 25.0, false));
+        assert!(!c.estimator.pose_on_table, "the paper hands the fit on as it is");
         let ours = Cell::default();
         assert_eq!((ours.estimator.ransac_sample, ours.estimator.turn_check), (2, true));
+        assert!(ours.estimator.pose_on_table);
         let e = Cell::from_toml_str("[estimator]\npreset = \"paper\"\nransac_sample = 2", Path::new(".")).unwrap_err();
         assert!(e.to_string().contains("estimator.ransac_sample"), "{e}");
         assert!(Cell::from_toml_str("[estimator]\npreset = \"buch\"", Path::new(".")).is_err());

@@ -338,69 +338,80 @@ impl Icp {
     }
 
     /// Whether the whole tray has a point within `sqrt(reach2)` of `q` (tray frame): the one
-    /// test [`Icp::explained`], [`Icp::explained_apart`] and [`Icp::explained_near`] count.
+    /// test [`Icp::explained`] and [`Icp::explained_near_and_apart`] count.
     fn explains(&self, q: &Point3<f32>, reach2: f32) -> bool {
         self.whole.lookup(q).is_some_and(|item| (q - self.whole_points[item as usize]).norm_squared() <= reach2)
     }
 
-    /// Scene points (world frame) the whole tray explains at `a` but not at `b`, and at `b`
-    /// but not at `a` ([`Icp::explained`]'s test): where two nearly symmetric poses differ,
-    /// only these points tell them apart.
-    pub fn explained_apart(
-        &self,
-        scene_points: &[Point3<f32>],
-        a: &Isometry3<f64>,
-        b: &Isometry3<f64>,
-        reach: f32,
-    ) -> (u32, u32) {
-        let (pa, pb) = (a.inverse().cast::<f32>(), b.inverse().cast::<f32>());
-        let reach2 = reach * reach;
-        let near = |q: Point3<f32>| self.explains(&q, reach2);
-        scene_points
-            .par_chunks(CHUNK)
-            .map(|chunk| {
-                let (mut only_a, mut only_b) = (0u32, 0u32);
-                for p in chunk {
-                    let (in_a, in_b) = (near(pa * p), near(pb * p));
-                    only_a += u32::from(in_a && !in_b);
-                    only_b += u32::from(in_b && !in_a);
-                }
-                (only_a, only_b)
-            })
-            .reduce(|| (0, 0), |x, y| (x.0 + y.0, x.1 + y.1))
-    }
-
-    /// Scene points (world frame) inside the whole tray's bounding box at `t_world_tray`
-    /// grown by `reach`, and how many of those the tray explains as [`Icp::explained`]
-    /// counts them: (explained, inside). Scene points beside the tray are no evidence
-    /// either way; inside its box, each is either the tray's surface or something where the
-    /// model says there is free space.
-    pub fn explained_near(
+    /// In one pass over the scene cloud (world frame): [`Icp::explained`]'s test at
+    /// `t_world_tray` made once per point, and from it (1) among the points inside the whole
+    /// tray's bounding box at the pose grown by `reach`, how many the tray explains, and
+    /// (2) for each of `others` (at most [`MAX_OTHER_POSES`]), the points the tray explains
+    /// at the pose but not at the other pose, and at the other but not at the pose.
+    ///
+    /// Scene points beside the tray are no evidence either way; inside its box, each is
+    /// either the tray's surface or something where the model says there is free space.
+    /// Where two nearly symmetric poses differ, only the points one of them explains tell
+    /// them apart.
+    pub fn explained_near_and_apart(
         &self,
         scene_points: &[Point3<f32>],
         t_world_tray: &Isometry3<f64>,
+        others: &[Isometry3<f64>],
         reach: f32,
-    ) -> (u32, u32) {
+    ) -> ExplainedCounts {
+        let others = &others[..others.len().min(MAX_OTHER_POSES)];
         let pose = t_world_tray.inverse().cast::<f32>();
+        let mut other_poses = [pose; MAX_OTHER_POSES];
+        for (slot, other) in other_poses.iter_mut().zip(others) {
+            *slot = other.inverse().cast::<f32>();
+        }
+        let other_poses = &other_poses[..others.len()];
         let reach2 = reach * reach;
         let grow = Vector3::repeat(reach);
         let (lo, hi) = (self.whole_bounds.0 - grow, self.whole_bounds.1 + grow);
+        let sum = |a: ExplainedCounts, b: ExplainedCounts| {
+            let mut out = ExplainedCounts { explained: a.explained + b.explained, inside: a.inside + b.inside, ..a };
+            for (o, (x, y)) in out.apart.iter_mut().zip(a.apart.iter().zip(&b.apart)) {
+                *o = (x.0 + y.0, x.1 + y.1);
+            }
+            out
+        };
         scene_points
             .par_chunks(CHUNK)
             .map(|chunk| {
-                let (mut explained, mut inside) = (0u32, 0u32);
+                let mut counts = ExplainedCounts::default();
                 for p in chunk {
                     let q = pose * p;
-                    if !(0..3).all(|a| q[a] >= lo[a] && q[a] <= hi[a]) {
-                        continue;
+                    let own = self.explains(&q, reach2);
+                    if (0..3).all(|a| q[a] >= lo[a] && q[a] <= hi[a]) {
+                        counts.inside += 1;
+                        counts.explained += u32::from(own);
                     }
-                    inside += 1;
-                    explained += u32::from(self.explains(&q, reach2));
+                    for (apart, other) in counts.apart.iter_mut().zip(other_poses) {
+                        let theirs = self.explains(&(other * p), reach2);
+                        apart.0 += u32::from(own && !theirs);
+                        apart.1 += u32::from(theirs && !own);
+                    }
                 }
-                (explained, inside)
+                counts
             })
-            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+            .reduce(ExplainedCounts::default, sum)
     }
+}
+
+/// Other poses [`Icp::explained_near_and_apart`] weighs against one pose in the same pass.
+pub const MAX_OTHER_POSES: usize = 3;
+
+/// The counts of [`Icp::explained_near_and_apart`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ExplainedCounts {
+    /// Points inside the tray's grown box at the pose that the tray explains there.
+    pub explained: u32,
+    /// Points inside the tray's grown box at the pose.
+    pub inside: u32,
+    /// Per other pose: (points only the pose explains, points only the other pose explains).
+    pub apart: [(u32, u32); MAX_OTHER_POSES],
 }
 
 /// `t_world_tray` laid on the table: the same x, y and turn about z (of the tray's x axis

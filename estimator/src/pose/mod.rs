@@ -10,6 +10,7 @@ mod model_load;
 mod ransac;
 mod verify;
 
+pub(crate) use icp::on_table;
 pub use icp::{Icp, IcpResult};
 pub use metrics::{correct_matches, pose_errors, PoseErrors};
 #[cfg(any(test, feature = "testing"))]
