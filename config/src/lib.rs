@@ -10,20 +10,20 @@ mod formats;
 mod placement;
 mod pose;
 mod raster;
-mod realism;
 mod rig;
 mod robot_pose;
 #[cfg(test)]
 mod same_checks_tests;
 #[cfg(test)]
 mod test_draw;
-mod trays;
 mod truth;
 
 pub use camera_checks::{
     check_distortion, check_focal_px, check_image_size, check_mounting, BYTES_PER_CAMERA_PIXEL,
     BYTES_PER_PROJECTOR_PIXEL, MEMORY_BUDGET_BYTES, MIN_IMAGE_SIDE,
 };
+pub use cell::realism::{CalibrationError, Effect, Effects, Focus, Occluder, Optics, MAX_ROUGHNESS, MIN_ROUGHNESS};
+pub use cell::trays::{reserved_tray_name, TrayEntry, MAX_TRAYS, STUDY_FILE_ENDINGS, STUDY_FOLDER_NAMES};
 pub use cell::{
     Cell, EstimatorParams, EstimatorPreset, Items, ItemsKind, Lighting, Metrics, PhaseParams, ReconstructionParams,
     Robot, Scenarios, Sensor, StereoParams, Table, Tray, TrayKind, WorkVolume, DEFAULT_CELL_TOML, MAX_ITERATIONS,
@@ -45,10 +45,8 @@ pub use formats::{is_temp_file_name, remove_stale_temp_files, temp_path_for, wri
 pub use placement::{Placement, Vergence, MAX_DISTANCE_MM, PARAMETERS};
 pub use pose::{check_rigid, ROTATION_TOLERANCE};
 pub use raster::{AsImageView, FloatImage, GrayImage, Image, ImageView};
-pub use realism::{CalibrationError, Effect, Effects, Focus, Occluder, Optics, MAX_ROUGHNESS, MIN_ROUGHNESS};
 pub use rig::{CameraFile, RectifiedFile, RigFile, MAX_IMAGE_SIDE};
 pub use robot_pose::{
     format_pose, format_pose_exact, parse_pose, LengthUnit, PoseConvention, RobotPoseFormat, QUATERNION_NORM_TOLERANCE,
 };
-pub use trays::{reserved_tray_name, TrayEntry, MAX_TRAYS, STUDY_FILE_ENDINGS, STUDY_FOLDER_NAMES};
 pub use truth::{LightingTruth, TruthFile};

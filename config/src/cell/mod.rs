@@ -7,9 +7,12 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 use crate::formats::mesh;
-use crate::realism::{CalibrationError, Effects, Occluder, Optics};
-use crate::trays::{parse_trays, validate_trays, TrayEntry};
+pub(crate) mod realism;
+pub(crate) mod trays;
+
 use crate::{Error, ErrorKind, Placement, RigFile, MAX_DISTANCE_MM};
+use realism::{CalibrationError, Effects, Occluder, Optics};
+use trays::{parse_trays, validate_trays, TrayEntry};
 
 /// The commented default cell file, as `camplace init` writes it.
 pub const DEFAULT_CELL_TOML: &str = include_str!("default_cell.toml");
@@ -462,7 +465,7 @@ impl Cell {
     pub(crate) fn validate_tray(&self) -> Result<(), Error> {
         let tr = &self.tray;
         unit("tray.albedo", tr.albedo)?;
-        crate::realism::check_gloss("tray", tr.specular, tr.roughness)?;
+        realism::check_gloss("tray", tr.specular, tr.roughness)?;
         if tr.kind == TrayKind::Mesh {
             // A mesh tray with no slots is allowed: it is found empty.
             load_mesh_checked("tray.mesh", &tr.mesh)?;
@@ -502,7 +505,7 @@ impl Cell {
         }
         let it = &self.items;
         unit("items.albedo", it.albedo)?;
-        crate::realism::check_gloss("items", it.specular, it.roughness)?;
+        realism::check_gloss("items", it.specular, it.roughness)?;
         positive("items.size", &it.size)?;
         if it.kind == ItemsKind::Mesh {
             load_mesh_checked("items.mesh", &it.mesh)?;
