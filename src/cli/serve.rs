@@ -139,7 +139,13 @@ fn projector(a: &Args, cell: &Cell, method: Method) -> anyhow::Result<Arc<dyn Pa
 /// The projector showing `method`'s patterns (`--project`): not in this build.
 #[cfg(not(feature = "display"))]
 fn projector(_a: &Args, _cell: &Cell, _method: Method) -> anyhow::Result<Arc<dyn PatternScreen>> {
-    bail!(
+    Err(no_display())
+}
+
+/// `--project` in a build without the projector window.
+#[cfg(not(feature = "display"))]
+fn no_display() -> anyhow::Error {
+    anyhow::anyhow!(
         "--project: the projector window needs the `display` feature, which this build lacks; \
          rebuild with `cargo build --release --features display`"
     )
@@ -154,8 +160,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if a.camera_timeout_ms == 0 {
         bail!("--camera-timeout-ms 0: expected at least 1");
     }
-    if a.project.is_some() && !cfg!(feature = "display") {
-        projector(&a, &Cell::default(), Method::OneShot)?;
+    // Said before any source is opened.
+    #[cfg(not(feature = "display"))]
+    if a.project.is_some() {
+        return Err(no_display());
     }
     let spec = parse_source(&a.deploy.source)?;
     let cell = a.deploy.cell()?;
