@@ -171,7 +171,7 @@ fn every_dataset_command_checks_the_poses_it_reads() {
     .unwrap();
     for args in [
         &["render", "--cell", "coarse.toml", "--dataset", "--count", "2", "--out", "ds"][..],
-        &["model", "--cell", "coarse.toml", "--out", "tray.model"],
+        &["model", "--cell", "coarse.toml", "--verify-scenes", "0", "--out", "tray.model"],
     ] {
         let o = camplace(d, args);
         assert!(o.status.success(), "{args:?}: {}", stderr(&o));
