@@ -30,11 +30,10 @@ pub use progress::{set_progress, ProgressCallback, ProgressEvent};
 pub use reconstruction::{
     match_rectified, reconstruct_dataset, reconstruct_pair, DatasetDepth, PairDepth, RectifiedDepth, RectifiedPair,
 };
-pub use render::pattern::{fringe_set, one_shot};
 pub use render::render_files::{clear_dataset, render_dataset, render_scene};
 pub use render::{
-    render_board_views, render_hand_eye_views, setup_name, simulated_robot_base, table_board_pose, BoardTruth, Frame,
-    HandEyeOptions, HandEyePoses, HandEyeTruth, Method, Simulator, HAND_EYE_TRUTH_FILE, ROBOT_POSES_FILE,
+    render_board_views, render_hand_eye_views, setup_name, simulated_robot_base, BoardTruth, Frame, HandEyeOptions,
+    HandEyePoses, HandEyeTruth, Method, Simulator, HAND_EYE_TRUTH_FILE, ROBOT_POSES_FILE,
 };
 pub use report::latency::write_latency_plot;
 pub use report::plot::SavedPlot;
@@ -42,8 +41,6 @@ pub use report::recommended::Recommended;
 pub use report::study_report::write_report;
 pub use report::sweep_panels::SweepResult;
 pub use report::tolerance_plot::write_tolerance_plots;
-pub use scene::as_built::{as_built, azimuth_difference, AsBuilt};
-pub use scene::placement_rig::{rig_for, sensor_rig};
 pub use scene::scenario::{background_scene, draw_scenario, Scenario};
 pub use scene::SceneSpec;
 pub use search::test_functions::{run_test_function, test_function};

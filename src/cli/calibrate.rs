@@ -112,7 +112,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let board = parse_board(&a.board)?;
     let t_world_table_board = match &a.board_in_world {
         Some(text) => parse_board_in_world(text)?,
-        None => camplace_sim::table_board_pose(&board),
+        None => camplace_estimator::table_board_pose(&board),
     };
     if !a.hand_eye {
         let out = a.out.clone().unwrap_or_else(|| PathBuf::from("rig.json"));

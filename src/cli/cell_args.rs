@@ -3,8 +3,8 @@
 
 use anyhow::Context;
 use camplace_config::{Cell, Placement, RigFile, Vergence};
+use camplace_estimator::as_built;
 use camplace_estimator::Rig;
-use camplace_sim::as_built;
 use std::path::PathBuf;
 
 /// `--cell FILE` and `--placement r=..,alpha=..,baseline=..,vergence=..`.

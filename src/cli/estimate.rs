@@ -41,7 +41,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let path = a.cloud.as_ref().context("give --dataset DIR or --cloud FILE")?;
     let rig = match &a.rig {
         Some(p) => Rig::from_file(&RigFile::load(p)?),
-        None => camplace_sim::rig_for(&placement, &cell.sensor),
+        None => camplace_estimator::rig_for(&placement, &cell.sensor),
     };
     let cloud = camplace_config::read_cloud(path)?;
     let points: Vec<Point3<f32>> = cloud.points.iter().map(|p| Point3::from(*p)).collect();

@@ -12,7 +12,7 @@ mod refine;
 mod stereo;
 mod zhang;
 
-pub use board::{BoardView, CalibrationBoard, MIN_CALIBRATION_VIEWS};
+pub use board::{table_board_pose, BoardView, CalibrationBoard, MIN_CALIBRATION_VIEWS};
 pub use corners::find_board_corners;
 pub use hand_eye::{
     calibrate_hand_eye, ExpectedError, HandEyeCalibration, HandEyeInput, HandEyeSetup, PoseResidual, RotationSpread,

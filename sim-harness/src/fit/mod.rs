@@ -32,10 +32,10 @@ use stats::{
 use synth::{EmptyCell, SensorKeys};
 
 use crate::render::Method;
-use crate::scene::as_built::as_built;
 use crate::scene::scenario::draw_scenario;
 use crate::seeds::noise_key;
 use crate::{Error, Result};
+use camplace_estimator::as_built;
 
 /// Frames read at most (the first ones of the dataset).
 pub const MAX_FIT_FRAMES: usize = 200;

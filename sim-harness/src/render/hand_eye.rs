@@ -19,10 +19,10 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use super::board::{board_extent, fits, render_board_pairs, table_board_pose};
+use super::board::{board_extent, fits, render_board_pairs};
 use super::frame_files::write_rig;
-use crate::scene::placement_rig::rig_for;
 use crate::{Error, Result};
+use camplace_estimator::{rig_for, table_board_pose};
 
 /// Candidate poses drawn per pose kept, of which the best spread are chosen.
 const CANDIDATES_PER_POSE: usize = 30;

@@ -14,7 +14,6 @@ use super::rig_sketch::RigSketch;
 use super::save_plot;
 use crate::render::frame_files::write_preview;
 use crate::render::{Frame, Method, Simulator};
-use crate::scene::placement_rig::rig_for;
 use crate::scene::scenario::draw_scenario;
 use crate::scene::tray::TrayModel;
 use crate::seeds::noise_key;
@@ -27,6 +26,7 @@ use crate::study::tolerance::WalkEnd;
 use crate::study::tolerance_report::{end_text, offset_text};
 use crate::study::Summary;
 use crate::{Error, Result};
+use camplace_estimator::rig_for;
 use camplace_estimator::Camera;
 
 /// A rate as a percentage with one decimal.

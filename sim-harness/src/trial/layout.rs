@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 use camplace_config::{Cell, Placement, RigFile};
 use camplace_estimator::Rig;
 
-use crate::scene::as_built::as_built;
 use crate::{Error, Result};
+use camplace_estimator::as_built;
 
 /// How far an installed rig's distance r may lie from the plan's, as a share of it: a robot
 /// carrying the rig reaches its pose to a millimetre, a rig clamped by hand to a few

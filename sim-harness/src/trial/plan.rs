@@ -8,9 +8,9 @@ use camplace_config::{format_pose, write_atomic, Cell, LengthUnit, Placement, Po
 use camplace_estimator::{isometry_from_rows, isometry_to_rows};
 use serde::{Deserialize, Serialize};
 
-use crate::scene::placement_rig::sensor_rig;
 use crate::study::grid::Grid;
 use crate::{Error, Result};
+use camplace_estimator::sensor_rig;
 
 /// The plan's file name inside a trial folder.
 pub const PLAN_FILE: &str = "plan.json";
