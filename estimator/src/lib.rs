@@ -27,6 +27,7 @@ mod pipeline;
 mod placement_rig;
 mod pose;
 mod rig;
+mod scoring;
 mod spatial;
 
 pub use as_built::{as_built, azimuth_difference, AsBuilt};
@@ -55,6 +56,10 @@ pub use pose::{
     RESTING_TILT_DEG,
 };
 pub use rig::Rig;
+pub use scoring::{
+    choose_threshold, clopper_pearson_upper, median, pct, precision_recall, score, wilson_interval, FrameRecord, Score,
+    Scored, Summary, Timings, VerifiedSummary,
+};
 // The image buffers are camplace-config's (image files hold them too); callers name them
 // there, the stages here as `crate::GrayImage`.
 use camplace_config::{FloatImage, GrayImage};

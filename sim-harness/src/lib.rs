@@ -55,17 +55,14 @@ pub use study::one_placement::{acceptance_summary, evaluate_placement, measure_v
 pub use study::optimize::{SearchParameter, SearchPlan};
 pub use study::placement_search::optimize;
 pub use study::placement_study::{run_study, tolerance_dir, Preset, StudyOutcome, StudyRequest};
-pub use study::recording::{
-    estimate_dataset, estimator_for, method_for, record as frame_record, truth_path, DATASET_SUMMARY,
-};
+pub use study::recording::{estimate_dataset, estimator_for, record as frame_record, truth_path, DATASET_SUMMARY};
 pub use study::shard::Shard;
 pub use study::sweep::sweep;
 pub use study::tolerance::{
     measure_tolerance, AxisTolerance, ToleranceCorner, ToleranceParameter, TolerancePoint, ToleranceReport,
     ToleranceRequest, WalkEnd, TOLERANCE_LEVEL, TOLERANCE_PARAMETERS, TOLERANCE_POWER,
 };
-pub use study::verified::{clopper_pearson_upper, precision_recall, Scored, VerifiedSummary};
-pub use study::{median, score, Evaluator, FrameRecord, Score, Summary};
+pub use study::Evaluator;
 pub use trial::judge::{
     append_label, frame_names, read_labels, read_poses, JudgedDataset, Judgement, Label, Mark, LABELS_FILE,
 };

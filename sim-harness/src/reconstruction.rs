@@ -5,12 +5,11 @@
 use std::path::{Path, PathBuf};
 
 use camplace_config::{Cell, FloatImage, GrayImage, RectifiedFile, RigFile};
-use camplace_estimator::{isometry_to_rows, DisparityMatcher, Elas, Method};
+use camplace_estimator::{isometry_to_rows, method_for, DisparityMatcher, Elas, Method};
 use camplace_estimator::{EstimatorConfig, Reconstruction, Reconstructor, RectifiedCamera, Rig};
 use camplace_hwio::{FrameSource, Frames, RecordedSource};
 use rayon::prelude::*;
 
-use crate::study::recording::method_for;
 use crate::{Error, Result};
 
 /// What reconstructing a recorded dataset gave.

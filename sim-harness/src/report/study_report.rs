@@ -20,14 +20,14 @@ use crate::seeds::noise_key;
 use crate::study::findings::{compare_paired, Paired, Verdict};
 use crate::study::grid::Axis;
 use crate::study::optimize::recheck_seed;
-use crate::study::pct;
 use crate::study::placement_study::{tolerance_dir, Combination, Preset, Recommendation, StudyOutcome, StudyRequest};
 use crate::study::tolerance::WalkEnd;
 use crate::study::tolerance_report::{end_text, offset_text};
-use crate::study::Summary;
 use crate::{Error, Result};
+use camplace_estimator::pct;
 use camplace_estimator::rig_for;
 use camplace_estimator::Camera;
+use camplace_estimator::Summary;
 
 /// A rate as a percentage with one decimal.
 /// Writes `report.html` (and its plots, and `recommended.json`) into the study folder.
@@ -232,7 +232,7 @@ pub fn write_report(req: &StudyRequest, outcome: &StudyOutcome, started: Instant
     page.heading(2, "Settings");
     let all: Vec<&Summary> =
         combos.iter().flat_map(|c| c.sweeps.iter().flat_map(|s| s.rows.iter().map(|r| &r.summary))).collect();
-    let median_ms = crate::study::median(&all.iter().map(|s| s.median_ms).collect::<Vec<_>>()).unwrap_or(0.0);
+    let median_ms = camplace_estimator::median(&all.iter().map(|s| s.median_ms).collect::<Vec<_>>()).unwrap_or(0.0);
     let search = if preset.budget > 0 {
         format!(
             "search over r, alpha, baseline, vergence with {} evaluations of {} scenes; top {} and the grid's best checked on {} fresh scenes",

@@ -13,8 +13,8 @@ use super::table::{write_summary_csv, write_summary_json, SummaryRow};
 use crate::render::Method;
 use crate::study::grid::Grid;
 use crate::study::results::ResultsStore;
-use crate::study::Summary;
 use crate::Result;
+use camplace_estimator::Summary;
 
 /// What a sweep measured.
 #[derive(Debug, Clone, PartialEq)]

@@ -7,20 +7,11 @@ use std::path::{Path, PathBuf};
 use camplace_config::{remove_stale_temp_files, write_atomic};
 use camplace_config::{Cell, TruthFile};
 use camplace_estimator::isometry_from_rows;
-use camplace_estimator::{ErrorKind, Estimator, EstimatorConfig, Method, Model, PoseEstimate, Rig};
+use camplace_estimator::{method_for, ErrorKind, Estimator, EstimatorConfig, Method, Model, PoseEstimate, Rig};
 use camplace_hwio::{FrameSource, Frames, RecordedSource};
 
-use super::record::{score, FrameRecord};
 use crate::{Error, Result};
-
-/// The method a source of `shots` images per side was captured with.
-pub fn method_for(shots: usize) -> Method {
-    if shots == 1 {
-        Method::OneShot
-    } else {
-        Method::Phase12
-    }
-}
+use camplace_estimator::{score, FrameRecord};
 
 /// The estimator for `rig` (read from `rig_path`, named in errors) with the background of
 /// `background` when it has one.

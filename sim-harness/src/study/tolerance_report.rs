@@ -8,9 +8,9 @@ use std::path::Path;
 use camplace_config::{Placement, Vergence, MAX_DISTANCE_MM};
 use serde::{Deserialize, Serialize};
 
-use super::pct;
 pub use super::tolerance_walk::WalkEnd;
 use crate::{Error, Result};
+use camplace_estimator::pct;
 
 /// One evaluated placement, paired by scene against the nominal.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
