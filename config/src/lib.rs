@@ -1,5 +1,5 @@
-//! camplace's files: the cell file (with the paper's defaults), `rig.json`, and the
-//! interchange formats of docs/architecture.md §3. This crate is the leaf: it knows
+//! camplace's files: the cell file (with the paper's defaults), `rig.json`, the recorded
+//! dataset (read and written), and the interchange formats of docs/architecture.md §3. This crate is the leaf: it knows
 //! nothing of the estimator or the simulator, only what the user writes and reads.
 
 mod camera_checks;
@@ -31,7 +31,14 @@ pub use cell::{
 };
 pub use cell_hash::{CellHashes, ContentHash, MeshHash};
 pub use error::{Error, ErrorKind};
-pub use formats::dataset::{frame_folders, frame_name, image_name, is_image_name, DATASET_FILES, FRAME_FILES};
+pub use formats::dataset::{
+    frame_folders, frame_name, image_name, is_image_name, DATASET_FILES, DATASET_SUMMARY, FRAME_FILES,
+};
+pub use formats::dataset_read::{read_background, truth_path, RecordedDataset};
+pub use formats::dataset_write::{
+    append_frame, write_background, write_shots, write_table_view, DatasetLayout, MAX_FRAME_NUMBER,
+};
+pub use formats::frames::{FrameInfo, Frames};
 pub use formats::mesh::{decode_obj, decode_stl, load_mesh, Mesh};
 pub use formats::pfm::{decode_pfm, encode_pfm, read_pfm, write_pfm};
 pub use formats::ply::{decode_ply, encode_cloud, read_cloud, read_ply, write_cloud, PlyCloud, PlyData};

@@ -23,6 +23,7 @@ mod spec;
 #[cfg(feature = "v4l")]
 mod v4l2;
 
+pub use camplace_config::{append_frame, read_background, write_background, write_table_view};
 pub use capture::{Capture, Captured, WhenBehind};
 pub use deploy::{DeploySource, DeployStats, Deployment, Estimated, FrameTiming};
 pub use devices::{list_devices, DeviceList, FirewireDevice, UsbDevice, V4l2Device};
@@ -34,5 +35,5 @@ pub use in_step::{capture_in_step, InStepSource, PatternScreen};
 pub use open::open_source;
 pub use paced::Paced;
 pub use pixels::{deinterleave16, luma601, split_side_by_side, to_gray, InterleavedOrder, PixelFormat};
-pub use recorded::{append_frame, read_background, write_background, write_table_view, RecordedSource};
+pub use recorded::RecordedSource;
 pub use spec::{parse_source, SourceSpec, SOURCE_FORMS};

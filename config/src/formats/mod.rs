@@ -7,6 +7,9 @@ mod atomic;
 #[cfg(test)]
 mod corruption_tests;
 pub(crate) mod dataset;
+pub(crate) mod dataset_read;
+pub(crate) mod dataset_write;
+pub(crate) mod frames;
 pub(crate) mod json;
 pub(crate) mod mesh;
 pub(crate) mod pfm;
