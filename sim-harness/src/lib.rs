@@ -13,7 +13,6 @@ mod error;
 mod fit;
 mod model_builder;
 mod progress;
-mod reconstruction;
 mod render;
 mod report;
 mod scene;
@@ -27,16 +26,11 @@ pub use error::{Error, Result};
 pub use fit::{fit_sensor, write_fit, AmbientFit, KeyFit, SensorFit, FIT_FRAGMENT, FIT_HTML, FIT_JSON, MAX_FIT_FRAMES};
 pub use model_builder::{build_model, model_origin, model_points};
 pub use progress::{set_progress, ProgressCallback, ProgressEvent};
-pub use reconstruction::{
-    match_rectified, reconstruct_dataset, reconstruct_pair, DatasetDepth, PairDepth, RectifiedDepth, RectifiedPair,
-};
 pub use render::render_files::{clear_dataset, render_dataset, render_scene};
 pub use render::{
     render_board_views, render_hand_eye_views, setup_name, simulated_robot_base, BoardTruth, Frame, HandEyeOptions,
     HandEyePoses, HandEyeTruth, Method, Simulator, HAND_EYE_TRUTH_FILE, ROBOT_POSES_FILE,
 };
-pub use report::latency::write_latency_plot;
-pub use report::plot::SavedPlot;
 pub use report::recommended::Recommended;
 pub use report::study_report::write_report;
 pub use report::sweep_panels::SweepResult;
@@ -55,7 +49,6 @@ pub use study::one_placement::{acceptance_summary, evaluate_placement, measure_v
 pub use study::optimize::{SearchParameter, SearchPlan};
 pub use study::placement_search::optimize;
 pub use study::placement_study::{run_study, tolerance_dir, Preset, StudyOutcome, StudyRequest};
-pub use study::recording::{estimate_dataset, estimator_for, record as frame_record, truth_path, DATASET_SUMMARY};
 pub use study::shard::Shard;
 pub use study::sweep::sweep;
 pub use study::tolerance::{

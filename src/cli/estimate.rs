@@ -5,7 +5,7 @@ use anyhow::Context;
 use camplace_config::RigFile;
 use camplace_estimator::{Estimator, EstimatorConfig, Method, Model, Rig, Verifier};
 use camplace_estimator::{FrameRecord, Summary};
-use camplace_sim::estimate_dataset;
+use camplace_hwio::estimate_dataset;
 use nalgebra::Point3;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;

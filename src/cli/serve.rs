@@ -14,11 +14,11 @@ use camplace_config::{Cell, LengthUnit, PoseConvention, RobotPoseFormat};
 use camplace_estimator::{method_for, Method};
 use camplace_estimator::{Model, Rig};
 use camplace_hwio::{
-    open_source, parse_source, read_background, DeploySource, FrameSource, InStepSource, PatternScreen, RecordedSource,
-    SourceSpec,
+    estimator_for, open_source, parse_source, read_background, DeploySource, FrameSource, InStepSource, PatternScreen,
+    RecordedSource, SourceSpec,
 };
 use camplace_serve::{ConnectionLimits, DriftLimits, RecorderSettings, Service, Settings, Status};
-use camplace_sim::{estimator_for, ToleranceReport};
+use camplace_sim::ToleranceReport;
 
 use super::deploy_args::DeployArgs;
 

@@ -10,9 +10,10 @@ use std::process::ExitCode;
 use anyhow::{bail, Context};
 use camplace_config::Cell;
 use camplace_estimator::{Method, Model};
+use camplace_hwio::estimate_dataset;
 use camplace_sim::{
-    append_label, check_placement_rig, estimate_dataset, frame_names, make_mock_trial, placement_dir, rho_text,
-    scripted_marks, study_grid, trial_report, Axis, Grid, TrialPlan, LABELS_FILE, PLAN_FILE, REPORT_HTML, REPORT_JSON,
+    append_label, check_placement_rig, frame_names, make_mock_trial, placement_dir, rho_text, scripted_marks,
+    study_grid, trial_report, Axis, Grid, TrialPlan, LABELS_FILE, PLAN_FILE, REPORT_HTML, REPORT_JSON,
 };
 
 use super::cell_args::CellArgs;

@@ -6,12 +6,11 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use camplace_config::{write_atomic, Cell, Effect, EstimatorPreset};
+use camplace_config::{save_plot, write_atomic, Cell, Effect, EstimatorPreset};
 
 use super::convergence::{Convergence, Curve};
 use super::html::HtmlPage;
 use super::rig_sketch::RigSketch;
-use super::save_plot;
 use crate::render::frame_files::write_preview;
 use crate::render::{Frame, Method, Simulator};
 use crate::scene::scenario::draw_scenario;

@@ -9,12 +9,12 @@ use std::path::Path;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::font::FAMILY;
 use super::html::HtmlPage;
-use super::plot::{save_plot, Plot};
 use crate::study::optimize::recheck_seed;
 use crate::study::placement_study::Combination;
 use crate::Result;
+use camplace_config::PLOT_FONT_FAMILY as FAMILY;
+use camplace_config::{save_plot, Plot};
 use camplace_estimator::pct;
 use camplace_estimator::{precision_recall, Scored, VerifiedSummary};
 

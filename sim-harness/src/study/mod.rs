@@ -15,7 +15,6 @@ pub mod one_placement;
 pub mod optimize;
 pub mod placement_search;
 pub mod placement_study;
-pub mod recording;
 pub mod results;
 pub mod settings;
 pub mod shard;

@@ -21,12 +21,12 @@ use super::plan::{parse_placement, TrialPlan, PLAN_FILE};
 use super::rank::{spearman, RankCorrelation};
 use crate::report::heatmap::{ColourScale, HeatMap};
 use crate::report::html::HtmlPage;
-use crate::report::save_plot;
 use crate::report::table::SummaryRow;
 use crate::study::findings::{Paired, Rate};
 use crate::study::grid::Grid;
 use crate::study::sweep::load_sweep;
 use crate::{Error, Result};
+use camplace_config::save_plot;
 
 /// The report's JSON file.
 pub const REPORT_JSON: &str = "trial_report.json";
