@@ -7,6 +7,7 @@ mod cell;
 mod cell_hash;
 mod error;
 mod formats;
+mod grid;
 mod placement;
 mod pose;
 mod raster;
@@ -16,6 +17,8 @@ mod robot_pose;
 mod same_checks_tests;
 #[cfg(test)]
 mod test_draw;
+mod tolerance_file;
+mod trial_plan;
 mod truth;
 
 pub use camera_checks::{
@@ -50,11 +53,19 @@ pub use formats::read::{
 };
 pub use formats::robot_poses::{parse_robot_poses, read_robot_poses, robot_poses_text, RobotPoses};
 pub use formats::{is_temp_file_name, remove_stale_temp_files, temp_path_for, write_atomic};
+pub use grid::{Axis, Grid, MAX_AXIS_STEPS};
 pub use placement::{Placement, Vergence, MAX_DISTANCE_MM, PARAMETERS};
 pub use pose::{check_rigid, ROTATION_TOLERANCE};
 pub use raster::{AsImageView, FloatImage, GrayImage, Image, ImageView};
 pub use rig::{CameraFile, RectifiedFile, RigFile, MAX_IMAGE_SIDE};
 pub use robot_pose::{
     format_pose, format_pose_exact, parse_pose, LengthUnit, PoseConvention, RobotPoseFormat, QUATERNION_NORM_TOLERANCE,
+};
+pub use tolerance_file::{
+    end_text, offset_text, AxisTolerance, SideView, ToleranceCorner, TolerancePoint, ToleranceReport, WalkEnd,
+};
+pub use trial_plan::{
+    parse_placement, placement_dir, placement_folder_name, PlannedPlacement, TrialPlan, MAX_PLACEMENTS, PLAN_CSV,
+    PLAN_FILE,
 };
 pub use truth::{LightingTruth, TruthFile};

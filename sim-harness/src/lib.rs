@@ -42,7 +42,6 @@ pub use seeds::noise_key;
 pub use study::ablation::{ablate, ablation_markdown, AblationRow};
 pub use study::findings::{drop_detection_power, scenes_for_power};
 pub use study::folder::open_folder;
-pub use study::grid::{Axis, Grid};
 pub use study::lock::{lock_folder, FolderLock, LOCK_FILE};
 pub use study::merge::merge;
 pub use study::one_placement::{acceptance_summary, evaluate_placement, measure_verification};
@@ -52,16 +51,15 @@ pub use study::placement_study::{run_study, tolerance_dir, Preset, StudyOutcome,
 pub use study::shard::Shard;
 pub use study::sweep::sweep;
 pub use study::tolerance::{
-    measure_tolerance, AxisTolerance, ToleranceCorner, ToleranceParameter, TolerancePoint, ToleranceReport,
-    ToleranceRequest, WalkEnd, TOLERANCE_LEVEL, TOLERANCE_PARAMETERS, TOLERANCE_POWER,
+    measure_tolerance, ToleranceParameter, ToleranceRequest, TOLERANCE_LEVEL, TOLERANCE_PARAMETERS, TOLERANCE_POWER,
 };
 pub use study::Evaluator;
 pub use trial::judge::{
     append_label, frame_names, read_labels, read_poses, JudgedDataset, Judgement, Label, Mark, LABELS_FILE,
 };
-pub use trial::layout::{check_placement_rig, placement_dir, placement_folder_name};
+pub use trial::layout::check_placement_rig;
 pub use trial::mock::{hidden_truth_path, make_mock_trial, scripted_marks};
-pub use trial::plan::{parse_placement, PlannedPlacement, TrialPlan, PLAN_CSV, PLAN_FILE};
+pub use trial::plan::make_plan;
 pub use trial::rank::{spearman, RankCorrelation};
 pub use trial::report::{
     rho_text, study_grid, sweep_folder, trial_report, PlacementRow, TrialReport, REPORT_HTML, REPORT_JSON,

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{bail, Context};
-use camplace_config::{Cell, LengthUnit, PoseConvention, RobotPoseFormat};
+use camplace_config::{Cell, LengthUnit, PoseConvention, RobotPoseFormat, ToleranceReport};
 use camplace_estimator::{method_for, Method};
 use camplace_estimator::{Model, Rig};
 use camplace_hwio::{
@@ -18,7 +18,6 @@ use camplace_hwio::{
     RecordedSource, SourceSpec,
 };
 use camplace_serve::{ConnectionLimits, DriftLimits, RecorderSettings, Service, Settings, Status};
-use camplace_sim::ToleranceReport;
 
 use super::deploy_args::DeployArgs;
 

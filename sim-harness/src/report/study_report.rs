@@ -17,12 +17,11 @@ use crate::scene::scenario::draw_scenario;
 use crate::scene::tray::TrayModel;
 use crate::seeds::noise_key;
 use crate::study::findings::{compare_paired, Paired, Verdict};
-use crate::study::grid::Axis;
 use crate::study::optimize::recheck_seed;
 use crate::study::placement_study::{tolerance_dir, Combination, Preset, Recommendation, StudyOutcome, StudyRequest};
-use crate::study::tolerance::WalkEnd;
-use crate::study::tolerance_report::{end_text, offset_text};
 use crate::{Error, Result};
+use camplace_config::Axis;
+use camplace_config::{end_text, offset_text, WalkEnd};
 use camplace_estimator::pct;
 use camplace_estimator::rig_for;
 use camplace_estimator::Camera;
@@ -90,7 +89,7 @@ pub fn write_report(req: &StudyRequest, outcome: &StudyOutcome, started: Instant
             .iter()
             .flat_map(|a| {
                 a.sides().map(|side| {
-                    let rate = |p: &crate::study::tolerance::TolerancePoint| {
+                    let rate = |p: &camplace_config::TolerancePoint| {
                         format!(
                             "{} ({}–{}) at {}",
                             pct(p.success_rate),

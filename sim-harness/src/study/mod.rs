@@ -7,7 +7,6 @@ pub mod ablation;
 mod evaluate;
 pub mod findings;
 pub mod folder;
-pub mod grid;
 pub mod jobs;
 pub mod lock;
 pub mod merge;
@@ -20,7 +19,6 @@ pub mod settings;
 pub mod shard;
 pub mod sweep;
 pub mod tolerance;
-pub mod tolerance_report;
 pub mod tolerance_walk;
 pub mod tray_set;
 
