@@ -28,8 +28,8 @@ pub use model_builder::{build_model, model_origin, model_points};
 pub use progress::{set_progress, ProgressCallback, ProgressEvent};
 pub use render::render_files::{clear_dataset, render_dataset, render_scene};
 pub use render::{
-    render_board_views, render_hand_eye_views, setup_name, simulated_robot_base, BoardTruth, Frame, HandEyeOptions,
-    HandEyePoses, HandEyeTruth, Method, Simulator, HAND_EYE_TRUTH_FILE, ROBOT_POSES_FILE,
+    render_board_views, render_hand_eye_views, simulated_robot_base, BoardTruth, Frame, HandEyeOptions, HandEyePoses,
+    HandEyeTruth, Method, Simulator, HAND_EYE_TRUTH_FILE, ROBOT_POSES_FILE,
 };
 pub use report::recommended::Recommended;
 pub use report::study_report::write_report;

@@ -17,8 +17,8 @@ mod terms;
 
 pub use board::{render_board_views, BoardTruth};
 pub use hand_eye::{
-    render_hand_eye_views, setup_name, simulated_robot_base, HandEyeOptions, HandEyePoses, HandEyeTruth,
-    HAND_EYE_TRUTH_FILE, ROBOT_POSES_FILE,
+    render_hand_eye_views, simulated_robot_base, HandEyeOptions, HandEyePoses, HandEyeTruth, HAND_EYE_TRUTH_FILE,
+    ROBOT_POSES_FILE,
 };
 pub use simulator::{Frame, Method, Simulator};
 
