@@ -4,6 +4,7 @@
 //! estimates a tray pose per captured frame, and recorded datasets replayed through the
 //! estimator (poses scored against their truth) or reconstructed to depth and clouds.
 
+mod board_pairs;
 mod capture;
 mod cpu_time;
 #[cfg(feature = "dc1394")]
@@ -27,6 +28,7 @@ mod spec;
 #[cfg(feature = "v4l")]
 mod v4l2;
 
+pub use board_pairs::{find_board_pairs, BoardPairs, MAX_CALIBRATION_VIEWS};
 pub use camplace_config::{append_frame, read_background, write_background, write_table_view};
 pub use capture::{Capture, Captured, WhenBehind};
 pub use deploy::{DeploySource, DeployStats, Deployment, Estimated, FrameTiming};
