@@ -7,8 +7,9 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use camplace_config::Cell;
+use camplace_estimator::{FrameRecord, Method, Summary};
 use camplace_hwio::{parse_source, DeploySource, Deployment, WhenBehind};
-use camplace_sim::{Evaluator, FrameRecord, Method, Summary};
+use camplace_sim::Evaluator;
 
 use crate::camplace_cmd::{camplace, stderr};
 

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use camplace_sim::{AxisTolerance, TolerancePoint, ToleranceReport, WalkEnd};
+use camplace_config::{AxisTolerance, TolerancePoint, ToleranceReport, WalkEnd};
 
 use crate::camplace_cmd::{assert_one_line_error, camplace, stderr};
 

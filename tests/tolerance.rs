@@ -10,7 +10,8 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use camplace_sim::{run_study, tolerance_dir, Method, Preset, Shard, StudyRequest, ToleranceReport, WalkEnd};
+use camplace_config::{ToleranceReport, WalkEnd};
+use camplace_sim::{run_study, tolerance_dir, Method, Preset, Shard, StudyRequest};
 
 use crate::camplace_cmd::{assert_one_line_error, camplace, stderr};
 

@@ -1,5 +1,5 @@
-//! camplace's files: the cell file (with the paper's defaults), `rig.json`, and the
-//! interchange formats of docs/architecture.md §3. This crate is the leaf: it knows
+//! camplace's files: the cell file (with the paper's defaults), `rig.json`, the recorded
+//! dataset (read and written), and the interchange formats of docs/architecture.md §3. This crate is the leaf: it knows
 //! nothing of the estimator or the simulator, only what the user writes and reads.
 
 mod camera_checks;
@@ -7,6 +7,7 @@ mod cell;
 mod cell_hash;
 mod error;
 mod formats;
+mod grid;
 mod placement;
 mod pose;
 mod raster;
@@ -16,6 +17,8 @@ mod robot_pose;
 mod same_checks_tests;
 #[cfg(test)]
 mod test_draw;
+mod tolerance_file;
+mod trial_plan;
 mod truth;
 
 pub use camera_checks::{
@@ -31,9 +34,17 @@ pub use cell::{
 };
 pub use cell_hash::{CellHashes, ContentHash, MeshHash};
 pub use error::{Error, ErrorKind};
-pub use formats::dataset::{frame_folders, frame_name, image_name, is_image_name, DATASET_FILES, FRAME_FILES};
+pub use formats::dataset::{
+    frame_folders, frame_name, image_name, is_image_name, DATASET_FILES, DATASET_SUMMARY, FRAME_FILES,
+};
+pub use formats::dataset_read::{read_background, truth_path, RecordedDataset};
+pub use formats::dataset_write::{
+    append_frame, write_background, write_shots, write_table_view, DatasetLayout, MAX_FRAME_NUMBER,
+};
+pub use formats::frames::{FrameInfo, Frames};
 pub use formats::mesh::{decode_obj, decode_stl, load_mesh, Mesh};
 pub use formats::pfm::{decode_pfm, encode_pfm, read_pfm, write_pfm};
+pub use formats::plot::{ensure_plot_font, save_plot, Plot, SavedPlot, PLOT_FONT_FAMILY};
 pub use formats::ply::{decode_ply, encode_cloud, read_cloud, read_ply, write_cloud, PlyCloud, PlyData};
 pub use formats::png::{decode_gray, read_gray, read_image_size, write_gray, write_rgb, Gray};
 pub use formats::read::{
@@ -42,11 +53,19 @@ pub use formats::read::{
 };
 pub use formats::robot_poses::{parse_robot_poses, read_robot_poses, robot_poses_text, RobotPoses};
 pub use formats::{is_temp_file_name, remove_stale_temp_files, temp_path_for, write_atomic};
+pub use grid::{Axis, Grid, MAX_AXIS_STEPS};
 pub use placement::{Placement, Vergence, MAX_DISTANCE_MM, PARAMETERS};
 pub use pose::{check_rigid, ROTATION_TOLERANCE};
 pub use raster::{AsImageView, FloatImage, GrayImage, Image, ImageView};
 pub use rig::{CameraFile, RectifiedFile, RigFile, MAX_IMAGE_SIDE};
 pub use robot_pose::{
     format_pose, format_pose_exact, parse_pose, LengthUnit, PoseConvention, RobotPoseFormat, QUATERNION_NORM_TOLERANCE,
+};
+pub use tolerance_file::{
+    end_text, offset_text, AxisTolerance, SideView, ToleranceCorner, TolerancePoint, ToleranceReport, WalkEnd,
+};
+pub use trial_plan::{
+    parse_placement, placement_dir, placement_folder_name, PlannedPlacement, TrialPlan, MAX_PLACEMENTS, PLAN_CSV,
+    PLAN_FILE,
 };
 pub use truth::{LightingTruth, TruthFile};

@@ -15,6 +15,7 @@
 #[macro_use]
 mod cpu;
 
+mod as_built;
 mod calibration;
 mod camera;
 mod depth;
@@ -23,19 +24,22 @@ mod estimator_config;
 mod features;
 mod method;
 mod pipeline;
+mod placement_rig;
 mod pose;
 mod rig;
+mod scoring;
 mod spatial;
 
+pub use as_built::{as_built, azimuth_difference, AsBuilt};
 pub use calibration::{
-    calibrate_hand_eye, calibrate_stereo, find_board_corners, BoardView, CalibrationBoard, ExpectedError,
-    HandEyeCalibration, HandEyeInput, HandEyeSetup, PoseResidual, RotationSpread, StereoCalibration, ViewResidual,
-    MIN_CALIBRATION_VIEWS, MIN_HAND_EYE_POSES,
+    calibrate_hand_eye, calibrate_rig, calibrate_stereo, find_board_corners, table_board_pose, BoardView,
+    CalibrationBoard, ExpectedError, FoundBoardPair, HandEyeCalibration, HandEyeInput, HandEyeSetup, PoseResidual,
+    RigCalibration, RotationSpread, StereoCalibration, ViewResidual, MIN_CALIBRATION_VIEWS, MIN_HAND_EYE_POSES,
 };
 pub use camera::{isometry_from_matrix, isometry_from_rows, isometry_to_rows, Camera};
 pub use depth::{
-    Background, Cloud, CloudBuilder, DisparityMatcher, Elas, PhaseDecoder, ReconstructTimings, Reconstruction,
-    Reconstructor, Rectification, RectifiedCamera,
+    fringe, fringe_set, one_shot, random_dots, Background, Cloud, CloudBuilder, DisparityMatcher, Elas, PhaseDecoder,
+    ReconstructTimings, Reconstruction, Reconstructor, Rectification, RectifiedCamera, PHASE_STEPS,
 };
 pub use error::{Error, ErrorKind, Result};
 pub use estimator_config::EstimatorConfig;
@@ -43,14 +47,19 @@ pub use features::{
     is_valid_normal, quantise, Correspondence, Descriptor, Downsampler, Ecsad, FeatureExtractor, FeatureMatcher,
     FeatureTimings, KeypointSelector, NormalEstimator, ECSAD_DIM, MIN_NORMAL_NEIGHBOURS, QUANTISATION_STEPS,
 };
-pub use method::Method;
+pub use method::{method_for, Method};
 pub use pipeline::{Estimator, PoseEstimate, StageTimings};
+pub use placement_rig::{camera_k, look_at, rig_for, rig_pose, sensor_rig};
 pub use pose::{
     correct_matches, pose_errors, Icp, IcpResult, Model, ModelOrigin, ModelVerification, ModelView, PoseErrors, Ransac,
     RansacResult, Verdict, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS, MODEL_FORMAT_VERSION, RESTING_HEIGHT_MM,
     RESTING_TILT_DEG,
 };
 pub use rig::Rig;
+pub use scoring::{
+    choose_threshold, clopper_pearson_upper, median, pct, precision_recall, score, wilson_interval, FrameRecord, Score,
+    Scored, Summary, Timings, VerifiedSummary,
+};
 // The image buffers are camplace-config's (image files hold them too); callers name them
 // there, the stages here as `crate::GrayImage`.
 use camplace_config::{FloatImage, GrayImage};

@@ -25,6 +25,15 @@ impl Method {
     }
 }
 
+/// The method a source of `shots` images per side was captured with.
+pub fn method_for(shots: usize) -> Method {
+    if shots == 1 {
+        Method::OneShot
+    } else {
+        Method::Phase12
+    }
+}
+
 impl fmt::Display for Method {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {

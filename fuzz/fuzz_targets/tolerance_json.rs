@@ -2,7 +2,7 @@
 //! measurement, never a panic; what is accepted written back reads back the same.
 #![no_main]
 
-use camplace_sim::ToleranceReport;
+use camplace_config::ToleranceReport;
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
     let Ok(report) = ToleranceReport::from_json(data) else { return };

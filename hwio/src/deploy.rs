@@ -22,9 +22,10 @@ use crate::cpu_time::process_cpu_time;
 use crate::frames::{FrameInfo, FrameSource, Frames};
 use crate::open::open_source;
 use crate::paced::Paced;
-use crate::recorded::{read_background, RecordedSource};
+use crate::recorded::RecordedSource;
 use crate::spec::SourceSpec;
 use crate::{Error, ErrorKind, Result};
+use camplace_config::read_background;
 
 /// Frame buffers between the capture and the estimator: one being filled, one being
 /// estimated, one waiting. More would only make a late estimator later.
@@ -94,8 +95,10 @@ impl DeploySource {
 
 /// The empty cell's images in `dir`, named as a frame's.
 fn read_given_background(dir: &Path, rig: &RigFile, shots: usize) -> Result<Frames> {
-    read_background(dir, rig, shots)
-        .map_err(|e| Error::new(e.kind(), format!("--background: expected {shots} images per side: {e}")))
+    read_background(dir, rig, shots).map_err(|e| {
+        let e = Error::from(e);
+        Error::new(e.kind(), format!("--background: expected {shots} images per side: {e}"))
+    })
 }
 
 /// One estimated frame as the loop hands it over.

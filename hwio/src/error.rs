@@ -22,6 +22,8 @@ pub enum ErrorKind {
     Display,
     /// The estimator refused a frame, or its thread ended unexpectedly.
     Estimate,
+    /// A flag's value is not what was expected.
+    Input,
 }
 
 /// A hardware I/O error with a one-line message.
@@ -49,6 +51,16 @@ impl Error {
     /// An I/O error about `path`, with the I/O error as its source.
     pub fn io(path: &Path, err: &std::io::Error) -> Self {
         camplace_config::Error::io(path, err).into()
+    }
+
+    /// A bad flag value or input: the message names the flag or file.
+    pub fn input(message: impl Into<String>) -> Self {
+        Self::new(ErrorKind::Input, message)
+    }
+
+    /// This error, said to belong to the file `path`: `path: message`.
+    pub fn in_file(self, path: &Path) -> Self {
+        Error { message: format!("{}: {}", path.display(), self.message), ..self }
     }
 
     /// A device error: `device: message`.
@@ -99,6 +111,12 @@ impl From<camplace_config::Error> for Error {
 }
 
 /// The hardware crate's result type.
+impl From<camplace_estimator::Error> for Error {
+    fn from(e: camplace_estimator::Error) -> Self {
+        Error::new(ErrorKind::Estimate, e.to_string())
+    }
+}
+
 pub type Result<T> = std::result::Result<T, Error>;
 
 #[cfg(test)]

@@ -1,8 +1,10 @@
 //! camplace's hardware side: frame sources (recorded dataset folders always; V4L2 and
 //! FireWire IIDC cameras behind the `v4l` and `dc1394` features), camera pixel formats,
-//! device listing, the projector window (behind `display`), and the deployed loop that
-//! estimates a tray pose per captured frame.
+//! device listing, the projector window (behind `display`), the deployed loop that
+//! estimates a tray pose per captured frame, and recorded datasets replayed through the
+//! estimator (poses scored against their truth) or reconstructed to depth and clouds.
 
+mod board_pairs;
 mod capture;
 mod cpu_time;
 #[cfg(feature = "dc1394")]
@@ -15,14 +17,19 @@ mod display;
 mod error;
 mod frames;
 mod in_step;
+mod latency_plot;
 mod open;
 mod paced;
 mod pixels;
+mod reconstruct;
 mod recorded;
+mod replay;
 mod spec;
 #[cfg(feature = "v4l")]
 mod v4l2;
 
+pub use board_pairs::{find_board_pairs, BoardPairs, MAX_CALIBRATION_VIEWS};
+pub use camplace_config::{append_frame, read_background, write_background, write_table_view};
 pub use capture::{Capture, Captured, WhenBehind};
 pub use deploy::{DeploySource, DeployStats, Deployment, Estimated, FrameTiming};
 pub use devices::{list_devices, DeviceList, FirewireDevice, UsbDevice, V4l2Device};
@@ -31,8 +38,13 @@ pub use display::{Projector, ProjectorThread};
 pub use error::{Error, ErrorKind, Result};
 pub use frames::{FrameInfo, FrameSource, Frames};
 pub use in_step::{capture_in_step, InStepSource, PatternScreen};
+pub use latency_plot::write_latency_plot;
 pub use open::open_source;
 pub use paced::Paced;
 pub use pixels::{deinterleave16, luma601, split_side_by_side, to_gray, InterleavedOrder, PixelFormat};
-pub use recorded::{append_frame, read_background, write_background, write_table_view, RecordedSource};
+pub use reconstruct::{
+    match_rectified, reconstruct_dataset, reconstruct_pair, DatasetDepth, PairDepth, RectifiedDepth, RectifiedPair,
+};
+pub use recorded::RecordedSource;
+pub use replay::{estimate_dataset, estimator_for, record as frame_record};
 pub use spec::{parse_source, SourceSpec, SOURCE_FORMS};

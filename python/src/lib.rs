@@ -7,10 +7,10 @@
 use std::path::{Path, PathBuf};
 
 use camplace_config::{Cell, ImageView, Placement, RigFile};
-use camplace_estimator::{Estimator as Pipeline, EstimatorConfig, Method, Model, PoseEstimate, Rig, StageTimings};
-use camplace_sim::{
-    acceptance_summary, background_scene, draw_scenario, noise_key, sensor_rig, Frame, Scenario, Simulator,
+use camplace_estimator::{
+    sensor_rig, Estimator as Pipeline, EstimatorConfig, Method, Model, PoseEstimate, Rig, StageTimings,
 };
+use camplace_sim::{acceptance_summary, background_scene, draw_scenario, noise_key, Frame, Scenario, Simulator};
 use nalgebra::Isometry3;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyReadonlyArray2};

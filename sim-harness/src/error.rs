@@ -1,6 +1,6 @@
 //! The simulator's error type: bad cell content found while building a scene, the
-//! estimator's and a recorded dataset's errors, and the errors of the files it reads and
-//! writes.
+//! estimator's errors, and the errors of the files it reads and writes (a recorded
+//! dataset's among them).
 
 use std::fmt;
 
@@ -12,8 +12,6 @@ pub enum Error {
     Config(camplace_config::Error),
     /// The estimator refused its inputs.
     Estimator(camplace_estimator::Error),
-    /// A recorded dataset could not be read.
-    Recording(camplace_hwio::Error),
     /// An error that belongs to one input file, named before it.
     In(std::path::PathBuf, Box<Error>),
     /// The sensor at a placement sees too little of the tray to build a model from.
@@ -27,7 +25,6 @@ impl fmt::Display for Error {
         match self {
             Error::Config(e) => e.fmt(f),
             Error::Estimator(e) => e.fmt(f),
-            Error::Recording(e) => e.fmt(f),
             Error::In(path, e) => write!(f, "{}: {e}", path.display()),
             Error::TrayNotSeen(s) | Error::Other(s) => f.write_str(s),
         }
@@ -39,7 +36,6 @@ impl std::error::Error for Error {
         match self {
             Error::Config(e) => Some(e),
             Error::Estimator(e) => Some(e),
-            Error::Recording(e) => Some(e),
             Error::In(_, e) => Some(e.as_ref()),
             Error::TrayNotSeen(_) | Error::Other(_) => None,
         }
@@ -55,12 +51,6 @@ impl From<camplace_config::Error> for Error {
 impl From<camplace_estimator::Error> for Error {
     fn from(e: camplace_estimator::Error) -> Self {
         Error::Estimator(e)
-    }
-}
-
-impl From<camplace_hwio::Error> for Error {
-    fn from(e: camplace_hwio::Error) -> Self {
-        Error::Recording(e)
     }
 }
 

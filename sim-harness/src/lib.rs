@@ -13,7 +13,6 @@ mod error;
 mod fit;
 mod model_builder;
 mod progress;
-mod reconstruction;
 mod render;
 mod report;
 mod scene;
@@ -27,23 +26,15 @@ pub use error::{Error, Result};
 pub use fit::{fit_sensor, write_fit, AmbientFit, KeyFit, SensorFit, FIT_FRAGMENT, FIT_HTML, FIT_JSON, MAX_FIT_FRAMES};
 pub use model_builder::{build_model, model_origin, model_points};
 pub use progress::{set_progress, ProgressCallback, ProgressEvent};
-pub use reconstruction::{
-    match_rectified, reconstruct_dataset, reconstruct_pair, DatasetDepth, PairDepth, RectifiedDepth, RectifiedPair,
-};
-pub use render::pattern::{fringe_set, one_shot};
 pub use render::render_files::{clear_dataset, render_dataset, render_scene};
 pub use render::{
-    render_board_views, render_hand_eye_views, setup_name, simulated_robot_base, table_board_pose, BoardTruth, Frame,
-    HandEyeOptions, HandEyePoses, HandEyeTruth, Method, Simulator, HAND_EYE_TRUTH_FILE, ROBOT_POSES_FILE,
+    render_board_views, render_hand_eye_views, simulated_robot_base, BoardTruth, Frame, HandEyeOptions, HandEyePoses,
+    HandEyeTruth, Method, Simulator, HAND_EYE_TRUTH_FILE, ROBOT_POSES_FILE,
 };
-pub use report::latency::write_latency_plot;
-pub use report::plot::SavedPlot;
 pub use report::recommended::Recommended;
 pub use report::study_report::write_report;
 pub use report::sweep_panels::SweepResult;
 pub use report::tolerance_plot::write_tolerance_plots;
-pub use scene::as_built::{as_built, azimuth_difference, AsBuilt};
-pub use scene::placement_rig::{rig_for, sensor_rig};
 pub use scene::scenario::{background_scene, draw_scenario, Scenario};
 pub use scene::SceneSpec;
 pub use search::test_functions::{run_test_function, test_function};
@@ -51,30 +42,24 @@ pub use seeds::noise_key;
 pub use study::ablation::{ablate, ablation_markdown, AblationRow};
 pub use study::findings::{drop_detection_power, scenes_for_power};
 pub use study::folder::open_folder;
-pub use study::grid::{Axis, Grid};
 pub use study::lock::{lock_folder, FolderLock, LOCK_FILE};
 pub use study::merge::merge;
 pub use study::one_placement::{acceptance_summary, evaluate_placement, measure_verification};
 pub use study::optimize::{SearchParameter, SearchPlan};
 pub use study::placement_search::optimize;
 pub use study::placement_study::{run_study, tolerance_dir, Preset, StudyOutcome, StudyRequest};
-pub use study::recording::{
-    estimate_dataset, estimator_for, method_for, record as frame_record, truth_path, DATASET_SUMMARY,
-};
 pub use study::shard::Shard;
 pub use study::sweep::sweep;
 pub use study::tolerance::{
-    measure_tolerance, AxisTolerance, ToleranceCorner, ToleranceParameter, TolerancePoint, ToleranceReport,
-    ToleranceRequest, WalkEnd, TOLERANCE_LEVEL, TOLERANCE_PARAMETERS, TOLERANCE_POWER,
+    measure_tolerance, ToleranceParameter, ToleranceRequest, TOLERANCE_LEVEL, TOLERANCE_PARAMETERS, TOLERANCE_POWER,
 };
-pub use study::verified::{clopper_pearson_upper, precision_recall, Scored, VerifiedSummary};
-pub use study::{median, score, Evaluator, FrameRecord, Score, Summary};
+pub use study::Evaluator;
 pub use trial::judge::{
     append_label, frame_names, read_labels, read_poses, JudgedDataset, Judgement, Label, Mark, LABELS_FILE,
 };
-pub use trial::layout::{check_placement_rig, placement_dir, placement_folder_name};
+pub use trial::layout::check_placement_rig;
 pub use trial::mock::{hidden_truth_path, make_mock_trial, scripted_marks};
-pub use trial::plan::{parse_placement, PlannedPlacement, TrialPlan, PLAN_CSV, PLAN_FILE};
+pub use trial::plan::make_plan;
 pub use trial::rank::{spearman, RankCorrelation};
 pub use trial::report::{
     rho_text, study_grid, sweep_folder, trial_report, PlacementRow, TrialReport, REPORT_HTML, REPORT_JSON,

@@ -1,20 +1,17 @@
 //! `camplace calibrate`: the installed rig's `rig.json` from stereo pairs of a chessboard —
 //! each camera's K and distortion and the pose between them from every view, the world frame
-//! from the view of the board lying flat on the table. Reads the folder `capture` writes
-//! (`frames/NNNN/left.png` + `right.png`, and `table/`); `render --board` writes the same.
+//! from the view of the board lying flat on the table. hwio reads the folder `capture` writes
+//! (`frames/NNNN/left.png` + `right.png`, and `table/`; `render --board` writes the same) and
+//! finds the corners, the estimator calibrates; this prints.
 //! With `--hand-eye`, then where the rig sits in the robot's frame (`hand_eye.rs`).
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context};
-use camplace_config::GrayImage;
-use camplace_estimator::{
-    calibrate_stereo, find_board_corners, BoardView, CalibrationBoard, HandEyeSetup, Rig, StereoCalibration,
-    MIN_CALIBRATION_VIEWS,
-};
+use camplace_estimator::{CalibrationBoard, HandEyeSetup, Rig, RigCalibration, StereoCalibration};
+use camplace_hwio::find_board_pairs;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use rayon::prelude::*;
 
 /// Flags of `camplace calibrate`.
 #[derive(clap::Args, Debug)]
@@ -94,25 +91,12 @@ fn parse_board_in_world(text: &str) -> anyhow::Result<Isometry3<f64>> {
     ))
 }
 
-/// The most board views `calibrate` takes: the joint refinement's time grows with the
-/// square of the view count.
-pub const MAX_CALIBRATION_VIEWS: usize = 100;
-
-/// One stereo pair of the board: where it came from, its images' sizes and the corners
-/// found in each image (or why the whole board was not found there).
-struct FoundPair {
-    name: String,
-    folder: PathBuf,
-    sizes: [(usize, usize); 2],
-    corners: [Result<Vec<nalgebra::Point2<f64>>, String>; 2],
-}
-
 /// Runs `camplace calibrate`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let board = parse_board(&a.board)?;
     let t_world_table_board = match &a.board_in_world {
         Some(text) => parse_board_in_world(text)?,
-        None => camplace_sim::table_board_pose(&board),
+        None => camplace_estimator::table_board_pose(&board),
     };
     if !a.hand_eye {
         let out = a.out.clone().unwrap_or_else(|| PathBuf::from("rig.json"));
@@ -157,88 +141,16 @@ fn calibrate_rig(
     t_world_table_board: &Isometry3<f64>,
     out: &Path,
 ) -> anyhow::Result<Rig> {
-    let board = *board;
-    let mut folders =
-        camplace_config::frame_folders(&a.images).context("cannot list the board views (frames/NNNN/)")?;
-    let table = a.images.join("table");
-    if !table.is_dir() {
-        bail!(
-            "{}: missing: the world frame comes from one pair of the board lying flat on the table (camplace capture --table)",
-            table.display()
-        );
-    }
-    if folders.len() > MAX_CALIBRATION_VIEWS {
-        bail!(
-            "{}: {} board views, expected at most {MAX_CALIBRATION_VIEWS} (the joint refinement's time grows with the square of the view count; 20 to 40 views spread over the image calibrate well)",
-            a.images.join("frames").display(),
-            folders.len()
-        );
-    }
-    folders.push(table.clone());
-    // One view at a time: its images are read, searched for the board's corners and dropped,
-    // so only the corners of every view are held (and a worker's pair at a time).
-    let found: Vec<FoundPair> =
-        folders.par_iter().map(|f| find_pair(&a.images, f, &board)).collect::<anyhow::Result<_>>()?;
-    let (width, height) = found[0].sizes[0];
-    for p in &found {
-        for (side, size) in ["left", "right"].iter().zip(p.sizes) {
-            if size != (width, height) {
-                bail!(
-                    "{}: {}x{} pixels, expected {width}x{height} as {}",
-                    p.folder.join(format!("{side}.png")).display(),
-                    size.0,
-                    size.1,
-                    found[0].folder.join("left.png").display()
-                );
-            }
-        }
-    }
-    let table_name = found.last().map(|p| p.name.clone()).unwrap_or_default();
-    let mut views = Vec::new();
-    let mut names = Vec::new();
-    let mut not_in_view = Vec::new();
-    for p in found {
-        let [left, right] = p.corners;
-        // A board wholly in one image only still calibrates that camera (the cameras share
-        // only the middle of their views, and the distortion is largest outside it).
-        for side in [&left, &right] {
-            if let Err(e) = side {
-                not_in_view.push(format!("not in view: {e}"));
-            }
-        }
-        if left.is_err() && right.is_err() {
-            if p.name == table_name {
-                bail!("{}: the table view must show the whole board", p.name);
-            }
-            continue;
-        }
-        views.push(BoardView { left: left.ok(), right: right.ok() });
-        names.push(p.name);
-    }
-    if views.len() < MIN_CALIBRATION_VIEWS {
-        bail!(
-            "{}: the whole board was found in {} pairs (with the table view), expected at least {MIN_CALIBRATION_VIEWS}",
-            a.images.display(),
-            views.len()
-        );
-    }
-    let started = std::time::Instant::now();
-    let cal = calibrate_stereo(&board, &views, width, height).with_context(|| a.images.display().to_string())?;
-    let seconds = started.elapsed().as_secs_f64();
-    let table_index = names.len() - 1;
-    if cal.views[table_index].dropped {
-        bail!("{table_name}: the table view's corners do not fit the calibration; capture it again");
-    }
-    // Kept views keep their order, so the table view, last of all, is the last pose.
-    let t_left_table_board = *cal.t_left_board.last().context("no board pose")?;
-    let t_world_left = t_world_table_board * t_left_table_board.inverse();
-    let rig = world_rig(&cal, &t_world_left);
+    let found = find_board_pairs(&a.images, board)?;
+    let RigCalibration { rig, stereo: cal, names, not_in_view, seconds } =
+        camplace_estimator::calibrate_rig(found.pairs, board, found.width, found.height, t_world_table_board)
+            .with_context(|| a.images.display().to_string())?;
     let file = rig.to_file();
     file.check().map_err(|e| anyhow::anyhow!("the calibrated rig: {e}"))?;
     file.save(out)?;
     // Printed once rig.json is written: a reader that stops early loses nothing.
     for line in &not_in_view {
-        outln!("{line}");
+        outln!("not in view: {line}");
     }
     print_views(&cal, &names);
     let b = rig.baseline();
@@ -274,26 +186,6 @@ fn calibrate_rig(
     Ok(rig)
 }
 
-/// The pair in `folder` (`left.png` + `right.png`), named relative to `root`: both images
-/// read and searched for the board, then dropped.
-fn find_pair(root: &Path, folder: &Path, board: &CalibrationBoard) -> anyhow::Result<FoundPair> {
-    let name = folder.strip_prefix(root).unwrap_or(folder).display().to_string();
-    let mut sizes = [(0, 0); 2];
-    let mut corners = Vec::with_capacity(2);
-    for (i, side) in ["left", "right"].into_iter().enumerate() {
-        let path = folder.join(format!("{side}.png"));
-        let g = camplace_config::read_gray(&path)?;
-        sizes[i] = (g.width, g.height);
-        let mut image = GrayImage::default();
-        image.reset(g.width, g.height, 0);
-        image.data = g.data;
-        corners.push(find_board_corners(&image, board).map_err(|e| format!("{name}/{side}.png: {e}")));
-    }
-    let right = corners.pop().expect("two sides");
-    let left = corners.pop().expect("two sides");
-    Ok(FoundPair { name, folder: folder.to_path_buf(), sizes, corners: [left, right] })
-}
-
 /// Each view's reprojection error, the dropped ones marked.
 fn print_views(cal: &StereoCalibration, names: &[String]) {
     outln!("{:<14} {:>9} {:>9}", "view", "left px", "right px");
@@ -302,13 +194,4 @@ fn print_views(cal: &StereoCalibration, names: &[String]) {
         let mark = if v.dropped { "  dropped: its error stands out" } else { "" };
         outln!("{:<14} {:>9} {:>9}{mark}", names[v.index], px(v.rms_left_px), px(v.rms_right_px));
     }
-}
-
-/// The calibrated cameras placed in the world by the left camera's pose.
-fn world_rig(cal: &StereoCalibration, t_world_left: &Isometry3<f64>) -> Rig {
-    let mut left = cal.left.clone();
-    left.t_world_camera = *t_world_left;
-    let mut right = cal.right.clone();
-    right.t_world_camera = t_world_left * cal.right.t_world_camera;
-    Rig { left, right, projector: None }
 }

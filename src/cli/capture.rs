@@ -9,8 +9,8 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use anyhow::bail;
+use camplace_config::{placement_dir, TrialPlan, PLAN_FILE};
 use camplace_hwio::{append_frame, open_source, parse_source, write_background, write_table_view, Frames, SourceSpec};
-use camplace_sim::{placement_dir, TrialPlan, PLAN_FILE};
 
 /// The most frames one run may capture.
 const MAX_COUNT: u64 = 1_000_000;

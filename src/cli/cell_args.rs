@@ -2,9 +2,11 @@
 //! for the commands that judge one sensor, the rig as installed.
 
 use anyhow::Context;
-use camplace_config::{Cell, Placement, RigFile, Vergence};
-use camplace_estimator::Rig;
-use camplace_sim::as_built;
+use camplace_config::{Cell, Placement};
+#[cfg(feature = "sim")]
+use camplace_config::{RigFile, Vergence};
+#[cfg(feature = "sim")]
+use camplace_estimator::{as_built, Rig};
 use std::path::PathBuf;
 
 /// `--cell FILE` and `--placement r=..,alpha=..,baseline=..,vergence=..`.
@@ -32,6 +34,7 @@ impl CellArgs {
 
     /// Every tray the cell serves as a cell of its own with its name (only `--tray`'s when
     /// given), and the placement: for the commands that judge a placement over all trays.
+    #[cfg(feature = "sim")]
     pub fn load_trays(&self) -> anyhow::Result<(Vec<(String, Cell)>, Placement)> {
         let cell = self.read()?;
         let trays = match &self.tray {
@@ -65,6 +68,7 @@ impl CellArgs {
 }
 
 /// `--rig FILE`, for the commands that judge one sensor: simulate the rig as installed.
+#[cfg(feature = "sim")]
 #[derive(clap::Args, Debug, Clone)]
 pub struct InstalledRigArg {
     /// The rig as installed (a calibrated rig.json): scenes are rendered by its cameras, with
@@ -74,6 +78,7 @@ pub struct InstalledRigArg {
     pub rig: Option<PathBuf>,
 }
 
+#[cfg(feature = "sim")]
 impl InstalledRigArg {
     /// Sets the cell's installed rig from `--rig` and the placement to where it is mounted.
     pub fn apply(&self, cell: &mut Cell, placement: &mut Placement) -> anyhow::Result<()> {
@@ -98,6 +103,7 @@ impl InstalledRigArg {
 
 /// A cell with an installed rig (`[rig]`) fixes the cameras, so a command that varies the
 /// placement cannot use it.
+#[cfg(feature = "sim")]
 pub fn refuse_installed_rig(cell: &Cell, command: &str) -> anyhow::Result<()> {
     if cell.rig.is_some() {
         anyhow::bail!(

@@ -179,7 +179,7 @@ pub fn run(a: HandEyeArgs<'_>, board: &CalibrationBoard) -> anyhow::Result<ExitC
     camplace_config::write_atomic(a.out, text.as_bytes())?;
     outln!(
         "{} from {kept} poses in {seconds:.3} s: reprojection RMS {:.3} px; wrote {}",
-        camplace_sim::setup_name(a.setup),
+        a.setup.name(),
         cal.rms_px,
         a.out.display()
     );
@@ -247,7 +247,7 @@ fn robot_table(
     let mut text = format!(
         "# camplace calibrate --hand-eye ({}): {kept} poses ({format}), reprojection RMS {:.3} px, expected error \
          ±{:.3} mm ±{:.4}° (1 σ);\n# the world frame is {}'s\n[robot]\nT_robot_world = {}\n",
-        camplace_sim::setup_name(cal.setup),
+        cal.setup.name(),
         cal.rms_px,
         cal.expected.rig_translation_mm,
         cal.expected.rig_rotation_deg,

@@ -1,9 +1,13 @@
-//! The subcommands and their flags; one module per subcommand.
+//! The subcommands and their flags; one module per subcommand. The simulation's commands
+//! (and the modules only they use) are built with the `sim` feature, on by default; a deploy
+//! build without it has the cell PC's commands alone.
 
 #[macro_use]
 pub mod output;
 
+#[cfg(feature = "sim")]
 mod ablate;
+#[cfg(feature = "sim")]
 mod accept;
 mod calibrate;
 mod capture;
@@ -11,26 +15,40 @@ mod cell_args;
 mod deploy_args;
 mod devices;
 mod estimate;
+#[cfg(feature = "sim")]
 mod evaluate;
+#[cfg(feature = "sim")]
 mod fit_sensor;
 mod hand_eye;
 mod init;
+#[cfg(feature = "sim")]
 mod merge;
+#[cfg(feature = "sim")]
 mod model;
+#[cfg(feature = "sim")]
 mod optimize;
+#[cfg(feature = "sim")]
 mod placement;
+#[cfg(feature = "sim")]
 mod progress;
 mod project;
 mod reconstruct;
+#[cfg(feature = "sim")]
 mod render;
 mod replay;
+#[cfg(feature = "sim")]
 mod review;
 mod run;
 mod serve;
+#[cfg(feature = "sim")]
 mod study;
+#[cfg(feature = "sim")]
 mod study_args;
+#[cfg(feature = "sim")]
 mod sweep;
+#[cfg(feature = "sim")]
 mod tolerance;
+#[cfg(feature = "sim")]
 mod trial;
 
 use clap::{Parser, Subcommand};
@@ -50,30 +68,41 @@ enum Command {
     /// Write the default cell file, with a comment on every key.
     Init(init::Args),
     /// Render a simulated scene (or a dataset of scenes) with its ground truth.
+    #[cfg(feature = "sim")]
     Render(render::Args),
     /// Depth and point clouds from stereo frames (a dataset, one pair, or a rectified pair).
     Reconstruct(reconstruct::Args),
     /// Build the tray model at a placement in simulation.
+    #[cfg(feature = "sim")]
     Model(model::Args),
     /// Estimate the tray's pose in a recorded dataset or one point cloud.
     Estimate(estimate::Args),
     /// The placement study: both trays x both methods, sweep then search, and report.html.
+    #[cfg(feature = "sim")]
     Study(study::Args),
     /// One placement over N scenarios into a study folder (resumable, shardable).
+    #[cfg(feature = "sim")]
     Evaluate(evaluate::Args),
     /// What each effect of the simulation costs: success with each switched off in turn.
+    #[cfg(feature = "sim")]
     Ablate(ablate::Args),
     /// A grid over two placement parameters with heat maps (resumable, shardable).
+    #[cfg(feature = "sim")]
     Sweep(sweep::Args),
     /// RBF surrogate search over placement parameters, or over a standard test function.
+    #[cfg(feature = "sim")]
     Optimize(optimize::Args),
     /// How far each placement parameter may be off before success drops by a margin.
+    #[cfg(feature = "sim")]
     Tolerance(tolerance::Args),
     /// The placement a rig is really mounted at (from rig.json), against the plan and its tolerances.
+    #[cfg(feature = "sim")]
     Placement(placement::Args),
     /// Acceptance test of a placement: exit 0 when the success rate's lower bound reaches the minimum, else 1.
+    #[cfg(feature = "sim")]
     Accept(accept::Args),
     /// Join the folders of shards into one and compute the summaries again.
+    #[cfg(feature = "sim")]
     Merge(merge::Args),
     /// Estimate every frame of a recorded dataset; with truth, the evaluation's summary.
     Replay(replay::Args),
@@ -90,10 +119,13 @@ enum Command {
     /// Show the projector's pattern full screen (and capture each one in step).
     Project(project::Args),
     /// The real-world trial: plan, mock trial, estimate, scripted marks, report against the study.
+    #[cfg(feature = "sim")]
     Trial(trial::Args),
     /// The review page of a dataset without truth: mark each pose correct, wrong or unsure.
+    #[cfg(feature = "sim")]
     Review(review::Args),
     /// Fit the cell's sensor keys (noise, blur, projector gain and dots, ambient) to a real dataset.
+    #[cfg(feature = "sim")]
     FitSensor(fit_sensor::Args),
 }
 
@@ -111,21 +143,33 @@ pub fn dispatch() -> anyhow::Result<ExitCode> {
         // A bad flag: one line, exit code 2 like every other bad input.
         Err(e) => anyhow::bail!("{}", one_line(&e.to_string())),
     };
+    #[cfg(feature = "sim")]
     progress::install();
     match cli.command {
         Command::Init(a) => init::run(a),
+        #[cfg(feature = "sim")]
         Command::Render(a) => render::run(a),
         Command::Reconstruct(a) => reconstruct::run(a),
+        #[cfg(feature = "sim")]
         Command::Model(a) => model::run(a),
         Command::Estimate(a) => estimate::run(a),
+        #[cfg(feature = "sim")]
         Command::Study(a) => study::run(a),
+        #[cfg(feature = "sim")]
         Command::Evaluate(a) => evaluate::run(a),
+        #[cfg(feature = "sim")]
         Command::Ablate(a) => ablate::run(a),
+        #[cfg(feature = "sim")]
         Command::Sweep(a) => sweep::run(a),
+        #[cfg(feature = "sim")]
         Command::Optimize(a) => optimize::run(a),
+        #[cfg(feature = "sim")]
         Command::Tolerance(a) => tolerance::run(a),
+        #[cfg(feature = "sim")]
         Command::Placement(a) => placement::run(a),
+        #[cfg(feature = "sim")]
         Command::Accept(a) => accept::run(a),
+        #[cfg(feature = "sim")]
         Command::Merge(a) => merge::run(a),
         Command::Replay(a) => replay::run(a),
         Command::Run(a) => run::run(a),
@@ -134,8 +178,11 @@ pub fn dispatch() -> anyhow::Result<ExitCode> {
         Command::Capture(a) => capture::run(a),
         Command::Devices(a) => devices::run(a),
         Command::Project(a) => project::run(a),
+        #[cfg(feature = "sim")]
         Command::Trial(a) => trial::run(a),
+        #[cfg(feature = "sim")]
         Command::Review(a) => review::run(a),
+        #[cfg(feature = "sim")]
         Command::FitSensor(a) => fit_sensor::run(a),
     }
 }
@@ -164,10 +211,10 @@ mod tests {
 
     #[test]
     fn clap_errors_become_one_line_naming_the_flag() {
-        let e = Cli::try_parse_from(["camplace", "evaluate"]).unwrap_err();
+        let e = Cli::try_parse_from(["camplace", "capture", "--source", "dir:x"]).unwrap_err();
         let line = one_line(&e.to_string());
         assert!(!line.contains('\n') && line.contains("--out"), "{line}");
-        let e = Cli::try_parse_from(["camplace", "render", "--bogus"]).unwrap_err();
+        let e = Cli::try_parse_from(["camplace", "replay", "--bogus"]).unwrap_err();
         let line = one_line(&e.to_string());
         assert!(line.contains("--bogus") && !line.contains("Usage"), "{line}");
     }

@@ -3,7 +3,8 @@
 
 use anyhow::Context;
 use camplace_config::write_atomic;
-use camplace_sim::{build_model, measure_verification, model_points, VerifiedSummary};
+use camplace_estimator::VerifiedSummary;
+use camplace_sim::{build_model, measure_verification, model_points};
 use std::path::PathBuf;
 use std::process::ExitCode;
 

@@ -7,9 +7,10 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context};
-use camplace_config::{Placement, RigFile};
+use camplace_config::{Placement, RigFile, ToleranceReport};
 use camplace_estimator::Rig;
-use camplace_sim::{as_built, azimuth_difference, tolerance_dir, ToleranceReport};
+use camplace_estimator::{as_built, azimuth_difference};
+use camplace_sim::tolerance_dir;
 
 use super::cell_args::CellArgs;
 use super::study_args::recommended;

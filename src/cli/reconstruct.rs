@@ -2,7 +2,8 @@
 //! dataset, one raw pair with its `rig.json`, or one already rectified pair.
 
 use anyhow::{bail, Context};
-use camplace_sim::{match_rectified, reconstruct_dataset, reconstruct_pair, Method, RectifiedPair};
+use camplace_estimator::Method;
+use camplace_hwio::{match_rectified, reconstruct_dataset, reconstruct_pair, RectifiedPair};
 use std::path::PathBuf;
 use std::process::ExitCode;
 

@@ -124,7 +124,7 @@ fn render_hand_eye(
 ) -> anyhow::Result<ExitCode> {
     use camplace_config::{LengthUnit, PoseConvention, RobotPoseFormat};
     use camplace_estimator::HandEyeSetup;
-    use camplace_sim::{render_hand_eye_views, setup_name, HandEyeOptions, HandEyePoses};
+    use camplace_sim::{render_hand_eye_views, HandEyeOptions, HandEyePoses};
     if !(a.robot_noise_mm.is_finite() && (0.0..=10.0).contains(&a.robot_noise_mm)) {
         anyhow::bail!("--robot-noise-mm {}: expected a robot error from 0 to 10 mm", a.robot_noise_mm);
     }
@@ -150,7 +150,7 @@ fn render_hand_eye(
         "rendered {} robot poses ({}) of a {text} board at {placement} (seed {seed}), robot error {} mm / {}°, poses \
          as {format}, into {}",
         truth.t_robot_flange.len(),
-        setup_name(setup),
+        setup.name(),
         a.robot_noise_mm,
         a.robot_noise_deg,
         a.out.display()

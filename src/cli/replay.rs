@@ -5,9 +5,10 @@
 
 use anyhow::Context;
 use camplace_config::write_atomic;
-use camplace_config::Cell;
+use camplace_config::{Cell, DATASET_SUMMARY};
+use camplace_estimator::Summary;
 use camplace_estimator::{Model, Verifier};
-use camplace_sim::{estimate_dataset, Summary, DATASET_SUMMARY};
+use camplace_hwio::estimate_dataset;
 use std::path::PathBuf;
 use std::process::ExitCode;
 

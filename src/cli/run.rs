@@ -6,11 +6,10 @@
 //! see.
 
 use anyhow::{bail, Context};
+use camplace_config::truth_path;
+use camplace_estimator::{method_for, FrameRecord, Method, Summary};
 use camplace_estimator::{Model, Rig};
-use camplace_hwio::{parse_source, DeploySource, Deployment};
-use camplace_sim::{
-    estimator_for, frame_record, method_for, truth_path, write_latency_plot, FrameRecord, Method, Summary,
-};
+use camplace_hwio::{estimator_for, frame_record, parse_source, write_latency_plot, DeploySource, Deployment};
 use serde::Serialize;
 use std::io::Write;
 use std::path::{Path, PathBuf};

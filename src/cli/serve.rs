@@ -10,14 +10,14 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{bail, Context};
-use camplace_config::{Cell, LengthUnit, PoseConvention, RobotPoseFormat};
+use camplace_config::{Cell, LengthUnit, PoseConvention, RobotPoseFormat, ToleranceReport};
+use camplace_estimator::{method_for, Method};
 use camplace_estimator::{Model, Rig};
 use camplace_hwio::{
-    open_source, parse_source, read_background, DeploySource, FrameSource, InStepSource, PatternScreen, RecordedSource,
-    SourceSpec,
+    estimator_for, open_source, parse_source, read_background, DeploySource, FrameSource, InStepSource, PatternScreen,
+    RecordedSource, SourceSpec,
 };
 use camplace_serve::{ConnectionLimits, DriftLimits, RecorderSettings, Service, Settings, Status};
-use camplace_sim::{estimator_for, method_for, Method, ToleranceReport};
 
 use super::deploy_args::DeployArgs;
 

@@ -4,7 +4,8 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use camplace_sim::{sweep, Axis, Grid, Shard, SweepResult};
+use camplace_config::{Axis, Grid};
+use camplace_sim::{sweep, Shard, SweepResult};
 
 use super::cell_args::{refuse_installed_rig, CellArgs};
 use super::study_args::{check_scenarios, StudyArgs};

@@ -8,11 +8,12 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Context};
-use camplace_config::Cell;
+use camplace_config::{placement_dir, Axis, Cell, Grid, TrialPlan, PLAN_FILE};
 use camplace_estimator::{Method, Model};
+use camplace_hwio::estimate_dataset;
 use camplace_sim::{
-    append_label, check_placement_rig, estimate_dataset, frame_names, make_mock_trial, placement_dir, rho_text,
-    scripted_marks, study_grid, trial_report, Axis, Grid, TrialPlan, LABELS_FILE, PLAN_FILE, REPORT_HTML, REPORT_JSON,
+    append_label, check_placement_rig, frame_names, make_mock_trial, make_plan, rho_text, scripted_marks, study_grid,
+    trial_report, LABELS_FILE, REPORT_HTML, REPORT_JSON,
 };
 
 use super::cell_args::CellArgs;
@@ -183,7 +184,7 @@ fn plan(a: PlanArgs) -> anyhow::Result<ExitCode> {
         let ps = grid.placements(&base).context("--x/--y")?;
         (Some(grid), ps)
     };
-    let plan = TrialPlan::new(&cell, grid, &placements).context("--placements")?;
+    let plan = make_plan(&cell, grid, &placements).context("--placements")?;
     let csv = plan.save(&a.out)?;
     let flange = if plan.placements[0].t_robot_flange.is_some() { ", with the flange pose of each" } else { "" };
     outln!("{} placements to visit{flange}; wrote {} and {}", plan.placements.len(), a.out.display(), csv.display());

@@ -34,6 +34,9 @@ pub fn image_name(side: &str, shot: usize, shots: usize) -> String {
     }
 }
 
+/// The summary of a dataset's poses (`replay`), beside `poses.jsonl`.
+pub const DATASET_SUMMARY: &str = "summary.json";
+
 /// Files camplace writes at the top of a dataset besides `background/` and `frames/`: the
 /// calibration, and the poses and summary of `estimate --dataset` and `replay`.
 pub const DATASET_FILES: [&str; 3] = ["rig.json", "poses.jsonl", "summary.json"];

@@ -7,9 +7,13 @@ mod atomic;
 #[cfg(test)]
 mod corruption_tests;
 pub(crate) mod dataset;
+pub(crate) mod dataset_read;
+pub(crate) mod dataset_write;
+pub(crate) mod frames;
 pub(crate) mod json;
 pub(crate) mod mesh;
 pub(crate) mod pfm;
+pub(crate) mod plot;
 pub(crate) mod ply;
 pub(crate) mod png;
 pub(crate) mod read;

@@ -2,7 +2,7 @@
 //! view's detected corners in each camera that saw the board, and the checks that make them
 //! usable. Finding the corners in images is not done here.
 
-use nalgebra::{Point2, Point3};
+use nalgebra::{Isometry3, Point2, Point3};
 
 use crate::error::{Error, ErrorKind, Result};
 
@@ -38,6 +38,11 @@ impl CalibrationBoard {
             .collect()
     }
 
+    /// The span of the inner corners along the board's x and y axes, mm.
+    pub fn extent_mm(&self) -> (f64, f64) {
+        ((self.cols - 1) as f64 * self.square_mm, (self.rows - 1) as f64 * self.square_mm)
+    }
+
     fn check(&self) -> Result<()> {
         if self.cols < 2 || self.rows < 2 {
             return Err(Error::new(
@@ -53,6 +58,13 @@ impl CalibrationBoard {
         }
         Ok(())
     }
+}
+
+/// Where the board lies for the table view: flat on the table (z up), its axes along the
+/// world's, its centre on the world origin.
+pub fn table_board_pose(board: &CalibrationBoard) -> Isometry3<f64> {
+    let (w, h) = board.extent_mm();
+    Isometry3::translation(-w / 2.0, -h / 2.0, 0.0)
 }
 
 /// The detected corners of one view of the board, pixels, in the board's index order

@@ -664,3 +664,58 @@ fn central_difference_jacobian_matches_a_finer_step() {
         }
     }
 }
+
+/// The pairs of `views` named as a board folder names them, the last one the table view.
+fn found_pairs(views: &[BoardView]) -> Vec<FoundBoardPair> {
+    let n = views.len();
+    views
+        .iter()
+        .enumerate()
+        .map(|(i, v)| FoundBoardPair {
+            name: if i + 1 == n { "table".to_string() } else { format!("frames/{i:04}") },
+            left: v.left.clone().ok_or_else(|| format!("pair {i}: no board in the left image")),
+            right: v.right.clone().ok_or_else(|| format!("pair {i}: no board in the right image")),
+        })
+        .collect()
+}
+
+#[test]
+fn the_rig_is_placed_in_the_world_by_its_table_view() {
+    // Without detection noise the cameras come out where they are.
+    let (left, right, poses, views) = scene(0.0);
+    // The last view's board lies on the table: its first corner at (-100, -62.5, 0), turned 30°.
+    let t_world_table_board = Isometry3::from_parts(
+        Translation3::new(-100.0, -62.5, 0.0),
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 30f64.to_radians()),
+    );
+    let t_world_left = t_world_table_board * poses.last().unwrap().inverse();
+    let cal = calibrate_rig(found_pairs(&views), &board(), WIDTH, HEIGHT, &t_world_table_board).unwrap();
+    assert_eq!(cal.names.len(), views.len());
+    assert_eq!(cal.names.last().map(String::as_str), Some("table"));
+    assert!(cal.not_in_view.is_empty() && cal.rig.projector.is_none());
+    for (got, want) in [(&cal.rig.left, t_world_left), (&cal.rig.right, t_world_left * right.t_world_camera)] {
+        let off_mm = (got.t_world_camera.translation.vector - want.translation.vector).norm();
+        let off_deg = got.t_world_camera.rotation.angle_to(&want.rotation).to_degrees();
+        assert!(off_mm < 1e-4 && off_deg < 1e-5, "{off_mm} mm, {off_deg} deg");
+    }
+    assert!((cal.rig.left.k[(0, 0)] / left.k[(0, 0)] - 1.0).abs() < 1e-6);
+}
+
+#[test]
+fn a_table_view_without_the_board_and_too_few_pairs_are_refused() {
+    let (_, _, _, mut views) = scene(0.1);
+    let t = Isometry3::identity();
+    let last = views.len() - 1;
+    views[last] = BoardView { left: None, right: None };
+    let e = calibrate_rig(found_pairs(&views), &board(), WIDTH, HEIGHT, &t).unwrap_err();
+    assert!(e.to_string().contains("table: the table view must show the whole board"), "{e}");
+    // A pair with the board in neither image is left out and said why.
+    let (_, _, _, mut views) = scene(0.1);
+    views[0] = BoardView { left: None, right: None };
+    let cal = calibrate_rig(found_pairs(&views), &board(), WIDTH, HEIGHT, &t).unwrap();
+    assert_eq!((cal.names.len(), cal.not_in_view.len()), (views.len() - 1, 2));
+    assert!(!cal.names.contains(&"frames/0000".to_string()));
+    let e = calibrate_rig(found_pairs(&views[views.len() - 2..]), &board(), WIDTH, HEIGHT, &t).unwrap_err();
+    assert_eq!(e.kind(), ErrorKind::Input);
+    assert!(e.to_string().contains("found in 2 pairs"), "{e}");
+}

@@ -6,6 +6,7 @@ mod background;
 mod cloud;
 #[cfg(test)]
 mod fixture;
+mod pattern;
 mod phase;
 mod reconstruct;
 mod rectify;
@@ -13,6 +14,7 @@ mod stereo;
 
 pub use background::Background;
 pub use cloud::{Cloud, CloudBuilder};
+pub use pattern::{fringe, fringe_set, one_shot, random_dots, PHASE_STEPS};
 pub use phase::PhaseDecoder;
 pub use reconstruct::{ReconstructTimings, Reconstruction, Reconstructor};
 pub use rectify::{Rectification, RectifiedCamera};

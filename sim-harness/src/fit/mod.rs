@@ -20,8 +20,8 @@ mod synth;
 
 use std::path::{Path, PathBuf};
 
-use camplace_config::{Cell, GrayImage};
-use camplace_hwio::{Frames, RecordedSource};
+use camplace_config::{Cell, Frames, GrayImage, RecordedDataset};
+use camplace_estimator::as_built;
 use serde::Serialize;
 
 pub use report::{write_fit, FIT_FRAGMENT, FIT_HTML, FIT_JSON};
@@ -32,7 +32,6 @@ use stats::{
 use synth::{EmptyCell, SensorKeys};
 
 use crate::render::Method;
-use crate::scene::as_built::as_built;
 use crate::scene::scenario::draw_scenario;
 use crate::seeds::noise_key;
 use crate::{Error, Result};
@@ -129,7 +128,7 @@ pub fn fit_sensor(dataset: &Path, cell: &Cell, max_frames: usize) -> Result<Sens
             rig_path.display()
         )));
     }
-    let source = RecordedSource::open(dataset)?;
+    let source = RecordedDataset::open(dataset)?;
     let rig = source.rig().clone();
     let [w, h] = cell.sensor.camera_resolution;
     for (side, cam) in [("left", &rig.left), ("right", &rig.right)] {

@@ -12,7 +12,7 @@
 use std::path::Path;
 
 use camplace_config::{frame_name, Cell, GrayImage, Placement};
-use camplace_estimator::{isometry_to_rows, CalibrationBoard, Camera, Rig};
+use camplace_estimator::{isometry_to_rows, rig_for, table_board_pose, CalibrationBoard, Camera, Rig};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -21,7 +21,6 @@ use serde::{Deserialize, Serialize};
 
 use super::frame_files::write_rig;
 use super::noise::{add_noise, mean_filter_to_u8};
-use crate::scene::placement_rig::rig_for;
 use crate::seeds::image_key;
 use crate::{Error, Result};
 
@@ -55,13 +54,6 @@ pub struct BoardTruth {
     /// The view in `table/`: the board lying on the table, centred on the world origin.
     #[serde(rename = "T_world_table_board")]
     pub t_world_table_board: [[f64; 4]; 4],
-}
-
-/// Where the board lies for the table view: flat on the table (z up), its axes along the
-/// world's, its centre on the world origin.
-pub fn table_board_pose(board: &CalibrationBoard) -> Isometry3<f64> {
-    let (w, h) = board_extent(board);
-    Isometry3::translation(-w / 2.0, -h / 2.0, 0.0)
 }
 
 /// Renders `views` stereo pairs of `board` in random poses seen by the rig of `cell` at
@@ -141,7 +133,7 @@ pub(super) fn render_board_pairs(
 
 /// Width and height of the squares' area, mm (inner corners plus one square each side).
 pub(super) fn board_extent(board: &CalibrationBoard) -> (f64, f64) {
-    ((board.cols - 1) as f64 * board.square_mm, (board.rows - 1) as f64 * board.square_mm)
+    board.extent_mm()
 }
 
 /// Whether the board's inner corners lie in both images with most of their outer squares.

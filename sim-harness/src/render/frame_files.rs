@@ -1,10 +1,11 @@
 //! Writes rendered frames to disk in the layout of docs/architecture.md §3: a single render folder, or
-//! a recorded dataset (`rig.json` and `background/` at the top, `frames/NNNN/` below), so
-//! simulated and real data take one path. Reading them back is hwio's job.
+//! a frame of a recorded dataset (its camera images through config's dataset writer, so
+//! simulated and real data take one path), with what only a simulation knows: the true
+//! depth and ids, `truth.json` and a preview.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use camplace_config::{frame_name, image_name};
+use camplace_config::write_shots;
 use camplace_config::{FloatImage, GrayImage};
 use camplace_config::{LightingTruth, Placement, TruthFile};
 use camplace_estimator::isometry_to_rows;
@@ -16,13 +17,7 @@ use crate::Result;
 
 /// Writes the camera images of a frame (and nothing else) into `dir`.
 pub fn write_images(dir: &Path, frame: &Frame) -> Result<()> {
-    std::fs::create_dir_all(dir).map_err(|e| camplace_config::Error::io(dir, &e))?;
-    for (side, images) in [("left", &frame.left), ("right", &frame.right)] {
-        for (shot, img) in images.iter().enumerate() {
-            write_gray(&dir.join(image_name(side, shot, images.len())), img)?;
-        }
-    }
-    Ok(())
+    Ok(write_shots(dir, &frame.left, &frame.right)?)
 }
 
 /// Writes a whole rendered frame: images, ground-truth depth and ids, `truth.json` and
@@ -66,30 +61,6 @@ pub fn truth_of(scenario: &Scenario, placement: &Placement, method: Method, symm
 /// Writes `rig.json`.
 pub fn write_rig(path: &Path, rig: &Rig) -> Result<()> {
     Ok(rig.to_file().save(path)?)
-}
-
-/// Paths of a dataset folder.
-pub struct DatasetLayout {
-    pub root: PathBuf,
-}
-
-impl DatasetLayout {
-    /// The layout under `root`.
-    pub fn new(root: &Path) -> Self {
-        DatasetLayout { root: root.to_path_buf() }
-    }
-    /// `rig.json`.
-    pub fn rig(&self) -> PathBuf {
-        self.root.join("rig.json")
-    }
-    /// `background/`.
-    pub fn background(&self) -> PathBuf {
-        self.root.join("background")
-    }
-    /// `frames/NNNN/`.
-    pub fn frame(&self, index: u64) -> PathBuf {
-        self.root.join("frames").join(frame_name(index))
-    }
 }
 
 fn write_gray(path: &Path, img: &GrayImage) -> Result<()> {

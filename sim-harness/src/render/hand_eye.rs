@@ -19,10 +19,10 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use super::board::{board_extent, fits, render_board_pairs, table_board_pose};
+use super::board::{board_extent, fits, render_board_pairs};
 use super::frame_files::write_rig;
-use crate::scene::placement_rig::rig_for;
 use crate::{Error, Result};
+use camplace_estimator::{rig_for, table_board_pose};
 
 /// Candidate poses drawn per pose kept, of which the best spread are chosen.
 const CANDIDATES_PER_POSE: usize = 30;
@@ -209,14 +209,14 @@ pub fn render_hand_eye_views(
     let comment = format!(
         "robot flange poses (base <- flange) of a simulated {} calibration, seed {seed},\n\
          robot error {} mm / {} deg per axis; line k goes with frames/k",
-        setup_name(options.setup),
+        options.setup.name(),
         options.noise_mm,
         options.noise_deg
     );
     let text = robot_poses_text(&reported, options.format, &comment);
     camplace_config::write_atomic(&out.join(ROBOT_POSES_FILE), text.as_bytes())?;
     let truth = HandEyeTruth {
-        setup: setup_name(options.setup).to_string(),
+        setup: options.setup.name().to_string(),
         cols: board.cols,
         rows: board.rows,
         square_mm: board.square_mm,
@@ -229,14 +229,6 @@ pub fn render_hand_eye_views(
     let json = serde_json::to_string_pretty(&truth).map_err(|e| Error::Other(e.to_string()))?;
     camplace_config::write_atomic(&out.join(HAND_EYE_TRUTH_FILE), json.as_bytes())?;
     Ok(truth)
-}
-
-/// `eye-to-hand` or `eye-in-hand`.
-pub fn setup_name(setup: HandEyeSetup) -> &'static str {
-    match setup {
-        HandEyeSetup::EyeToHand => "eye-to-hand",
-        HandEyeSetup::EyeInHand => "eye-in-hand",
-    }
 }
 
 /// `count` candidate views, each as (the board's pose in the world for the placement's

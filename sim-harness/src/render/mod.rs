@@ -15,10 +15,10 @@ pub mod shade;
 mod simulator;
 mod terms;
 
-pub use board::{render_board_views, table_board_pose, BoardTruth};
+pub use board::{render_board_views, BoardTruth};
 pub use hand_eye::{
-    render_hand_eye_views, setup_name, simulated_robot_base, HandEyeOptions, HandEyePoses, HandEyeTruth,
-    HAND_EYE_TRUTH_FILE, ROBOT_POSES_FILE,
+    render_hand_eye_views, simulated_robot_base, HandEyeOptions, HandEyePoses, HandEyeTruth, HAND_EYE_TRUTH_FILE,
+    ROBOT_POSES_FILE,
 };
 pub use simulator::{Frame, Method, Simulator};
 

@@ -449,10 +449,10 @@ impl GBuffer<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::placement_rig::rig_for;
     use crate::scene::scenario::draw_scenario;
     use crate::scene::Objects;
     use camplace_config::{Cell, Vergence};
+    use camplace_estimator::rig_for;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
@@ -556,7 +556,7 @@ mod tests {
             64,
             48,
             50.0,
-            crate::scene::placement_rig::look_at(Point3::new(0.0, 0.0, 10.0), Point3::new(100.0, 0.0, 0.0), 0.0),
+            camplace_estimator::look_at(Point3::new(0.0, 0.0, 10.0), Point3::new(100.0, 0.0, 0.0), 0.0),
         );
         let view = View::new(&cam).unwrap();
         let tri = crate::scene::SceneTriangle {

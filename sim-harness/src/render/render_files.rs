@@ -12,11 +12,12 @@ use camplace_config::{Cell, Placement};
 use camplace_estimator::{Rectification, Rig};
 use rayon::prelude::*;
 
-use super::frame_files::{write_frame, write_images, write_rig, DatasetLayout};
+use super::frame_files::{write_frame, write_images, write_rig};
 use super::{Frame, Method, Simulator};
 use crate::scene::scenario::{background_scene, draw_scenario};
 use crate::seeds::noise_key;
 use crate::{Error, Result};
+use camplace_config::DatasetLayout;
 
 /// Renders scenario `scenario` of `seed` at `placement` into the folder `out`.
 pub fn render_scene(

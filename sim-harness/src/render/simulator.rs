@@ -12,16 +12,15 @@
 use camplace_config::{Cell, Effect, Focus, Placement};
 use camplace_config::{FloatImage, GrayImage};
 pub use camplace_estimator::Method;
-use camplace_estimator::{Camera, Rig};
+use camplace_estimator::{fringe_set, look_at, one_shot, sensor_rig, Camera, Rig, PHASE_STEPS};
 use nalgebra::Point3;
 
 use crate::render::defocus::{blur_levels, defocus_image, top_level, BlurStack, ThinLens, LEVELS};
 use crate::render::lens::LensWarp;
 use crate::render::noise::{add_noise, mean_filter_to_u8, sense};
-use crate::render::pattern::{fringe_set, one_shot, white, ProjectorImage, PHASE_STEPS};
+use crate::render::pattern::{white, ProjectorImage};
 use crate::render::raster::{View, ZBuffer};
 use crate::render::shade::{Lights, ShadingTerms};
-use crate::scene::placement_rig::{look_at, sensor_rig};
 use crate::scene::{Objects, SceneSpec, SceneTriangle, ID_TABLE};
 use crate::seeds::image_key;
 use crate::{Error, Result};

@@ -5,8 +5,7 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::font::FAMILY;
-use super::plot::Plot;
+use camplace_config::{Plot, PLOT_FONT_FAMILY as FAMILY};
 
 /// One search's curve.
 #[derive(Debug, Clone, PartialEq)]

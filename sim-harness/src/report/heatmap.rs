@@ -8,8 +8,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use super::font::FAMILY;
-use super::plot::{viridis, Plot};
+use camplace_config::{Plot, PLOT_FONT_FAMILY as FAMILY};
 
 /// One panel of a sweep.
 #[derive(Debug, Clone, PartialEq)]
@@ -203,6 +202,18 @@ fn axis_value(v: f64) -> String {
     text.trim_end_matches('0').trim_end_matches('.').to_string()
 }
 
+/// A colour on a perceptually even ramp (viridis, piecewise linear), t in [0, 1].
+pub fn viridis(t: f64) -> RGBColor {
+    const STOPS: [(u8, u8, u8); 6] =
+        [(68, 1, 84), (65, 68, 135), (42, 120, 142), (34, 168, 132), (122, 209, 81), (253, 231, 37)];
+    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 } * (STOPS.len() - 1) as f64;
+    let i = (t.floor() as usize).min(STOPS.len() - 2);
+    let f = t - i as f64;
+    let mix = |a: u8, b: u8| (a as f64 + (b as f64 - a as f64) * f).round() as u8;
+    let (a, b) = (STOPS[i], STOPS[i + 1]);
+    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -240,7 +251,7 @@ mod tests {
 
     /// Draws `map` into an RGB buffer (`None` without a font).
     fn drawn(map: &HeatMap) -> Option<Drawn> {
-        super::super::font::ensure().ok()?;
+        camplace_config::ensure_plot_font().ok()?;
         let (w, h) = map.size();
         let mut buf = vec![0u8; (w * h * 3) as usize];
         {

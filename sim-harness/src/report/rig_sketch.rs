@@ -8,8 +8,7 @@ use nalgebra::{Point3, Vector3};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::font::FAMILY;
-use super::plot::Plot;
+use camplace_config::{Plot, PLOT_FONT_FAMILY as FAMILY};
 
 /// The sketch's contents.
 #[derive(Debug, Clone)]

@@ -6,28 +6,26 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use camplace_config::{write_atomic, Cell, Effect, EstimatorPreset};
+use camplace_config::{save_plot, write_atomic, Cell, Effect, EstimatorPreset};
 
 use super::convergence::{Convergence, Curve};
 use super::html::HtmlPage;
 use super::rig_sketch::RigSketch;
-use super::save_plot;
 use crate::render::frame_files::write_preview;
 use crate::render::{Frame, Method, Simulator};
-use crate::scene::placement_rig::rig_for;
 use crate::scene::scenario::draw_scenario;
 use crate::scene::tray::TrayModel;
 use crate::seeds::noise_key;
 use crate::study::findings::{compare_paired, Paired, Verdict};
-use crate::study::grid::Axis;
 use crate::study::optimize::recheck_seed;
-use crate::study::pct;
 use crate::study::placement_study::{tolerance_dir, Combination, Preset, Recommendation, StudyOutcome, StudyRequest};
-use crate::study::tolerance::WalkEnd;
-use crate::study::tolerance_report::{end_text, offset_text};
-use crate::study::Summary;
 use crate::{Error, Result};
+use camplace_config::Axis;
+use camplace_config::{end_text, offset_text, WalkEnd};
+use camplace_estimator::pct;
+use camplace_estimator::rig_for;
 use camplace_estimator::Camera;
+use camplace_estimator::Summary;
 
 /// A rate as a percentage with one decimal.
 /// Writes `report.html` (and its plots, and `recommended.json`) into the study folder.
@@ -91,7 +89,7 @@ pub fn write_report(req: &StudyRequest, outcome: &StudyOutcome, started: Instant
             .iter()
             .flat_map(|a| {
                 a.sides().map(|side| {
-                    let rate = |p: &crate::study::tolerance::TolerancePoint| {
+                    let rate = |p: &camplace_config::TolerancePoint| {
                         format!(
                             "{} ({}–{}) at {}",
                             pct(p.success_rate),
@@ -232,7 +230,7 @@ pub fn write_report(req: &StudyRequest, outcome: &StudyOutcome, started: Instant
     page.heading(2, "Settings");
     let all: Vec<&Summary> =
         combos.iter().flat_map(|c| c.sweeps.iter().flat_map(|s| s.rows.iter().map(|r| &r.summary))).collect();
-    let median_ms = crate::study::median(&all.iter().map(|s| s.median_ms).collect::<Vec<_>>()).unwrap_or(0.0);
+    let median_ms = camplace_estimator::median(&all.iter().map(|s| s.median_ms).collect::<Vec<_>>()).unwrap_or(0.0);
     let search = if preset.budget > 0 {
         format!(
             "search over r, alpha, baseline, vergence with {} evaluations of {} scenes; top {} and the grid's best checked on {} fresh scenes",

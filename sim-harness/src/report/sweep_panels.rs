@@ -8,13 +8,13 @@ use std::path::Path;
 use camplace_config::Placement;
 
 use super::heatmap::{ColourScale, HeatMap};
-use super::plot::save_plot;
 use super::table::{write_summary_csv, write_summary_json, SummaryRow};
 use crate::render::Method;
-use crate::study::grid::Grid;
 use crate::study::results::ResultsStore;
-use crate::study::Summary;
 use crate::Result;
+use camplace_config::save_plot;
+use camplace_config::Grid;
+use camplace_estimator::Summary;
 
 /// What a sweep measured.
 #[derive(Debug, Clone, PartialEq)]

@@ -7,10 +7,9 @@ use std::path::Path;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::font::FAMILY;
-use super::plot::{save_plot, Plot, SavedPlot};
-use crate::study::tolerance::{AxisTolerance, TolerancePoint, ToleranceReport, WalkEnd};
 use crate::Result;
+use camplace_config::{save_plot, Plot, SavedPlot, PLOT_FONT_FAMILY as FAMILY};
+use camplace_config::{AxisTolerance, TolerancePoint, ToleranceReport, WalkEnd};
 
 /// The plot of one parameter's walk.
 #[derive(Debug, Clone, PartialEq)]

@@ -9,14 +9,14 @@ use std::path::Path;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::font::FAMILY;
 use super::html::HtmlPage;
-use super::plot::{save_plot, Plot};
 use crate::study::optimize::recheck_seed;
-use crate::study::pct;
 use crate::study::placement_study::Combination;
-use crate::study::verified::{precision_recall, Scored, VerifiedSummary};
 use crate::Result;
+use camplace_config::PLOT_FONT_FAMILY as FAMILY;
+use camplace_config::{save_plot, Plot};
+use camplace_estimator::pct;
+use camplace_estimator::{precision_recall, Scored, VerifiedSummary};
 
 /// The precision–recall curve of one method's best placement.
 #[derive(Debug, Clone, PartialEq)]

@@ -1,8 +1,6 @@
 //! The scene stage: what stands in front of the sensor (the scene and its triangles), the
-//! trays and items, the scenarios a study draws, and where a placement puts the rig.
+//! trays and items, the scenarios a study draws, and how a rig is mounted wrong (the rig of a placement is the estimator's `rig_for`).
 
-pub mod as_built;
-pub mod placement_rig;
 pub mod rig_error;
 pub mod scenario;
 mod spec;

@@ -10,9 +10,9 @@ use camplace_config::{Cell, Effect, Placement};
 use super::findings::{compare_paired, Paired, Rate};
 use super::one_placement::evaluate_placement;
 use super::shard::Shard;
-use super::summary::Summary;
 use crate::render::Method;
 use crate::Result;
+use camplace_estimator::Summary;
 
 /// One variant at one placement.
 #[derive(Debug, Clone)]

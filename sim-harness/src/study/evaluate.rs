@@ -8,7 +8,6 @@ use camplace_config::{Cell, Placement};
 use camplace_estimator::{isometry_from_rows, isometry_to_rows};
 use camplace_estimator::{Estimator, EstimatorConfig, Model, PoseEstimate};
 
-use super::record::{score, FrameRecord};
 use crate::model_builder::build_model;
 use crate::render::{Frame, Method, Simulator};
 use crate::scene::rig_error::draw_rig_error;
@@ -16,6 +15,7 @@ use crate::scene::scenario::background_scene;
 use crate::scene::scenario::draw_scenario;
 use crate::seeds::noise_key;
 use crate::Result;
+use camplace_estimator::{score, FrameRecord};
 
 /// What every worker of one placement's evaluation shares: the settings, the background
 /// capture and an estimator set up for the model and the background (its model indexes

@@ -10,11 +10,11 @@ use camplace_config::remove_stale_temp_files;
 
 use super::results::{append_rejected, read_results_unchanged, write_lines, ResultLine, ResultsStore, REJECTED_FILE};
 use super::settings::RunSettings;
-use super::summary::Summary;
 use super::sweep::load_sweep;
 use crate::report::sweep_panels::write_sweep_outputs;
 use crate::report::table::{write_summary_csv, write_summary_json, SummaryRow};
 use crate::{Error, Result};
+use camplace_estimator::Summary;
 
 /// Merges `dirs` into `out`; returns the scenes joined. Each of `dirs` is a study folder, or
 /// a tree of them (a study's `TRAY/METHOD/` folders) merged folder by folder.

@@ -11,13 +11,13 @@ use super::folder::{open_folder, MODELS_FOLDER};
 use super::jobs::{shard_jobs, JobEvaluator};
 use super::results::ResultsStore;
 use super::shard::Shard;
-use super::summary::Summary;
-use super::verified::{Scored, VerifiedSummary};
 use crate::render::Method;
 use crate::report::table::{write_summary_csv, write_summary_json, SummaryRow};
 use crate::workers::each_index;
 use crate::Result;
 use camplace_estimator::Model;
+use camplace_estimator::Summary;
+use camplace_estimator::{Scored, VerifiedSummary};
 
 /// Runs shard `shard` of the scenes into the study folder `dir` (models cached in
 /// `dir/models`), writes `summary.json` and `summary.csv`, and returns the summary of the

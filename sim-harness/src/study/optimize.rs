@@ -12,9 +12,9 @@ use camplace_config::Placement;
 use camplace_config::PARAMETERS;
 use serde::{Deserialize, Serialize};
 
-use super::summary::Summary;
 use crate::search::{RbfOptimizer, RbfSettings};
 use crate::Result;
+use camplace_estimator::Summary;
 
 /// One parameter searched, with its box.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -12,9 +12,9 @@ use super::sweep::load_sweep;
 use super::tray_set::{lowest, TraySet};
 use crate::render::Method;
 use crate::report::convergence::{Convergence, Curve};
-use crate::report::save_plot;
 use crate::report::table::{write_summary_csv, SummaryRow};
 use crate::{Error, Result};
+use camplace_config::save_plot;
 
 /// Runs the search into `dir`: optimize.json, optimize.csv and the convergence plot.
 pub fn optimize(

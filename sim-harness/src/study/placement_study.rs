@@ -14,20 +14,21 @@ use std::path::{Path, PathBuf};
 
 use camplace_config::{Cell, Placement, TrayKind};
 
-use super::grid::{Axis, Grid};
 use super::optimize::{recheck_seed, SearchOutcome, SearchParameter, SearchPlan};
-use super::pct;
 use super::placement_search::optimize_set;
 use super::shard::Shard;
-use super::summary::Summary;
 use super::sweep::sweep;
-use super::tolerance::{measure_tolerance, ToleranceReport, ToleranceRequest, TOLERANCE_PARAMETERS};
+use super::tolerance::{measure_tolerance, ToleranceRequest, TOLERANCE_PARAMETERS};
 use super::tray_set::{lowest, margin_order, TraySet};
 use crate::render::Method;
 use crate::report::sweep_panels::SweepResult;
 use crate::report::table::{write_summary_csv, SummaryRow};
 use crate::report::tolerance_plot::write_tolerance_plots;
 use crate::{Error, Result};
+use camplace_config::ToleranceReport;
+use camplace_config::{Axis, Grid};
+use camplace_estimator::pct;
+use camplace_estimator::Summary;
 
 /// The scale of a study.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]

@@ -7,12 +7,12 @@ use camplace_config::write_atomic;
 use camplace_config::{Cell, Placement};
 
 use super::folder::open_folder;
-use super::grid::Grid;
 use super::jobs::{shard_jobs, JobEvaluator};
 use super::shard::Shard;
 use crate::render::Method;
 use crate::report::sweep_panels::{write_sweep_outputs, SweepResult};
 use crate::{Error, Result};
+use camplace_config::Grid;
 
 /// Runs (this shard of) the grid into `dir` and writes its outputs.
 #[allow(clippy::too_many_arguments)]

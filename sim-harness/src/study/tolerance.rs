@@ -19,12 +19,12 @@ use std::path::Path;
 use camplace_config::{write_atomic, Cell, Placement};
 
 use super::findings::{drop_detection_power, Paired};
-use super::summary::Summary;
-pub use super::tolerance_report::{AxisTolerance, ToleranceCorner, TolerancePoint, ToleranceReport, WalkEnd};
 use super::tolerance_walk::{range_end, walk_to_edge};
 use super::tray_set::{lowest, TraySet};
 use crate::render::Method;
 use crate::{Error, Result};
+use camplace_config::{AxisTolerance, ToleranceCorner, TolerancePoint, ToleranceReport};
+use camplace_estimator::Summary;
 
 /// A parameter a bracket can get wrong, and how its tolerance is walked.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -165,7 +165,7 @@ impl Judge<'_> {
                     let failed: Vec<Option<bool>> = nominal.iter().map(|o| o.map(|_| false)).collect();
                     let mut summary = Summary::from_records(&[]);
                     summary.scored = failed.iter().flatten().count();
-                    summary.success_interval = super::intervals::wilson_interval(0, summary.scored);
+                    summary.success_interval = camplace_estimator::wilson_interval(0, summary.scored);
                     (Paired::from_outcomes(&failed, nominal), summary)
                 }
                 Err(e) => return Err(e),
@@ -342,6 +342,7 @@ pub fn measure_tolerance(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use camplace_config::WalkEnd;
 
     #[test]
     fn offsets_keep_the_toe_in_and_refuse_invalid_placements() {

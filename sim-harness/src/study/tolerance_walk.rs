@@ -9,19 +9,9 @@
 //! edge a walk in single resolution steps finds, with far fewer points. Judging a point
 //! (the scenes and the paired test) is the caller's.
 
-use serde::{Deserialize, Serialize};
+use camplace_config::WalkEnd;
 
 use crate::Result;
-
-/// Why a walk in one direction stopped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum WalkEnd {
-    /// A point was judged outside: the edge lies between the last point inside and it.
-    Drop,
-    /// The parameter's range ended with every point inside: the tolerance is at least that.
-    RangeEnd,
-}
 
 /// Where one walk found the edge, in whole resolutions from the nominal.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -10,12 +10,12 @@ use camplace_config::{Cell, Placement};
 
 use super::folder::open_folder;
 use super::jobs::{shard_jobs, JobEvaluator};
-use super::record::FrameRecord;
 use super::results::ResultsStore;
 use super::shard::Shard;
-use super::summary::Summary;
 use crate::render::Method;
 use crate::Result;
+use camplace_estimator::FrameRecord;
+use camplace_estimator::Summary;
 
 /// One tray of the set and its open study folder.
 pub struct TrayFolder {

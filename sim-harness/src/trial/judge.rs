@@ -9,8 +9,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::study::FrameRecord;
 use crate::{Error, Result};
+use camplace_estimator::FrameRecord;
 
 /// The reviewer's marks beside a dataset's frames.
 pub const LABELS_FILE: &str = "labels.jsonl";

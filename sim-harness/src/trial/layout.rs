@@ -3,13 +3,13 @@
 //! its frames, `poses.jsonl` once estimated and `labels.jsonl` once reviewed. A placement
 //! folder's rig is checked against the cell and the plan before anything is counted.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use camplace_config::{Cell, Placement, RigFile};
 use camplace_estimator::Rig;
 
-use crate::scene::as_built::as_built;
 use crate::{Error, Result};
+use camplace_estimator::as_built;
 
 /// How far an installed rig's distance r may lie from the plan's, as a share of it: a robot
 /// carrying the rig reaches its pose to a millimetre, a rig clamped by hand to a few
@@ -17,16 +17,6 @@ use crate::{Error, Result};
 pub const RIG_R_MARGIN: f64 = 0.15;
 /// How far an installed rig's polar angle may lie from the plan's, deg.
 pub const RIG_ALPHA_MARGIN_DEG: f64 = 10.0;
-
-/// The folder name of placement `index`: three digits (more when the plan needs them).
-pub fn placement_folder_name(index: usize) -> String {
-    format!("{index:03}")
-}
-
-/// The dataset folder of placement `index` in trial `dir`.
-pub fn placement_dir(dir: &Path, index: usize) -> PathBuf {
-    dir.join(placement_folder_name(index))
-}
 
 /// Checks that the rig of placement folder `dir` belongs to `cell` (its cameras' image size)
 /// and sits where the plan puts placement `planned` (r within [`RIG_R_MARGIN`], alpha within

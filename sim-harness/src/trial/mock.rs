@@ -13,11 +13,10 @@ use camplace_config::{Cell, TruthFile};
 use camplace_estimator::{isometry_from_rows, pose_errors};
 
 use super::judge::{frame_names, read_poses, Label, Mark};
-use super::layout::{placement_dir, placement_folder_name};
-use super::plan::{TrialPlan, PLAN_FILE};
 use crate::render::render_files::render_dataset;
 use crate::render::Method;
 use crate::{Error, Result};
+use camplace_config::{placement_dir, placement_folder_name, TrialPlan, PLAN_FILE};
 
 /// The files of a rendered frame that give its truth away.
 const TRUTH_FILES: [&str; 6] =

@@ -16,17 +16,17 @@ use camplace_config::{write_atomic, Cell, Placement};
 use serde::Serialize;
 
 use super::judge::JudgedDataset;
-use super::layout::{check_placement_rig, placement_dir};
-use super::plan::{parse_placement, TrialPlan, PLAN_FILE};
+use super::layout::check_placement_rig;
 use super::rank::{spearman, RankCorrelation};
 use crate::report::heatmap::{ColourScale, HeatMap};
 use crate::report::html::HtmlPage;
-use crate::report::save_plot;
 use crate::report::table::SummaryRow;
 use crate::study::findings::{Paired, Rate};
-use crate::study::grid::Grid;
 use crate::study::sweep::load_sweep;
 use crate::{Error, Result};
+use camplace_config::save_plot;
+use camplace_config::Grid;
+use camplace_config::{parse_placement, placement_dir, TrialPlan, PLAN_FILE};
 
 /// The report's JSON file.
 pub const REPORT_JSON: &str = "trial_report.json";

@@ -72,6 +72,16 @@ pub enum HandEyeSetup {
     EyeInHand,
 }
 
+impl HandEyeSetup {
+    /// `eye-to-hand` or `eye-in-hand`.
+    pub fn name(self) -> &'static str {
+        match self {
+            HandEyeSetup::EyeToHand => "eye-to-hand",
+            HandEyeSetup::EyeInHand => "eye-in-hand",
+        }
+    }
+}
+
 /// What a hand-eye calibration takes.
 #[derive(Debug, Clone, Copy)]
 pub struct HandEyeInput<'a> {

@@ -4,7 +4,7 @@
 //! Clopper–Pearson upper bound, correct poses rejected) and the precision–recall curve.
 //! It does not verify poses (the estimator does) nor draw the curve (the report does).
 
-use camplace_estimator::{ModelVerification, Verdict};
+use crate::{ModelVerification, Verdict};
 use serde::{Deserialize, Serialize};
 
 use super::intervals::wilson_interval;

@@ -5,8 +5,8 @@
 //! towards the other camera. What a placement cannot express — the rig not aimed at the
 //! table's centre, a baseline not level, unequal toe-ins — is measured beside it.
 
+use crate::Rig;
 use camplace_config::{Placement, Vergence};
-use camplace_estimator::Rig;
 use nalgebra::Vector3;
 
 /// A rig's pose as a placement, and how it departs from what a placement can express.
@@ -72,7 +72,7 @@ pub fn azimuth_difference(a: f64, b: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::placement_rig::rig_for;
+    use crate::placement_rig::rig_for;
     use camplace_config::Cell;
     use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 

@@ -5,13 +5,11 @@
 use std::path::{Path, PathBuf};
 
 use camplace_config::{Cell, FloatImage, GrayImage, RectifiedFile, RigFile};
-use camplace_estimator::{isometry_to_rows, DisparityMatcher, Elas, Method};
+use camplace_estimator::{isometry_to_rows, method_for, DisparityMatcher, Elas, Method};
 use camplace_estimator::{EstimatorConfig, Reconstruction, Reconstructor, RectifiedCamera, Rig};
-use camplace_hwio::{FrameSource, Frames, RecordedSource};
 use rayon::prelude::*;
 
-use crate::study::recording::method_for;
-use crate::{Error, Result};
+use crate::{Error, ErrorKind, FrameSource, Frames, RecordedSource, Result};
 
 /// What reconstructing a recorded dataset gave.
 #[derive(Debug, Clone, Copy)]
@@ -56,7 +54,7 @@ pub fn reconstruct_dataset(cell: &Cell, dir: &Path) -> Result<DatasetDepth> {
         .map_init(
             || (make(), Frames::new(source.shots()), Reconstruction::default()),
             |(rec, frames, result), i| -> Result<usize> {
-                let rec = rec.as_mut().map_err(|e| Error::Other(e.to_string()))?;
+                let rec = rec.as_mut().map_err(|e| e.clone())?;
                 source.read_into(i, frames)?;
                 rec.process(&frames.left, &frames.right, result)?;
                 write_outputs(&source.frame_dirs()[i], rec, result)?;
@@ -93,7 +91,7 @@ pub fn reconstruct_pair(
         (1, 1) => Method::OneShot,
         (12, 12) => Method::Phase12,
         (l, r) => {
-            return Err(Error::Other(format!(
+            return Err(Error::input(format!(
                 "{}: expected 1 or 12 images per side in shot order, got {l} left and {r} right",
                 left.first().or(right.first()).map_or(String::new(), |p| p.display().to_string())
             )))
@@ -103,7 +101,7 @@ pub fn reconstruct_pair(
     for (paths, images, cam) in [(left, &left_images, &rig.left), (right, &right_images, &rig.right)] {
         for (p, img) in paths.iter().zip(images) {
             if (img.width, img.height) != (cam.width, cam.height) {
-                return Err(Error::Other(format!(
+                return Err(Error::input(format!(
                     "{}: expected {} x {} pixels as {} says, got {} x {}",
                     p.display(),
                     cam.width,
@@ -159,16 +157,16 @@ pub fn match_rectified(
 ) -> Result<RectifiedDepth> {
     for (flag, v) in [("--focal-px", pair.focal_px), ("--baseline-mm", pair.baseline_mm)] {
         if !(v.is_finite() && v > 0.0) {
-            return Err(Error::Other(format!("{flag}: expected a positive finite number, got {v}")));
+            return Err(Error::input(format!("{flag}: expected a positive finite number, got {v}")));
         }
     }
     if pair.runs == 0 {
-        return Err(Error::Other("--runs: expected at least one run".into()));
+        return Err(Error::input("--runs: expected at least one run"));
     }
     let l = read_one(left)?;
     let r = read_one(right)?;
     if !l.same_size(&r) {
-        return Err(Error::Other(format!(
+        return Err(Error::input(format!(
             "{}: expected the size of {} ({} x {}), got {} x {}",
             right.display(),
             left.display(),
@@ -183,7 +181,7 @@ pub fn match_rectified(
     let most = (l.width as f32).min(i16::MAX as f32);
     let range = pair.disparity_range.unwrap_or((0.0, (l.width / 3) as f32));
     if !(range.0.is_finite() && range.1.is_finite() && 0.0 <= range.0 && range.0 < range.1 && range.1 <= most) {
-        return Err(Error::Other(format!(
+        return Err(Error::input(format!(
             "--disparity-range: expected MIN:MAX in pixels with 0 <= MIN < MAX <= {most} (the image width), got {}:{}",
             range.0, range.1
         )));
@@ -216,13 +214,14 @@ pub fn match_rectified(
 }
 
 fn create_dir(dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::Other(format!("{}: cannot create the folder: {e}", dir.display())))
+    std::fs::create_dir_all(dir)
+        .map_err(|e| Error::new(ErrorKind::Io, format!("{}: cannot create the folder: {e}", dir.display())))
 }
 
 fn read_one(path: &Path) -> Result<GrayImage> {
     let g = camplace_config::read_gray(path)?;
     GrayImage::from_vec(g.width, g.height, g.data)
-        .ok_or_else(|| Error::Other(format!("{}: the decoded image does not match its size", path.display())))
+        .ok_or_else(|| Error::format(path, "the decoded image does not match its size"))
 }
 
 fn read_all(paths: &[PathBuf]) -> Result<Vec<GrayImage>> {

@@ -1,16 +1,31 @@
 //! `tolerance.json`: what a tolerance measurement found (each parameter's edge on both
 //! sides with the points just inside and just outside it, the corners of the box), its
 //! table for a terminal, and reading it back checked, since `camplace placement` judges an
-//! installed rig by it. The measurement itself is [`super::tolerance`]'s.
+//! installed rig by it and `camplace serve` takes its drift limits from it. The measurement
+//! itself is the simulator's.
 
 use std::path::Path;
 
-use camplace_config::{Placement, Vergence, MAX_DISTANCE_MM};
 use serde::{Deserialize, Serialize};
 
-use super::pct;
-pub use super::tolerance_walk::WalkEnd;
-use crate::{Error, Result};
+use crate::{Error, Placement, Vergence, MAX_DISTANCE_MM};
+
+type Result<T> = std::result::Result<T, Error>;
+
+/// Why a walk in one direction stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum WalkEnd {
+    /// A point was judged outside: the edge lies between the last point inside and it.
+    Drop,
+    /// The parameter's range ended with every point inside: the tolerance is at least that.
+    RangeEnd,
+}
+
+/// A rate as a percentage with one decimal: `0.9712` -> `"97.1 %"`.
+fn pct(r: f64) -> String {
+    format!("{:.1} %", 100.0 * r)
+}
 
 /// One evaluated placement, paired by scene against the nominal.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -198,8 +213,8 @@ impl ToleranceReport {
     /// regular text file within the text budget, holds anything after its JSON value, or a
     /// tolerance that is not a finite, non-negative number within its unit's bounds.
     pub fn load(path: &Path) -> Result<ToleranceReport> {
-        let bytes = camplace_config::read_bounded(path, camplace_config::FileKind::Text)?;
-        Self::from_json(&bytes).map_err(|what| Error::Other(format!("{}: {what}", path.display())))
+        let bytes = crate::read_bounded(path, crate::FileKind::Text)?;
+        Self::from_json(&bytes).map_err(|what| Error::format(what).in_file(path))
     }
 
     /// Decodes and checks the bytes of a `tolerance.json` (see [`ToleranceReport::load`]);

@@ -146,7 +146,7 @@ fn mean(values: &[f64]) -> Option<f64> {
 mod tests {
     use super::super::record::Score;
     use super::*;
-    use camplace_estimator::PoseEstimate;
+    use crate::PoseEstimate;
 
     #[test]
     fn summary_counts_errors_of_found_poses_only() {

@@ -1,8 +1,8 @@
 //! The geometry of a placement (docs/architecture.md §2): where the two cameras and the projector
 //! sit and look for given (r, alpha, baseline, vergence, azimuth), as a calibrated rig.
 
+use crate::{Camera, Rig};
 use camplace_config::{Cell, Placement, Sensor};
-use camplace_estimator::{Camera, Rig};
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 /// The rig frame in the world: origin at the midpoint of the camera centres, z towards

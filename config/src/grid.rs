@@ -1,10 +1,11 @@
-//! The sweep's grid: two axes over study parameters (`r=400:900:5` is r from 400 to 900 mm
-//! in 5 steps) and the placements they span, x fastest.
+//! A grid of placements as written: two axes over placement parameters (`r=400:900:5` is r
+//! from 400 to 900 mm in 5 steps) and the placements they span, x fastest. A sweep's flags
+//! and a trial plan's `grid` hold one.
 
 use std::str::FromStr;
 
-use camplace_config::Placement;
-use camplace_config::PARAMETERS;
+use crate::Placement;
+use crate::PARAMETERS;
 use serde::{Deserialize, Serialize};
 
 /// One axis of a sweep: a parameter from `lo` to `hi` in `steps` values.
@@ -76,9 +77,9 @@ pub struct Grid {
 impl Grid {
     /// The placements, x fastest: index = iy·nx + ix. Each is checked like a user's
     /// placement, so a grid reaching alpha = 90 is an error naming the key.
-    pub fn placements(&self, base: &Placement) -> Result<Vec<Placement>, camplace_config::Error> {
+    pub fn placements(&self, base: &Placement) -> Result<Vec<Placement>, crate::Error> {
         if self.x.name == self.y.name {
-            return Err(camplace_config::Error::value(
+            return Err(crate::Error::value(
                 "y",
                 format!(
                     "expected a parameter other than the x axis's ({}): one parameter cannot span both axes",
@@ -110,7 +111,7 @@ mod tests {
             assert!(bad.parse::<Axis>().is_err(), "{bad}");
         }
         let g = Grid { x: a, y: "alpha=0:60:3".parse().unwrap() };
-        let ps = g.placements(&camplace_config::Cell::default().placement).unwrap();
+        let ps = g.placements(&crate::Cell::default().placement).unwrap();
         assert_eq!(ps.len(), 15);
         assert_eq!((ps[6].r, ps[6].alpha), (525.0, 30.0));
     }

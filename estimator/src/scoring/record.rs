@@ -1,10 +1,10 @@
 //! One frame's result as a JSON line: the pose, the counts of each stage, the stage timings
 //! and, where the truth is known, the paper's metrics.
 
+use crate::{correct_matches, pose_errors};
+use crate::{isometry_from_rows, isometry_to_rows};
+use crate::{Estimator, PoseEstimate, StageTimings, Verdict};
 use camplace_config::{Cell, Metrics};
-use camplace_estimator::{correct_matches, pose_errors};
-use camplace_estimator::{isometry_from_rows, isometry_to_rows};
-use camplace_estimator::{Estimator, PoseEstimate, StageTimings, Verdict};
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
 

@@ -4,14 +4,12 @@
 
 use std::path::Path;
 
+use camplace_config::{save_plot, Plot, SavedPlot, PLOT_FONT_FAMILY as FAMILY};
 use camplace_estimator::StageTimings;
-use camplace_hwio::FrameTiming;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::font::FAMILY;
-use super::plot::{save_plot, Plot, SavedPlot};
-use crate::Result;
+use crate::{FrameTiming, Result};
 
 /// Stage colours, in [`StageTimings::STAGES`] order (a qualitative palette: neighbours
 /// differ).
@@ -42,7 +40,7 @@ pub struct LatencyPlot<'a> {
 
 /// Draws `frames` into `dir/NAME.svg` and `dir/NAME.png` (see [`save_plot`]).
 pub fn write_latency_plot(dir: &Path, name: &str, frames: &[FrameTiming], budget_ms: f64) -> Result<Option<SavedPlot>> {
-    save_plot(&LatencyPlot { frames, budget_ms }, dir, name)
+    Ok(save_plot(&LatencyPlot { frames, budget_ms }, dir, name)?)
 }
 
 impl LatencyPlot<'_> {
@@ -201,7 +199,7 @@ mod tests {
                 assert!(svg.contains("capture to pose") && svg.contains("ransac"), "legend missing");
                 assert!(std::fs::metadata(&saved.png).unwrap().len() > 1000);
             }
-            None => assert!(super::super::font::ensure().is_err(), "a font was found but nothing was drawn"),
+            None => assert!(camplace_config::ensure_plot_font().is_err(), "a font was found but nothing was drawn"),
         }
     }
 }

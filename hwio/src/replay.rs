@@ -1,26 +1,15 @@
 //! A recorded dataset through the estimator, shared by `estimate --dataset`, `replay` and
 //! `run --source dir:`: the estimator set up from the dataset's rig and background, each frame's
-//! record scored against its `truth.json`, and `poses.jsonl` written.
+//! record scored against its `truth.json` (the estimator's scoring), and `poses.jsonl` written.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use camplace_config::{remove_stale_temp_files, write_atomic};
+use camplace_config::{remove_stale_temp_files, write_atomic, DATASET_SUMMARY};
 use camplace_config::{Cell, TruthFile};
-use camplace_estimator::isometry_from_rows;
-use camplace_estimator::{ErrorKind, Estimator, EstimatorConfig, Method, Model, PoseEstimate, Rig};
-use camplace_hwio::{FrameSource, Frames, RecordedSource};
+use camplace_estimator::{isometry_from_rows, score, FrameRecord};
+use camplace_estimator::{method_for, Estimator, EstimatorConfig, Method, Model, PoseEstimate, Rig};
 
-use super::record::{score, FrameRecord};
-use crate::{Error, Result};
-
-/// The method a source of `shots` images per side was captured with.
-pub fn method_for(shots: usize) -> Method {
-    if shots == 1 {
-        Method::OneShot
-    } else {
-        Method::Phase12
-    }
-}
+use crate::{Error, ErrorKind, FrameSource, Frames, RecordedSource, Result};
 
 /// The estimator for `rig` (read from `rig_path`, named in errors) with the background of
 /// `background` when it has one.
@@ -35,11 +24,13 @@ pub fn estimator_for(
     // Only the rig's own errors belong to its file; a model's name the model.
     let mut estimator =
         Estimator::new(&EstimatorConfig::from(cell), rig, model, method).map_err(|e| match e.kind() {
-            ErrorKind::Rig => Error::from(e).in_file(rig_path),
+            camplace_estimator::ErrorKind::Rig => Error::from(e).in_file(rig_path),
             _ => Error::from(e),
         })?;
     if let Some(frames) = background {
-        estimator.set_background(&frames.left, &frames.right).map_err(|e| Error::Other(format!("background: {e}")))?;
+        estimator
+            .set_background(&frames.left, &frames.right)
+            .map_err(|e| Error::new(ErrorKind::Estimate, format!("background: {e}")))?;
     }
     Ok(estimator)
 }
@@ -64,15 +55,6 @@ pub fn record(
     Ok(record)
 }
 
-/// The `truth.json` of the frame called `name` in dataset `dir`, when it has one.
-pub fn truth_path(dir: &Path, name: &str) -> Option<PathBuf> {
-    let p = dir.join("frames").join(name).join("truth.json");
-    p.is_file().then_some(p)
-}
-
-/// The summary of a dataset's poses, beside `poses.jsonl`.
-pub const DATASET_SUMMARY: &str = "summary.json";
-
 /// Every frame of the dataset `dir` estimated in order; writes `dir/poses.jsonl` and
 /// returns the records and the method. A `summary.json` of an earlier run is removed
 /// before the new poses are written, so it never stands beside poses it does not describe
@@ -91,20 +73,25 @@ pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> Result<(Vec<Fr
         let info = source.read_into(i, &mut frames)?;
         let pose = estimator
             .process(&frames.left, &frames.right)
-            .map_err(|e| Error::Other(format!("frame {}: {e}", info.name)))?;
+            .map_err(|e| Error::new(ErrorKind::Estimate, format!("frame {}: {e}", info.name)))?;
         let record = record(cell, &estimator, &pose, &info.name, source.truth_path(i).as_deref())?;
         lines.push_str(&record.to_line());
         lines.push('\n');
         records.push(record);
     }
     if records.is_empty() {
-        return Err(Error::Other(format!("{}: the dataset has no frames", dir.display())));
+        return Err(Error::format(dir, "the dataset has no frames"));
     }
     let summary = dir.join(DATASET_SUMMARY);
     match std::fs::remove_file(&summary) {
         Ok(()) => {}
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-        Err(e) => return Err(Error::Other(format!("{}: cannot remove the earlier summary: {e}", summary.display()))),
+        Err(e) => {
+            return Err(Error::new(
+                ErrorKind::Io,
+                format!("{}: cannot remove the earlier summary: {e}", summary.display()),
+            ))
+        }
     }
     write_atomic(&dir.join("poses.jsonl"), lines.as_bytes())?;
     Ok((records, method))

@@ -1,0 +1,16 @@
+//! A frame's result scored against its truth and many summed up: one frame's record as a
+//! JSON line ([`FrameRecord`], the paper's metrics in [`score`]), a set of frames' [`Summary`]
+//! with Wilson's interval, and the verification's figures over scored frames. Replaying a
+//! recording on the cell PC and evaluating a placement in simulation both write and read
+//! these, so a rendered dataset replayed gives exactly the numbers its evaluation gave. No
+//! file is opened here.
+
+mod intervals;
+mod record;
+mod summary;
+mod verified;
+
+pub use intervals::wilson_interval;
+pub use record::{score, FrameRecord, Score, Timings};
+pub use summary::{median, pct, Summary};
+pub use verified::{choose_threshold, clopper_pearson_upper, precision_recall, Scored, VerifiedSummary};
