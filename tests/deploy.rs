@@ -258,25 +258,6 @@ fn assert_one_line_error(o: &std::process::Output, must_name: &[&str]) {
 }
 
 #[test]
-fn missing_cameras_are_clear_errors() {
-    let dir = tempfile::tempdir().unwrap();
-    let o = camplace(dir.path(), &["run", "--source", "v4l2:/dev/video0", "--model", "tray.model"]);
-    assert_one_line_error(&o, &["v4l2:/dev/video0", "expected"]);
-    let dev = "/dev/video-camplace-missing";
-    let o = camplace(dir.path(), &["run", "--source", &format!("v4l2-sbs:{dev}"), "--model", "tray.model"]);
-    assert_one_line_error(&o, &[if cfg!(feature = "v4l") { dev } else { "--features v4l" }]);
-    let o = camplace(dir.path(), &["run", "--source", "dc1394", "--model", "tray.model"]);
-    assert_one_line_error(&o, &[if cfg!(feature = "dc1394") { "dc1394" } else { "--features dc1394" }]);
-
-    let o = camplace(dir.path(), &["devices"]);
-    if camplace_hwio::list_devices().unwrap().is_empty() {
-        assert_one_line_error(&o, &["no camera found"]);
-    } else {
-        assert!(o.status.success(), "{}", stderr(&o));
-    }
-}
-
-#[test]
 fn bad_run_flags_are_one_line_errors() {
     let f = fixture();
     let o = camplace(&f.root, &["run", "--source", "dir:data", "--model", "tray.model", "--fps", "0"]);
@@ -346,57 +327,4 @@ fn replay_without_truth_leaves_no_earlier_summary() {
     for (r, e) in replayed.iter().zip(&evaluated) {
         assert_eq!(untimed(r), FrameRecord { score: None, ..untimed(e) }, "frame {}", r.frame);
     }
-}
-
-#[cfg(not(feature = "display"))]
-#[test]
-fn project_without_the_display_feature_says_how_to_build_it() {
-    let dir = tempfile::tempdir().unwrap();
-    let o = camplace(dir.path(), &["project", "--method", "phase-12"]);
-    assert_one_line_error(&o, &["`display`", "--features display"]);
-}
-
-/// `project --source dir:` under a virtual X server: the pattern is shown, then the source
-/// read, and the frame lands in the dataset as the next frame folder with the source's
-/// images. Skips (saying why) without Xvfb.
-#[cfg(feature = "display")]
-#[test]
-fn project_captures_a_frame_in_step_under_xvfb() {
-    use std::process::Command;
-
-    let Some(xvfb) = crate::camplace_cmd::Xvfb::start(300..400) else { return };
-    let display = xvfb.display.clone();
-    // A dataset of its own: the model of the shared fixture is not needed here.
-    let out = tempfile::tempdir().unwrap();
-    let o = camplace(out.path(), &["render", "--dataset", "--count", "1", "--placement", OPTIMUM, "--out", "data"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let rec = out.path().join("rec");
-    let data = out.path().join("data");
-    let run = || {
-        Command::new(env!("CARGO_BIN_EXE_camplace"))
-            .args(["project", "--method", "one-shot", "--settle-ms", "50", "--skip", "0"])
-            .arg("--source")
-            .arg(format!("dir:{}", data.display()))
-            .arg("--out")
-            .arg(&rec)
-            .arg("--rig")
-            .arg(data.join("rig.json"))
-            .env("DISPLAY", &display)
-            .output()
-            .unwrap()
-    };
-    let (first, second) = (run(), run());
-    drop(xvfb);
-    for o in [&first, &second] {
-        assert!(o.status.success(), "{}", stderr(o));
-    }
-    // Each call reads the recording from its start and adds the next frame folder.
-    for frame in ["0000", "0001"] {
-        for side in ["left.png", "right.png"] {
-            let want = camplace_config::read_gray(&data.join("frames/0000").join(side)).unwrap();
-            let got = camplace_config::read_gray(&rec.join("frames").join(frame).join(side)).unwrap();
-            assert_eq!((got.width, got.height, got.data), (want.width, want.height, want.data), "{frame}/{side}");
-        }
-    }
-    assert_eq!(read(&rec.join("rig.json")), read(&data.join("rig.json")));
 }

@@ -5,8 +5,8 @@
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::path::Path;
+use std::process::Command;
 use std::time::Duration;
 
 use camplace_config::{parse_pose, LengthUnit, PoseConvention, RobotPoseFormat};
@@ -14,128 +14,7 @@ use camplace_estimator::FrameRecord;
 
 use crate::camplace_cmd::{camplace, stderr};
 use crate::deploy::fixture;
-
-/// The statuses a trigger reply may start with.
-const TRIGGER_STATUSES: [&str; 6] = ["OK", "NO_POSE", "REJECTED", "CAMERA_ERROR", "BUSY", "BAD_REQUEST"];
-
-/// A running `camplace serve`, killed when dropped.
-struct Served {
-    child: Child,
-    port: u16,
-    status_port: Option<u16>,
-    log: PathBuf,
-}
-
-impl Served {
-    /// Starts `camplace serve` in `dir` with `args` on free loopback ports; its log goes to `log`.
-    fn start(dir: &Path, args: &[&str], log: &str, status_page: bool) -> Served {
-        let mut all = vec![];
-        if status_page {
-            all.extend(["--status", "127.0.0.1:0"]);
-        }
-        all.extend(args);
-        Served::start_with(Command::new(env!("CARGO_BIN_EXE_camplace")), dir, &all, log)
-    }
-
-    /// Starts `command` (the camplace binary, with its environment set) as `serve` with
-    /// `args` on a free loopback port (and the status page's when `args` ask for it).
-    fn start_with(mut command: Command, dir: &Path, args: &[&str], log: &str) -> Served {
-        let log = dir.join(log);
-        let status_page = args.contains(&"--status");
-        let mut all = vec!["serve", "--listen", "127.0.0.1:0"];
-        all.extend(args);
-        let mut child = command
-            .args(&all)
-            .current_dir(dir)
-            .stdout(Stdio::piped())
-            .stderr(std::fs::File::create(&log).unwrap())
-            .spawn()
-            .expect("camplace serve starts");
-        let mut out = BufReader::new(child.stdout.take().unwrap());
-        let port_of = |line: &str| -> u16 {
-            let at = line.find("127.0.0.1:").unwrap_or_else(|| panic!("no address in {line:?}")) + 10;
-            line[at..].split(|c: char| !c.is_ascii_digit()).next().unwrap().parse().unwrap()
-        };
-        let mut line = String::new();
-        out.read_line(&mut line).unwrap();
-        assert!(line.starts_with("robot interface CAMPLACE/1 on "), "{line:?}: {}", read(&log));
-        let port = port_of(&line);
-        let status_port = status_page.then(|| {
-            let mut line = String::new();
-            out.read_line(&mut line).unwrap();
-            port_of(&line)
-        });
-        Served { child, port, status_port, log }
-    }
-
-    fn connect(&self) -> TcpStream {
-        let s = TcpStream::connect(("127.0.0.1", self.port)).unwrap();
-        s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
-        s
-    }
-
-    /// Stops the service with SIGTERM and asserts it exits 0 having logged no panic.
-    fn stop(mut self) -> String {
-        let o = Command::new("kill").args(["-TERM", &self.child.id().to_string()]).output().unwrap();
-        assert!(o.status.success());
-        let status = self.child.wait().unwrap();
-        let log = read(&self.log);
-        assert!(status.success(), "serve ended with {status}: {log}");
-        assert!(!log.contains("panicked"), "{log}");
-        log
-    }
-}
-
-impl Drop for Served {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn read(path: &Path) -> String {
-    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
-
-/// One request, one reply line (without its line end).
-fn ask(stream: &mut TcpStream, request: &str) -> String {
-    stream.write_all(format!("{request}\n").as_bytes()).unwrap();
-    let mut reply = Vec::new();
-    let mut byte = [0u8; 1];
-    loop {
-        let n = stream.read(&mut byte).unwrap();
-        assert!(n == 1, "closed before a reply to {request:?}");
-        if byte[0] == b'\n' {
-            break;
-        }
-        reply.push(byte[0]);
-        assert!(reply.len() < 4096, "a reply line without end");
-    }
-    String::from_utf8(reply).expect("an ASCII reply")
-}
-
-/// A reply's status word, reason (REJECTED, BUSY, BAD_REQUEST) and key=value fields; panics
-/// when the line does not follow docs/robot-interface.md.
-fn parse_reply(line: &str) -> (String, Option<String>, std::collections::BTreeMap<String, String>) {
-    let mut words = line.split(' ');
-    let status = words.next().unwrap().to_string();
-    assert!(TRIGGER_STATUSES.contains(&status.as_str()), "status of {line:?}");
-    let mut reason = None;
-    let mut fields = std::collections::BTreeMap::new();
-    for (i, w) in words.enumerate() {
-        match w.split_once('=') {
-            Some((k, v)) => {
-                assert!(!k.is_empty() && !v.is_empty(), "{line:?}");
-                fields.insert(k.to_string(), v.to_string());
-            }
-            None => {
-                assert!(i == 0 && ["REJECTED", "BUSY", "BAD_REQUEST"].contains(&status.as_str()), "{line:?}");
-                reason = Some(w.to_string());
-            }
-        }
-    }
-    (status, reason, fields)
-}
+use crate::served::{ask, parse_reply, read, replayed_dataset, Served, TRIGGER_STATUSES};
 
 /// Where a frame of a dataset made for a test comes from.
 #[derive(Clone, Copy)]
@@ -170,19 +49,6 @@ fn copy_dataset(from: &Path, to: &Path, frames: &[Frame]) {
 /// Replays the fixture's dataset under `cell` and returns each frame's record by name.
 fn replayed(root: &Path, cell: &str) -> std::collections::BTreeMap<String, FrameRecord> {
     replayed_dataset(root, "data", &["--cell", cell])
-}
-
-/// Replays `dataset` in `root` with `tray.model` and returns each frame's record by name.
-fn replayed_dataset(root: &Path, dataset: &str, extra: &[&str]) -> std::collections::BTreeMap<String, FrameRecord> {
-    let mut args = vec!["replay", dataset, "--model", "tray.model"];
-    args.extend(extra);
-    let o = camplace(root, &args);
-    assert!(o.status.success(), "{}", stderr(&o));
-    read(&root.join(dataset).join("poses.jsonl"))
-        .lines()
-        .map(|l| serde_json::from_str::<FrameRecord>(l).unwrap())
-        .map(|r| (r.frame.clone(), r))
-        .collect()
 }
 
 fn robot_cell(dir: &Path, name: &str, format: Option<RobotPoseFormat>) {
@@ -612,100 +478,4 @@ fn the_drift_watch_sees_a_turned_rig_and_not_an_unmoved_one() {
     let served = Served::start(d, &["--source", &data, "--model", model.to_str().unwrap()], "unmoved.log", false);
     assert_eq!(triggers_until_warning(&served, 200), None);
     served.stop();
-}
-
-/// `serve --project phase-12` under a virtual X server: the 12 fringes are shown on the
-/// projector window one by one and each is read in step from a one-image camera. The camera
-/// here is a recording whose consecutive frames are the shots of a rendered phase-12 frame,
-/// so the frame put together in step is that frame, and its reply must be `replay`'s of the
-/// phase-12 recording. Skips (saying why) without Xvfb.
-#[cfg(feature = "display")]
-#[test]
-fn projected_phase_12_triggers_give_replays_poses() {
-    use crate::deploy::OPTIMUM;
-
-    let Some(xvfb) = crate::camplace_cmd::Xvfb::start(400..500) else { return };
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let common = ["--method", "phase-12", "--placement", OPTIMUM, "--seed", "1"];
-    let o = camplace(d, &[&["render", "--dataset", "--count", "1"][..], &common, &["--out", "data"]].concat());
-    assert!(o.status.success(), "{}", stderr(&o));
-    let o = camplace(d, &[&["model"][..], &common, &["--verify-scenes", "0", "--out", "tray.model"]].concat());
-    assert!(o.status.success(), "{}", stderr(&o));
-    let replay = replayed_dataset(d, "data", &[]);
-    let want = &replay["0000"];
-    assert!(want.found, "{want:?}");
-    // The camera: shot i of frame 0000 as one-image frame i.
-    let shots = d.join("camera");
-    std::fs::create_dir_all(&shots).unwrap();
-    std::fs::copy(d.join("data/rig.json"), shots.join("rig.json")).unwrap();
-    for i in 0..12 {
-        let to = shots.join("frames").join(format!("{i:04}"));
-        std::fs::create_dir_all(&to).unwrap();
-        for side in ["left", "right"] {
-            let from = d.join("data/frames/0000").join(format!("{side}_{i:02}.png"));
-            std::fs::copy(from, to.join(format!("{side}.png"))).unwrap();
-        }
-    }
-    let mut command = Command::new(env!("CARGO_BIN_EXE_camplace"));
-    command.env("DISPLAY", &xvfb.display);
-    let served = Served::start_with(
-        command,
-        d,
-        &[
-            "--source",
-            "dir:camera",
-            "--model",
-            "tray.model",
-            "--background",
-            "data/background",
-            "--project",
-            "phase-12",
-            "--settle-ms",
-            "5",
-            "--skip",
-            "0",
-        ],
-        "projected.log",
-    );
-    let mut robot = served.connect();
-    // The camera recording ends after its 12th frame and is opened again from its start, in
-    // step again: each trigger puts frame 0000 together anew.
-    for k in 0..2 {
-        let line = ask(&mut robot, &format!("TRIGGER p{k}"));
-        let (status, reason, fields) = parse_reply(&line);
-        assert_eq!(fields["frame"], "0000", "{line}");
-        let score: f32 = fields["score"].parse().unwrap();
-        assert!((score - want.verify_score.unwrap()).abs() <= 5e-5, "{line} vs {:?}", want.verify_score);
-        match status.as_str() {
-            "OK" => {
-                let format = RobotPoseFormat { convention: PoseConvention::Matrix, unit: LengthUnit::Mm };
-                let pose = parse_pose(&fields["pose"], format).unwrap();
-                let truth = want.t_robot_tray.unwrap_or(want.t_world_tray);
-                for r in 0..4 {
-                    for c in 0..4 {
-                        assert!((pose[r][c] - truth[r][c]).abs() <= 1e-9, "[{r}][{c}]: {line} vs {truth:?}");
-                    }
-                }
-            }
-            "REJECTED" => {
-                let said = format!("rejected: {}", reason.unwrap().replace('-', " "));
-                assert_eq!(want.verdict.as_deref(), Some(said.as_str()), "{line}");
-            }
-            _ => panic!("{line} vs replay's {want:?}"),
-        }
-    }
-    served.stop();
-}
-
-#[cfg(not(feature = "display"))]
-#[test]
-fn project_without_the_display_feature_says_how_to_build_it() {
-    let dir = tempfile::tempdir().unwrap();
-    let o = camplace(
-        dir.path(),
-        &["serve", "--source", "dir:none", "--model", "none.model", "--listen", "127.0.0.1:0", "--project", "phase-12"],
-    );
-    let code = o.status.code().unwrap_or(-1);
-    crate::camplace_cmd::assert_one_line_error(code, &stderr(&o), &["--project", "`display`", "--features display"]);
 }

@@ -22,6 +22,7 @@ mod placement;
 mod reconstruct;
 mod reconstruct_errors;
 mod serve;
+mod served;
 mod study;
 mod study_folder;
 mod tolerance;
