@@ -360,12 +360,10 @@ fn write_html(r: &TrialReport, plan: &TrialPlan, out: &Path) -> Result<()> {
     );
     if let Some(g) = &plan.grid {
         page.heading(2, "Success maps: simulated and real");
-        let unit =
-            |name: &str| if matches!(name, "r" | "baseline") { format!("{name}, mm") } else { format!("{name}, deg") };
         let map = |title: &str, pick: &dyn Fn(&PlacementRow) -> Option<f64>, best: Option<usize>| HeatMap {
             title: title.to_string(),
-            x_label: unit(&g.x.name),
-            y_label: unit(&g.y.name),
+            x_label: g.x.name.label(),
+            y_label: g.y.name.label(),
             xs: g.x.values(),
             ys: g.y.values(),
             values: r.placements.iter().map(|row| pick(row).map(|v| 100.0 * v)).collect(),
