@@ -6,6 +6,7 @@ mod icp;
 mod kabsch;
 mod metrics;
 mod model;
+mod model_file;
 mod model_load;
 mod ransac;
 mod verify;
@@ -15,6 +16,7 @@ pub use icp::{Icp, IcpResult};
 pub use metrics::{correct_matches, pose_errors, PoseErrors};
 #[cfg(any(test, feature = "testing"))]
 pub(crate) use model::DESCRIPTOR_LEN;
-pub use model::{Model, ModelOrigin, ModelVerification, ModelView, MODEL_FORMAT_VERSION};
+pub use model::{Model, ModelOrigin, ModelVerification, ModelView};
+pub use model_file::MODEL_FORMAT_VERSION;
 pub use ransac::{Ransac, RansacResult};
 pub use verify::{Verdict, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS, RESTING_HEIGHT_MM, RESTING_TILT_DEG};
