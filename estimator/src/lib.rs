@@ -47,8 +47,8 @@ pub use method::Method;
 pub use pipeline::{Estimator, PoseEstimate, StageTimings};
 pub use pose::{
     correct_matches, pose_errors, Icp, IcpResult, Model, ModelOrigin, ModelVerification, ModelView, PoseErrors, Ransac,
-    RansacResult, Verdict, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS, MODEL_FORMAT_VERSION, RESTING_HEIGHT_MM,
-    RESTING_TILT_DEG,
+    RansacCheck, RansacResult, Verdict, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS, MODEL_FORMAT_VERSION,
+    RESTING_HEIGHT_MM, RESTING_TILT_DEG,
 };
 pub use rig::Rig;
 // The image buffers are camplace-config's (image files hold them too); callers name them

@@ -18,5 +18,5 @@ pub use metrics::{correct_matches, pose_errors, PoseErrors};
 pub(crate) use model::DESCRIPTOR_LEN;
 pub use model::{Model, ModelOrigin, ModelVerification, ModelView};
 pub use model_file::MODEL_FORMAT_VERSION;
-pub use ransac::{Ransac, RansacResult};
+pub use ransac::{Ransac, RansacCheck, RansacResult};
 pub use verify::{Verdict, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS, RESTING_HEIGHT_MM, RESTING_TILT_DEG};
