@@ -14,8 +14,6 @@ mod verify;
 pub(crate) use icp::on_table;
 pub use icp::{Icp, IcpResult};
 pub use metrics::{correct_matches, pose_errors, PoseErrors};
-#[cfg(any(test, feature = "testing"))]
-pub(crate) use model::DESCRIPTOR_LEN;
 pub use model::{Model, ModelOrigin, ModelVerification, ModelView};
 pub use model_file::MODEL_FORMAT_VERSION;
 pub use ransac::{Ransac, RansacCheck, RansacResult};

@@ -10,9 +10,7 @@ use camplace_config::ContentHash;
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::error::{Error, ErrorKind, Result};
-
-/// Length of an ECSAD descriptor.
-pub const DESCRIPTOR_LEN: usize = 30;
+use crate::features::Descriptor;
 
 /// The tray as the estimator knows it.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -24,7 +22,7 @@ pub struct Model {
     /// Unit surface normal at each feature key point, tray frame.
     pub feature_normals: Vec<Vector3<f32>>,
     /// ECSAD descriptor of each feature key point.
-    pub descriptors: Vec<[f32; DESCRIPTOR_LEN]>,
+    pub descriptors: Vec<Descriptor>,
     /// One ICP cloud per viewpoint.
     pub views: Vec<ModelView>,
     /// Rotations about tray z (deg) that map the tray onto itself; the identity is implied.
@@ -167,6 +165,7 @@ fn finite3(v: &Vector3<f32>) -> bool {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+    use crate::features::ECSAD_DIM;
     use crate::testing;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -187,7 +186,7 @@ pub(crate) mod tests {
         Model {
             surface_resolution: 2.0,
             feature_normals: feature_points.iter().map(|q| q.coords.normalize()).collect(),
-            descriptors: (0..7).map(|i| [i as f32 * 0.25; DESCRIPTOR_LEN]).collect(),
+            descriptors: (0..7).map(|i| [i as f32 * 0.25; ECSAD_DIM]).collect(),
             feature_points,
             views,
             symmetries_deg: vec![90.0, 180.0, 270.0],

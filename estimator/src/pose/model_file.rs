@@ -5,9 +5,9 @@
 
 use nalgebra::{Point3, Vector3};
 
-use super::model::{Model, ModelOrigin, ModelVerification, ModelView, DESCRIPTOR_LEN};
+use super::model::{Model, ModelOrigin, ModelVerification, ModelView};
 use crate::error::{Error, ErrorKind, Result};
-use crate::features::{quantise, QUANTISATION_STEPS};
+use crate::features::{quantise, ECSAD_DIM, QUANTISATION_STEPS};
 use camplace_config::ContentHash;
 
 /// Version of the binary layout written by [`Model::to_bytes`]. Version 4 added the `VRFY`
@@ -35,11 +35,11 @@ const MAX_ORIGIN_TEXT: usize = 4096;
 /// Magic, version and body length.
 const PREAMBLE_LEN: usize = 8 + 4 + 8;
 /// A feature in versions 1 and 2: point, normal, descriptor, all f32.
-const FEATURE_BYTES_F32: usize = 4 * (3 + 3 + DESCRIPTOR_LEN);
+const FEATURE_BYTES_F32: usize = 4 * (3 + 3 + ECSAD_DIM);
 /// A view point in versions 1 and 2: point and normal, f32.
 const VIEW_POINT_BYTES_F32: usize = 4 * 6;
 /// A feature in version 3: point i16×3, normal i16×2, descriptor u8×30.
-const FEATURE_BYTES: usize = 2 * 3 + 2 * 2 + DESCRIPTOR_LEN;
+const FEATURE_BYTES: usize = 2 * 3 + 2 * 2 + ECSAD_DIM;
 /// A view point in version 3: point i16×3, normal i16×2.
 const VIEW_POINT_BYTES: usize = 2 * 3 + 2 * 2;
 /// The largest magnitude a 16-bit point coordinate holds, in steps.
@@ -219,11 +219,11 @@ impl Model {
         let mut feature_normals = Vec::with_capacity(n_features);
         let mut descriptors = Vec::with_capacity(n_features);
         for _ in 0..n_features {
-            let mut d = [0.0; DESCRIPTOR_LEN];
+            let mut d = [0.0; ECSAD_DIM];
             if compact {
                 feature_points.push(feat.point_i16(step, "feature point")?);
                 feature_normals.push(feat.normal_oct("feature normal")?);
-                for (v, &q) in d.iter_mut().zip(feat.take(DESCRIPTOR_LEN, "descriptor")?) {
+                for (v, &q) in d.iter_mut().zip(feat.take(ECSAD_DIM, "descriptor")?) {
                     *v = f32::from(q) * (std::f32::consts::PI / QUANTISATION_STEPS);
                 }
             } else {
@@ -679,7 +679,7 @@ mod tests {
     fn descriptor_bytes_decode_to_the_matchers_steps() {
         for q in 0..=255u8 {
             let v = f32::from(q) * (std::f32::consts::PI / QUANTISATION_STEPS);
-            assert_eq!(quantise(&[v; DESCRIPTOR_LEN]), [f32::from(q); DESCRIPTOR_LEN], "{q}");
+            assert_eq!(quantise(&[v; ECSAD_DIM]), [f32::from(q); ECSAD_DIM], "{q}");
         }
     }
 
