@@ -168,8 +168,17 @@ fn ablate_switches_each_active_effect_off_on_the_same_scenes() {
     // The recommended placement from a study folder: its placement and method, not the cell's.
     let planned = "r=650,alpha=25,baseline=120,vergence=auto";
     std::fs::create_dir_all(d.join("st")).unwrap();
-    let rec = format!("{{\"placement\": \"{planned}\", \"method\": \"one-shot\"}}");
-    std::fs::write(d.join("st/recommended.json"), rec).unwrap();
+    let rec = serde_json::json!({
+        "alpha": 25.0, "azimuth": 0.0, "baseline": 120.0, "chosen_from": "grid", "mean_correct_matches": null,
+        "method": "one-shot", "placement": planned, "preset": "quick", "r": 650.0, "scenes": 0,
+        "secondary_measure": "mean correct feature matches per scene", "seed": 6, "success_interval": [0.0, 1.0],
+        "success_rate": 0.0, "successes": 0, "tied_candidates": 1, "trays": [], "verification": null,
+        "tilt_deg": { "left_camera": 25.0, "projector": null, "right_camera": 25.0 },
+        "vergence_deg": (60.0f64 / 650.0).atan().to_degrees(),
+        "world_mm": { "left_camera": [0.0, 0.0, 0.0], "look_at": [0.0, 0.0, 0.0], "projector": null,
+                      "right_camera": [0.0, 0.0, 0.0] },
+    });
+    std::fs::write(d.join("st/recommended.json"), rec.to_string()).unwrap();
     let o = camplace(d, &[&base[..], &["--study", "st", "--placement", planned, "--out", "bad"]].concat());
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     let o = camplace(d, &[&base[..], &["--study", "st", "--weak", "r=700,alpha=20", "--out", "abl"]].concat());

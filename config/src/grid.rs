@@ -4,15 +4,14 @@
 
 use std::str::FromStr;
 
-use crate::Placement;
-use crate::PARAMETERS;
+use crate::{Placement, PlacementParam};
 use serde::{Deserialize, Serialize};
 
 /// One axis of a sweep: a parameter from `lo` to `hi` in `steps` values.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Axis {
     /// One of r, alpha, baseline, vergence.
-    pub name: String,
+    pub name: PlacementParam,
     /// First value.
     pub lo: f64,
     /// Last value.
@@ -40,16 +39,11 @@ impl FromStr for Axis {
     /// `name=lo:hi:steps`.
     fn from_str(s: &str) -> Result<Axis, String> {
         let bad = || {
-            format!(
-                "expected name=lo:hi:steps with name one of {} (e.g. r=400:900:5), got \"{s}\"",
-                PARAMETERS.join(", ")
-            )
+            format!("expected name=lo:hi:steps with name one of {} (e.g. r=400:900:5), got \"{s}\"", studied_names())
         };
         let (name, range) = s.split_once('=').ok_or_else(bad)?;
-        let name = name.trim();
-        if !PARAMETERS.contains(&name) {
-            return Err(bad());
-        }
+        let name =
+            PlacementParam::from_name(name.trim()).filter(|p| PlacementParam::STUDIED.contains(p)).ok_or_else(bad)?;
         let parts: Vec<&str> = range.split(':').collect();
         let [lo, hi, steps] = parts[..] else { return Err(bad()) };
         let lo: f64 = lo.trim().parse().map_err(|_| bad())?;
@@ -61,8 +55,13 @@ impl FromStr for Axis {
         if steps > MAX_AXIS_STEPS {
             return Err(format!("{steps} steps along {name}: expected 1 to {MAX_AXIS_STEPS}"));
         }
-        Ok(Axis { name: name.to_string(), lo, hi, steps })
+        Ok(Axis { name, lo, hi, steps })
     }
+}
+
+/// The study's parameters' names, as an error lists them.
+pub fn studied_names() -> String {
+    PlacementParam::STUDIED.map(PlacementParam::name).join(", ")
 }
 
 /// A two-axis grid over a base placement.
@@ -90,7 +89,7 @@ impl Grid {
         let mut out = Vec::with_capacity(self.x.steps * self.y.steps);
         for y in self.y.values() {
             for x in self.x.values() {
-                let p = base.set(&self.y.name, y).and_then(|p| p.set(&self.x.name, x)).expect("axis names are checked");
+                let p = self.x.name.set(&self.y.name.set(base, y), x);
                 p.validate("placement")?;
                 out.push(p);
             }

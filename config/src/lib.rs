@@ -53,8 +53,8 @@ pub use formats::read::{
 };
 pub use formats::robot_poses::{parse_robot_poses, read_robot_poses, robot_poses_text, RobotPoses};
 pub use formats::{is_temp_file_name, remove_stale_temp_files, temp_path_for, write_atomic};
-pub use grid::{Axis, Grid, MAX_AXIS_STEPS};
-pub use placement::{Placement, Vergence, MAX_DISTANCE_MM, PARAMETERS};
+pub use grid::{studied_names, Axis, Grid, MAX_AXIS_STEPS};
+pub use placement::{Placement, PlacementParam, Vergence, MAX_DISTANCE_MM};
 pub use pose::{check_rigid, ROTATION_TOLERANCE};
 pub use raster::{AsImageView, FloatImage, GrayImage, Image, ImageView};
 pub use rig::{CameraFile, RectifiedFile, RigFile, MAX_IMAGE_SIDE};

@@ -81,8 +81,129 @@ pub struct Placement {
 /// The largest distance (r, baseline) a placement may give, mm: 100 m.
 pub const MAX_DISTANCE_MM: f64 = 100_000.0;
 
-/// The four parameters the study varies, by name.
-pub const PARAMETERS: [&str; 4] = ["r", "alpha", "baseline", "vergence"];
+/// One parameter of a placement, by its name in the paper (and in files and flags).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PlacementParam {
+    /// Distance of the rig origin from the world origin, mm.
+    R,
+    /// Polar angle from the world z axis, deg.
+    Alpha,
+    /// Distance between the camera centres, mm.
+    Baseline,
+    /// Toe-in per camera, deg.
+    Vergence,
+    /// Azimuth of the rig's vertical plane from world x, deg.
+    Azimuth,
+}
+
+/// What an unknown parameter name is told.
+const PARAMETER_NAMES: &str = "r, alpha, baseline, vergence, azimuth";
+
+impl PlacementParam {
+    /// Every parameter, in the order placements are written.
+    pub const ALL: [PlacementParam; 5] = [
+        PlacementParam::R,
+        PlacementParam::Alpha,
+        PlacementParam::Baseline,
+        PlacementParam::Vergence,
+        PlacementParam::Azimuth,
+    ];
+
+    /// The four parameters the study varies (the paper's x).
+    pub const STUDIED: [PlacementParam; 4] =
+        [PlacementParam::R, PlacementParam::Alpha, PlacementParam::Baseline, PlacementParam::Vergence];
+
+    /// Its name: `r`, `alpha`, `baseline`, `vergence`, `azimuth`.
+    pub fn name(self) -> &'static str {
+        match self {
+            PlacementParam::R => "r",
+            PlacementParam::Alpha => "alpha",
+            PlacementParam::Baseline => "baseline",
+            PlacementParam::Vergence => "vergence",
+            PlacementParam::Azimuth => "azimuth",
+        }
+    }
+
+    /// The parameter called `name`, if any.
+    pub fn from_name(name: &str) -> Option<PlacementParam> {
+        PlacementParam::ALL.into_iter().find(|p| p.name() == name)
+    }
+
+    /// `mm` or `deg`.
+    pub fn unit(self) -> &'static str {
+        match self {
+            PlacementParam::R | PlacementParam::Baseline => "mm",
+            _ => "deg",
+        }
+    }
+
+    /// The name and unit as a plot's axis is labelled: `r, mm`.
+    pub fn label(self) -> String {
+        format!("{}, {}", self.name(), self.unit())
+    }
+
+    /// The study's default search box: the paper's grid for r (400–900 mm) and alpha
+    /// (0–60°), ranges around its optimum for baseline (40–200 mm) and vergence (0–10°);
+    /// none for the azimuth, which the study does not search.
+    pub fn bounds(self) -> Option<(f64, f64)> {
+        match self {
+            PlacementParam::R => Some((400.0, 900.0)),
+            PlacementParam::Alpha => Some((0.0, 60.0)),
+            PlacementParam::Baseline => Some((40.0, 200.0)),
+            PlacementParam::Vergence => Some((0.0, 10.0)),
+            PlacementParam::Azimuth => None,
+        }
+    }
+
+    /// The step a searched value is written to: 0.1 mm or 0.01°.
+    pub fn step(self) -> f64 {
+        if self.unit() == "mm" {
+            0.1
+        } else {
+            0.01
+        }
+    }
+
+    /// Its value in `p` (vergence resolved to degrees).
+    pub fn get(self, p: &Placement) -> f64 {
+        match self {
+            PlacementParam::R => p.r,
+            PlacementParam::Alpha => p.alpha,
+            PlacementParam::Baseline => p.baseline,
+            PlacementParam::Vergence => p.vergence.degrees(p.r, p.baseline),
+            PlacementParam::Azimuth => p.azimuth,
+        }
+    }
+
+    /// `p` with this parameter set to `value` (a vergence in degrees).
+    pub fn set(self, p: &Placement, value: f64) -> Placement {
+        let mut p = *p;
+        match self {
+            PlacementParam::R => p.r = value,
+            PlacementParam::Alpha => p.alpha = value,
+            PlacementParam::Baseline => p.baseline = value,
+            PlacementParam::Vergence => p.vergence = Vergence::Degrees(value),
+            PlacementParam::Azimuth => p.azimuth = value,
+        }
+        p
+    }
+}
+
+impl fmt::Display for PlacementParam {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for PlacementParam {
+    type Err = String;
+
+    /// A name; the error lists the names.
+    fn from_str(s: &str) -> Result<PlacementParam, String> {
+        PlacementParam::from_name(s).ok_or_else(|| format!("unknown parameter, expected one of {PARAMETER_NAMES}"))
+    }
+}
 
 impl Placement {
     /// Checks ranges; `key` prefixes the key named in an error.
@@ -182,49 +303,15 @@ impl Placement {
                         .with_source(e)
                 })
             };
-            match name {
-                "r" => p.r = number()?,
-                "alpha" => p.alpha = number()?,
-                "baseline" => p.baseline = number()?,
-                "azimuth" => p.azimuth = number()?,
-                "vergence" if value == "auto" => p.vergence = Vergence::Auto,
-                "vergence" => p.vergence = Vergence::Degrees(number()?),
-                _ => {
-                    return Err(Error::value(
-                        format!("placement.{name}"),
-                        "unknown parameter, expected one of r, alpha, baseline, vergence, azimuth",
-                    ))
-                }
-            }
+            let param: PlacementParam =
+                name.parse().map_err(|what: String| Error::value(format!("placement.{name}"), what))?;
+            p = match param {
+                PlacementParam::Vergence if value == "auto" => Placement { vergence: Vergence::Auto, ..p },
+                _ => param.set(&p, number()?),
+            };
         }
         p.validate("placement")?;
         Ok(p)
-    }
-
-    /// The value of one study parameter by name (vergence resolved to degrees).
-    pub fn get(&self, name: &str) -> Option<f64> {
-        match name {
-            "r" => Some(self.r),
-            "alpha" => Some(self.alpha),
-            "baseline" => Some(self.baseline),
-            "vergence" => Some(self.vergence.degrees(self.r, self.baseline)),
-            "azimuth" => Some(self.azimuth),
-            _ => None,
-        }
-    }
-
-    /// The same placement with one study parameter set by name.
-    pub fn set(&self, name: &str, value: f64) -> Option<Placement> {
-        let mut p = *self;
-        match name {
-            "r" => p.r = value,
-            "alpha" => p.alpha = value,
-            "baseline" => p.baseline = value,
-            "vergence" => p.vergence = Vergence::Degrees(value),
-            "azimuth" => p.azimuth = value,
-            _ => return None,
-        }
-        Some(p)
     }
 }
 
@@ -293,6 +380,23 @@ mod tests {
         assert!(base().with_overrides("vergence=auto,r=605,baseline=81").is_ok());
         assert_eq!(base().with_overrides("r=1e12").unwrap_err().key(), "placement.r");
         assert_eq!(base().with_overrides("baseline=1e12").unwrap_err().key(), "placement.baseline");
+    }
+
+    #[test]
+    fn each_parameter_sets_what_it_gets_and_parses_its_name() {
+        for param in PlacementParam::ALL {
+            let value = param.get(&base()) + 1.5;
+            let p = param.set(&base(), value);
+            assert_eq!(param.get(&p), value, "{param}");
+            // Only that field changed.
+            for other in PlacementParam::ALL.into_iter().filter(|&o| o != param && o != PlacementParam::Vergence) {
+                assert_eq!(other.get(&p), other.get(&base()), "{param} moved {other}");
+            }
+            assert_eq!(param.name().parse::<PlacementParam>(), Ok(param));
+            assert_eq!(base().with_overrides(&format!("{param}={value}")).unwrap(), p);
+            assert_eq!(serde_json::to_string(&param).unwrap(), format!("\"{param}\""));
+        }
+        assert!("height".parse::<PlacementParam>().unwrap_err().contains("r, alpha, baseline, vergence, azimuth"));
     }
 
     #[test]

@@ -8,7 +8,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::{Error, Placement, Vergence, MAX_DISTANCE_MM};
+use crate::{Error, Placement, PlacementParam, Vergence, MAX_DISTANCE_MM};
 
 type Result<T> = std::result::Result<T, Error>;
 
@@ -284,13 +284,12 @@ impl ToleranceReport {
 
 /// The largest tolerance a parameter can have in its unit, or `None` for an unknown pair.
 fn unit_bound(parameter: &str, unit: &str) -> Option<f64> {
-    match (parameter, unit) {
-        ("r" | "baseline", "mm") => Some(MAX_DISTANCE_MM),
-        ("alpha", "deg") => Some(90.0),
-        ("vergence", "deg") => Some(90.0),
-        ("azimuth", "deg") => Some(360.0),
-        _ => None,
-    }
+    let param = PlacementParam::from_name(parameter).filter(|p| p.unit() == unit)?;
+    Some(match param {
+        PlacementParam::R | PlacementParam::Baseline => MAX_DISTANCE_MM,
+        PlacementParam::Alpha | PlacementParam::Vergence => 90.0,
+        PlacementParam::Azimuth => 360.0,
+    })
 }
 
 /// One side of one parameter, as the table states it.

@@ -52,8 +52,8 @@ pub use pipeline::{Estimator, PoseEstimate, StageTimings};
 pub use placement_rig::{camera_k, look_at, rig_for, rig_pose, sensor_rig};
 pub use pose::{
     correct_matches, pose_errors, Icp, IcpResult, Model, ModelOrigin, ModelVerification, ModelView, PoseErrors, Ransac,
-    RansacResult, Verdict, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS, MODEL_FORMAT_VERSION, RESTING_HEIGHT_MM,
-    RESTING_TILT_DEG,
+    RansacCheck, RansacResult, Verdict, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS, MODEL_FORMAT_VERSION,
+    RESTING_HEIGHT_MM, RESTING_TILT_DEG,
 };
 pub use rig::Rig;
 pub use scoring::{

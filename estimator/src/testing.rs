@@ -6,7 +6,8 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::pose::{Model, ModelView, DESCRIPTOR_LEN};
+use crate::features::ECSAD_DIM;
+use crate::pose::{Model, ModelView};
 use crate::Correspondence;
 
 /// Spacing of surface samples, mm (the paper's surface resolution).
@@ -146,7 +147,7 @@ pub fn tray(symmetric: bool, seed: u64) -> Model {
         for i in voxel_subsample(&view.points, KEYPOINT_SPACING) {
             model.feature_points.push(view.points[i]);
             model.feature_normals.push(view.normals[i]);
-            let mut d = [0.0; DESCRIPTOR_LEN];
+            let mut d = [0.0; ECSAD_DIM];
             d.iter_mut().for_each(|v| *v = rng.random_range(0.0..1.0));
             model.descriptors.push(d);
         }

@@ -10,6 +10,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Context};
+use camplace_config::PlacementParam;
 use camplace_sim::{optimize, run_test_function, test_function, SearchParameter, SearchPlan};
 
 use super::cell_args::{refuse_installed_rig, CellArgs};
@@ -71,7 +72,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let (cell, base) = a.cell.load()?;
     refuse_installed_rig(&cell, "optimize")?;
     let seed = a.run.seed(&cell);
-    let mut names: Vec<&str> = a.params.iter().map(|p| p.name.as_str()).collect();
+    let mut names: Vec<PlacementParam> = a.params.iter().map(|p| p.name).collect();
     names.sort_unstable();
     if names.windows(2).any(|w| w[0] == w[1]) {
         bail!("--params: expected each parameter once");

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context};
-use camplace_config::{Placement, RigFile, ToleranceReport};
+use camplace_config::{Placement, PlacementParam, RigFile, ToleranceReport};
 use camplace_estimator::Rig;
 use camplace_estimator::{as_built, azimuth_difference};
 use camplace_sim::tolerance_dir;
@@ -64,14 +64,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     outln!("planned: {}", short(&plan));
     outln!("{:<10} {:>12} {:>12} {:>12} {:>16}", "parameter", "as built", "planned", "difference", "tolerance");
     let mut outside = Vec::new();
-    for (name, unit, got, want) in [
-        ("r", "mm", p.r, plan.r),
-        ("alpha", "deg", p.alpha, plan.alpha),
-        ("baseline", "mm", p.baseline, plan.baseline),
-        ("vergence", "deg", p.vergence.degrees(p.r, p.baseline), plan.vergence.degrees(plan.r, plan.baseline)),
-        ("azimuth", "deg", p.azimuth, plan.azimuth),
-    ] {
-        let diff = if name == "azimuth" { azimuth_difference(got, want) } else { got - want };
+    for param in PlacementParam::ALL {
+        let (name, unit, got, want) = (param.name(), param.unit(), param.get(&p), param.get(&plan));
+        let diff = if param == PlacementParam::Azimuth { azimuth_difference(got, want) } else { got - want };
         let limit = limits.as_ref().and_then(|t| t.axes.iter().find(|x| x.parameter == name));
         let verdict = match limit {
             Some(l) if diff < -l.minus - 1e-9 || diff > l.plus + 1e-9 => {

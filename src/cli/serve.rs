@@ -10,7 +10,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{bail, Context};
-use camplace_config::{Cell, LengthUnit, PoseConvention, RobotPoseFormat, ToleranceReport};
+use camplace_config::{Cell, LengthUnit, PlacementParam, PoseConvention, RobotPoseFormat, ToleranceReport};
 use camplace_estimator::{method_for, Method};
 use camplace_estimator::{Model, Rig};
 use camplace_hwio::{
@@ -102,14 +102,19 @@ fn drift_limits(a: &Args) -> anyhow::Result<DriftLimits> {
         });
     };
     let t = ToleranceReport::load(path)?;
-    let axis = |name: &str| {
+    let axis = |param: PlacementParam| {
+        let name = param.name();
         t.axes
             .iter()
             .find(|x| x.parameter == name)
             .map(|x| x.minus.min(x.plus))
             .with_context(|| format!("{}: axes: expected a tolerance of {name}", path.display()))
     };
-    Ok(DriftLimits { rotation_deg: axis("alpha")?, translation_mm: axis("r")?, from: path.display().to_string() })
+    Ok(DriftLimits {
+        rotation_deg: axis(PlacementParam::Alpha)?,
+        translation_mm: axis(PlacementParam::R)?,
+        from: path.display().to_string(),
+    })
 }
 
 /// Opens `spec` again each time the service asks (at the start, after a failure, at the end

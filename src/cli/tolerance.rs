@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::bail;
+use camplace_config::PlacementParam;
 use camplace_sim::{
     measure_tolerance, scenes_for_power, write_tolerance_plots, ToleranceRequest, TOLERANCE_LEVEL,
     TOLERANCE_PARAMETERS, TOLERANCE_POWER,
@@ -53,7 +54,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let seed = a.scene.seed(&trays[0].1);
     let mut parameters = Vec::new();
     for name in a.parameters.split(',').map(str::trim).filter(|n| !n.is_empty()) {
-        let Some(i) = TOLERANCE_PARAMETERS.iter().position(|p| p.name == name) else {
+        let param = PlacementParam::from_name(name);
+        let Some(i) = TOLERANCE_PARAMETERS.iter().position(|p| Some(p.param) == param) else {
             bail!("--parameters: unknown parameter \"{name}\", expected some of r, alpha, baseline, vergence, azimuth");
         };
         if !parameters.contains(&i) {

@@ -7,7 +7,7 @@
 use serde::{de, Deserialize, Deserializer, Serialize, Serializer};
 use std::fmt;
 
-use crate::cell::{at_most, pos, range, unit};
+use super::values::{at_most, pos, range, unit};
 use crate::{Cell, Error, MAX_DISTANCE_MM};
 
 /// Where a lens is focused.

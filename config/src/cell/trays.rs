@@ -7,7 +7,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::cell::merge;
+use super::toml_merge::merge;
 use crate::{Cell, Error, Items, Tray, TrayKind};
 
 /// The most trays a cell may list.
@@ -229,7 +229,7 @@ pub(crate) fn parse_trays(
         let w: Written = serde_path_to_error::deserialize(toml::Value::Table(both)).map_err(|e| {
             let path = e.path().to_string();
             let inner = e.into_inner();
-            Error::value(entry_key(&key, &path), crate::cell::explain(&inner.to_string())).with_source(inner)
+            Error::value(entry_key(&key, &path), super::toml_merge::explain(&inner.to_string())).with_source(inner)
         })?;
         let mut entry = TrayEntry { name: String::new(), tray: w.tray, items: w.items };
         for p in [&mut entry.tray.mesh, &mut entry.items.mesh] {

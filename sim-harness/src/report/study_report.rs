@@ -6,10 +6,11 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use camplace_config::{save_plot, write_atomic, Cell, Effect, EstimatorPreset};
+use camplace_config::{save_plot, Cell, Effect, EstimatorPreset};
 
 use super::convergence::{Convergence, Curve};
 use super::html::HtmlPage;
+use super::recommended::Recommended;
 use super::rig_sketch::RigSketch;
 use crate::render::frame_files::write_preview;
 use crate::render::{Frame, Method, Simulator};
@@ -305,10 +306,9 @@ fn answer(
     let p = r.placement;
     let cell = &r.cells[0].1;
     let s = &r.summary;
+    let rec = Recommended::new(r, preset, seed);
     let rig = rig_for(&p, &cell.sensor);
-    let centre = |c: &Camera| c.t_world_camera.translation.vector;
     let axis = |c: &Camera| c.t_world_camera.rotation * nalgebra::Vector3::z();
-    let tilt = |c: &Camera| (-axis(c).z).clamp(-1.0, 1.0).acos().to_degrees();
     let heading = |c: &Camera| {
         let a = axis(c);
         a.y.atan2(a.x).to_degrees()
@@ -322,8 +322,8 @@ fn answer(
             r
         }
     };
-    let xyz = |v: nalgebra::Vector3<f64>| format!("({:.1}, {:.1}, {:.1})", tenth(v.x), tenth(v.y), tenth(v.z));
-    let vergence = p.vergence.degrees(p.r, p.baseline);
+    let xyz = |v: [f64; 3]| format!("({:.1}, {:.1}, {:.1})", tenth(v[0]), tenth(v[1]), tenth(v[2]));
+    let vergence = rec.vergence_deg;
     let interval = format!("{:.1}–{:.1} %", 100.0 * s.success_interval[0], 100.0 * s.success_interval[1]);
     let mut rows: Vec<(String, String, String)> = vec![
         ("trays".into(), "for".into(), r.trays_label()),
@@ -350,28 +350,28 @@ fn answer(
         }
     }
     let mut world: Vec<(String, String, String)> = vec![
-        ("left_camera".into(), "left camera centre".into(), xyz(centre(&rig.left))),
-        ("right_camera".into(), "right camera centre".into(), xyz(centre(&rig.right))),
+        ("left_camera".into(), "left camera centre".into(), xyz(rec.world_mm.left_camera)),
+        ("right_camera".into(), "right camera centre".into(), xyz(rec.world_mm.right_camera)),
     ];
-    if let Some(pr) = &rig.projector {
-        world.push(("projector".into(), "projector centre".into(), xyz(centre(pr))));
+    if let Some(pr) = rec.world_mm.projector {
+        world.push(("projector".into(), "projector centre".into(), xyz(pr)));
     }
     world.push(("look_at".into(), "point the rig looks at".into(), "(0.0, 0.0, 0.0)".into()));
     world.push((
         "left_tilt".into(),
         "left camera tilt from vertical, towards heading".into(),
-        format!("{:.2} deg towards {:.1} deg", tilt(&rig.left), heading(&rig.left)),
+        format!("{:.2} deg towards {:.1} deg", rec.tilt_deg.left_camera, heading(&rig.left)),
     ));
     world.push((
         "right_tilt".into(),
         "right camera tilt from vertical, towards heading".into(),
-        format!("{:.2} deg towards {:.1} deg", tilt(&rig.right), heading(&rig.right)),
+        format!("{:.2} deg towards {:.1} deg", rec.tilt_deg.right_camera, heading(&rig.right)),
     ));
-    if let Some(pr) = &rig.projector {
+    if let (Some(pr), Some(pr_tilt)) = (&rig.projector, rec.tilt_deg.projector) {
         world.push((
             "projector_tilt".into(),
             "projector tilt from vertical, towards heading".into(),
-            format!("{:.2} deg towards {:.1} deg", tilt(pr), heading(pr)),
+            format!("{:.2} deg towards {:.1} deg", pr_tilt, heading(pr)),
         ));
     }
     if s.success_rate < 0.8 {
@@ -428,39 +428,7 @@ fn answer(
     write_preview(&preview, &frame.left[0], &frame.depth_left)?;
     page.png(&preview, "scenario 0 at the recommended placement: left camera image and its true depth")?;
 
-    let v = |c: &Camera| [centre(c).x, centre(c).y, centre(c).z];
-    let json = serde_json::json!({
-        "preset": preset.name,
-        "method": r.method.to_string(),
-        "placement": p.to_string(),
-        "r": p.r, "alpha": p.alpha, "baseline": p.baseline, "vergence_deg": vergence, "azimuth": p.azimuth,
-        "chosen_from": r.source,
-        "seed": recheck_seed(seed),
-        "scenes": s.scored,
-        "successes": s.successes,
-        "success_rate": s.success_rate,
-        "success_interval": s.success_interval,
-        "secondary_measure": "mean correct feature matches per scene",
-        "mean_correct_matches": s.mean_correct_matches,
-        "verification": s.verification,
-        "tied_candidates": r.tied_candidates,
-        "trays": r.cells.iter().zip(&r.per_tray).map(|((n, _), t)| serde_json::json!({
-            "name": n, "scenes": t.scored, "successes": t.successes,
-            "success_rate": t.success_rate, "success_interval": t.success_interval,
-        })).collect::<Vec<_>>(),
-        "world_mm": {
-            "left_camera": v(&rig.left),
-            "right_camera": v(&rig.right),
-            "projector": rig.projector.as_ref().map(v),
-            "look_at": [0.0, 0.0, 0.0],
-        },
-        "tilt_deg": {
-            "left_camera": tilt(&rig.left), "right_camera": tilt(&rig.right),
-            "projector": rig.projector.as_ref().map(tilt),
-        },
-    });
-    let text = serde_json::to_string_pretty(&json).expect("plain data");
-    write_atomic(&out.join("recommended.json"), text.as_bytes())?;
+    rec.write(out)?;
     Ok(())
 }
 

@@ -57,17 +57,13 @@ pub fn write_sweep_outputs(
     write_summary_csv(&dir.join("summary.csv"), &rows)?;
     write_summary_json(&dir.join("summary.json"), &rows)?;
     if complete {
-        let unit = |name: &str| match name {
-            "r" | "baseline" => format!("{name}, mm"),
-            _ => format!("{name}, deg"),
-        };
         // Success on one fixed scale on every map, so a colour reads as the same rate.
         let success = ColourScale::Fixed { lo: 0.0, hi: 100.0 };
         let panel =
             |title: &str, decimals: usize, scale: ColourScale, pick: &dyn Fn(&Summary) -> Option<f64>| HeatMap {
                 title: format!("{title} ({method})"),
-                x_label: unit(&grid.x.name),
-                y_label: unit(&grid.y.name),
+                x_label: grid.x.name.label(),
+                y_label: grid.y.name.label(),
                 xs: grid.x.values(),
                 ys: grid.y.values(),
                 values: rows.iter().map(|r| pick(&r.summary)).collect(),

@@ -8,8 +8,7 @@
 
 use std::str::FromStr;
 
-use camplace_config::Placement;
-use camplace_config::PARAMETERS;
+use camplace_config::{Placement, PlacementParam};
 use serde::{Deserialize, Serialize};
 
 use crate::search::{RbfOptimizer, RbfSettings};
@@ -20,7 +19,7 @@ use camplace_estimator::Summary;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SearchParameter {
     /// One of r, alpha, baseline, vergence.
-    pub name: String,
+    pub name: PlacementParam,
     /// Lower bound.
     pub lo: f64,
     /// Upper bound.
@@ -28,22 +27,15 @@ pub struct SearchParameter {
 }
 
 impl SearchParameter {
-    /// The default box of a parameter: the paper's grid for r and alpha, and ranges around
-    /// its optimum for baseline (40–200 mm) and vergence (0–10°).
-    pub fn default_for(name: &str) -> Option<SearchParameter> {
-        let (lo, hi) = match name {
-            "r" => (400.0, 900.0),
-            "alpha" => (0.0, 60.0),
-            "baseline" => (40.0, 200.0),
-            "vergence" => (0.0, 10.0),
-            _ => return None,
-        };
-        Some(SearchParameter { name: name.to_string(), lo, hi })
+    /// The default box of a parameter ([`PlacementParam::bounds`]); none for the azimuth.
+    pub fn default_for(name: PlacementParam) -> Option<SearchParameter> {
+        let (lo, hi) = name.bounds()?;
+        Some(SearchParameter { name, lo, hi })
     }
 
     /// The value rounded to what a placement is written with: 0.1 mm or 0.01°.
     fn round(&self, v: f64) -> f64 {
-        let step = if matches!(self.name.as_str(), "r" | "baseline") { 0.1 } else { 0.01 };
+        let step = self.name.step();
         ((v / step).round() * step * 1e6).round() / 1e6
     }
 }
@@ -56,14 +48,14 @@ impl FromStr for SearchParameter {
         let bad = || {
             format!(
                 "expected one of {} optionally with =lo:hi (e.g. baseline=40:200), got \"{s}\"",
-                PARAMETERS.join(", ")
+                camplace_config::studied_names()
             )
         };
         let (name, range) = match s.split_once('=') {
             Some((n, r)) => (n.trim(), Some(r)),
             None => (s.trim(), None),
         };
-        let mut p = SearchParameter::default_for(name).ok_or_else(bad)?;
+        let mut p = PlacementParam::from_name(name).and_then(SearchParameter::default_for).ok_or_else(bad)?;
         if let Some(range) = range {
             let (lo, hi) = range.split_once(':').ok_or_else(bad)?;
             p.lo = lo.trim().parse().map_err(|_| bad())?;
@@ -142,7 +134,7 @@ pub fn search_placement(
     let placement_of = |x: &[f64]| -> Result<Placement> {
         let mut p = *base;
         for (param, &v) in plan.parameters.iter().zip(x) {
-            p = p.set(&param.name, param.round(v)).expect("parameter names are checked");
+            p = param.name.set(&p, param.round(v));
         }
         p.validate("placement")?;
         Ok(p)

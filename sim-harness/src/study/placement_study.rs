@@ -12,7 +12,7 @@
 
 use std::path::{Path, PathBuf};
 
-use camplace_config::{Cell, Placement, TrayKind};
+use camplace_config::{Cell, Placement, PlacementParam, TrayKind};
 
 use super::optimize::{recheck_seed, SearchOutcome, SearchParameter, SearchPlan};
 use super::placement_search::optimize_set;
@@ -297,10 +297,7 @@ fn run_combination(
     }
     let search = if preset.budget > 0 {
         let plan = SearchPlan {
-            parameters: ["r", "alpha", "baseline", "vergence"]
-                .iter()
-                .map(|n| SearchParameter::default_for(n).expect("known"))
-                .collect(),
+            parameters: PlacementParam::STUDIED.into_iter().filter_map(SearchParameter::default_for).collect(),
             budget: preset.budget,
             scenarios: preset.search_scenarios,
             optimizer_seed: seed,

@@ -16,7 +16,7 @@
 
 use std::path::Path;
 
-use camplace_config::{write_atomic, Cell, Placement};
+use camplace_config::{write_atomic, Cell, Placement, PlacementParam};
 
 use super::findings::{drop_detection_power, Paired};
 use super::tolerance_walk::{range_end, walk_to_edge};
@@ -29,10 +29,8 @@ use camplace_estimator::Summary;
 /// A parameter a bracket can get wrong, and how its tolerance is walked.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ToleranceParameter {
-    /// Its name in a placement.
-    pub name: &'static str,
-    /// mm or deg.
-    pub unit: &'static str,
+    /// The placement's parameter (its name and unit).
+    pub param: PlacementParam,
     /// The resolution the edge is found to; every offset is a whole number of it.
     pub resolution: f64,
     /// The first step out, in resolutions; each further step doubles.
@@ -52,11 +50,11 @@ pub struct ToleranceParameter {
 /// dropped: beyond an edge success is noisy (a point a little further may lose fewer
 /// scenes than one at the edge), and a wider first bracket can land on a further edge.
 pub const TOLERANCE_PARAMETERS: [ToleranceParameter; 5] = [
-    ToleranceParameter { name: "r", unit: "mm", resolution: 5.0, first_steps: 8, walk_limit: 400.0 },
-    ToleranceParameter { name: "alpha", unit: "deg", resolution: 1.0, first_steps: 4, walk_limit: 30.0 },
-    ToleranceParameter { name: "baseline", unit: "mm", resolution: 5.0, first_steps: 2, walk_limit: 60.0 },
-    ToleranceParameter { name: "vergence", unit: "deg", resolution: 0.25, first_steps: 3, walk_limit: 6.0 },
-    ToleranceParameter { name: "azimuth", unit: "deg", resolution: 1.0, first_steps: 4, walk_limit: 30.0 },
+    ToleranceParameter { param: PlacementParam::R, resolution: 5.0, first_steps: 8, walk_limit: 400.0 },
+    ToleranceParameter { param: PlacementParam::Alpha, resolution: 1.0, first_steps: 4, walk_limit: 30.0 },
+    ToleranceParameter { param: PlacementParam::Baseline, resolution: 5.0, first_steps: 2, walk_limit: 60.0 },
+    ToleranceParameter { param: PlacementParam::Vergence, resolution: 0.25, first_steps: 3, walk_limit: 6.0 },
+    ToleranceParameter { param: PlacementParam::Azimuth, resolution: 1.0, first_steps: 4, walk_limit: 30.0 },
 ];
 
 /// The level of the one-sided paired test that puts a point outside.
@@ -91,7 +89,7 @@ pub struct ToleranceRequest {
 fn offset_placement(nominal: &Placement, offsets: &[f64; 5]) -> Option<Placement> {
     let mut p = *nominal;
     for (param, &d) in TOLERANCE_PARAMETERS.iter().zip(offsets) {
-        p = p.set(param.name, round6(nominal.get(param.name)? + d))?;
+        p = param.param.set(&p, round6(param.param.get(nominal) + d));
     }
     p.validate("").ok().map(|_| p)
 }
@@ -220,9 +218,7 @@ pub fn measure_tolerance(
     }
     // To a thousandth of a degree, so placements print short.
     let verged = (r.placement.vergence.degrees(r.placement.r, r.placement.baseline) * 1e3).round() / 1e3;
-    let nominal = r
-        .placement
-        .set("vergence", verged)
+    let nominal = Some(PlacementParam::Vergence.set(&r.placement, verged))
         .filter(|p| p.validate("").is_ok())
         .ok_or_else(|| Error::Other(format!("--placement: {} is not a valid placement", r.placement)))?;
     // One tray's scenes in `dir` itself; several trays' each in `dir/NAME`.
@@ -271,7 +267,7 @@ pub fn measure_tolerance(
             let range = range_end(cap, |k| along(offset(k)).is_some());
             let walk = walk_to_edge(param.first_steps, range, |k| {
                 let p = along(offset(k)).ok_or_else(|| {
-                    Error::Other(format!("tolerance: {} {:+} is outside its range", param.name, offset(k)))
+                    Error::Other(format!("tolerance: {} {:+} is outside its range", param.param, offset(k)))
                 })?;
                 let (point, inside) = judge.point(&p, offset(k))?;
                 points.push(point);
@@ -286,8 +282,8 @@ pub fn measure_tolerance(
         let [(minus, minus_end, minus_inside, minus_outside, minus_range), (plus, plus_end, plus_inside, plus_outside, plus_range)] =
             <[_; 2]>::try_from(sides).expect("two sides");
         axes.push(AxisTolerance {
-            parameter: param.name.to_string(),
-            unit: param.unit.to_string(),
+            parameter: param.param.name().to_string(),
+            unit: param.param.unit().to_string(),
             resolution: param.resolution,
             limit: param.walk_limit,
             minus,
@@ -453,9 +449,9 @@ mod tests {
         // them: three or four doublings before the limit.
         for p in TOLERANCE_PARAMETERS {
             let cap = p.walk_limit / p.resolution;
-            assert_eq!(cap, cap.round(), "{}", p.name);
+            assert_eq!(cap, cap.round(), "{}", p.param);
             let doublings = (cap / p.first_steps as f64).log2();
-            assert!((2.5..=4.0).contains(&doublings), "{}: {doublings}", p.name);
+            assert!((2.5..=4.0).contains(&doublings), "{}: {doublings}", p.param);
         }
     }
 

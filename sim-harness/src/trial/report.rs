@@ -20,6 +20,7 @@ use super::layout::check_placement_rig;
 use super::rank::{spearman, RankCorrelation};
 use crate::report::heatmap::{ColourScale, HeatMap};
 use crate::report::html::HtmlPage;
+use crate::report::recommended::Recommended;
 use crate::report::table::SummaryRow;
 use crate::study::findings::{Paired, Rate};
 use crate::study::sweep::load_sweep;
@@ -145,19 +146,12 @@ pub fn sweep_folder(dir: &Path) -> Result<(PathBuf, Option<String>)> {
             dir.display()
         )));
     }
-    let v: serde_json::Value = serde_json::from_str(&camplace_config::read_text(&path)?)
-        .map_err(|e| Error::Other(format!("{}: expected a study's recommendation: {e}", path.display())))?;
-    let text = |key: &str| {
-        v.pointer(key).and_then(|x| x.as_str()).map(str::to_string).ok_or_else(|| {
-            Error::Other(format!(
-                "{}: {}: expected a string",
-                path.display(),
-                key.trim_start_matches('/').replace('/', ".")
-            ))
-        })
-    };
-    let (method, tray) = (text("/method")?, text("/trays/0/name")?);
-    Ok((dir.join(tray).join(method), Some(text("/placement")?)))
+    let rec = Recommended::load(dir)?;
+    let tray = rec
+        .trays
+        .first()
+        .ok_or_else(|| Error::Other(format!("{}: trays: expected at least one tray", path.display())))?;
+    Ok((dir.join(&tray.name).join(rec.method.to_string()), Some(rec.placement.to_string())))
 }
 
 /// The grid, scenes per placement and base placement of the sweep of `dir` (see
@@ -366,12 +360,10 @@ fn write_html(r: &TrialReport, plan: &TrialPlan, out: &Path) -> Result<()> {
     );
     if let Some(g) = &plan.grid {
         page.heading(2, "Success maps: simulated and real");
-        let unit =
-            |name: &str| if matches!(name, "r" | "baseline") { format!("{name}, mm") } else { format!("{name}, deg") };
         let map = |title: &str, pick: &dyn Fn(&PlacementRow) -> Option<f64>, best: Option<usize>| HeatMap {
             title: title.to_string(),
-            x_label: unit(&g.x.name),
-            y_label: unit(&g.y.name),
+            x_label: g.x.name.label(),
+            y_label: g.y.name.label(),
             xs: g.x.values(),
             ys: g.y.values(),
             values: r.placements.iter().map(|row| pick(row).map(|v| 100.0 * v)).collect(),

@@ -28,14 +28,22 @@
 //! a single stream would take them. The streams are fixed by the seed and the round, so the
 //! pose is the same whatever the number of threads.
 
+mod checks;
+mod sampling;
+mod scoring;
+
 use std::sync::Arc;
 
 use camplace_config::EstimatorParams;
-use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use rand::seq::SliceRandom;
-use rand::{RngExt, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+
+pub use checks::RansacCheck;
+use sampling::RankWeights;
+use scoring::{split, CONSENSUS_CHUNK, SCORE_SAMPLE};
 
 use super::kabsch::RigidFit;
 use crate::error::{Error, ErrorKind, Result};
@@ -44,26 +52,6 @@ use crate::spatial::SceneGrid;
 use crate::Correspondence;
 use crate::Model;
 
-/// The lowest share of a view's scoring sample a bar may stand for when a score against it
-/// stands in for the score against a higher bar (see `Ransac::monotone_bar`).
-const MONOTONE_RATE: f64 = 0.1;
-/// Points scored between two early-exit checks.
-const SCORE_BLOCK: usize = 32;
-/// Hypotheses are compared on this many points of the view (a random sample: the view is
-/// shuffled); the winner is then counted on every point. Inlier shares on 8 192 points
-/// differ from the whole view's by about half a percent (one standard deviation at a share
-/// of 0.5), far below the gap between the right pose and a wrong one, and the sample costs a
-/// fifth of a 40 000-point view.
-const SCORE_SAMPLE: usize = 8192;
-/// A hypothesis is dropped once its inliers on the points scored so far fall this many
-/// standard deviations below what a hypothesis with exactly the count to beat would show.
-/// The points come in a random order, so a truly better hypothesis is dropped with about the
-/// one-sided normal tail at this level (0.1 %) per check; a hypothesis near the truth is
-/// drawn many times over, so losing one costs nothing.
-const EARLY_EXIT_SIGMAS: f32 = 3.0;
-/// Samples whose scene triangle is thinner than this (twice its area over its longest edge
-/// squared) fix the rotation about their long side poorly.
-const MIN_TRIANGLE_SHAPE: f32 = 0.05;
 /// Probability of having drawn an all-right sample at which sampling stops early.
 const CONFIDENCE: f64 = 0.999;
 /// Random streams a round of sampling is split into. Fixed, so the samples drawn, and the
@@ -73,8 +61,6 @@ const STREAMS: usize = 8;
 /// against the tens of thousands of samples a scene needs (so little is drawn past the
 /// stopping rule's count).
 const STREAM_DRAWS: usize = 512;
-/// Sample points per part of the consensus fit (8 parts of a full sample).
-const CONSENSUS_CHUNK: usize = 1024;
 
 /// The outcome of [`Ransac::estimate`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -117,11 +103,8 @@ pub struct Ransac {
     model: Arc<Model>,
     iterations: u32,
     sample: u32,
-    edge_similarity: f32,
-    /// Squared shortest scene edge of a sample, mm².
-    min_edge2: f32,
-    table_height: f64,
-    cos_tilt: f64,
+    /// The pre-rejection checks every sample goes through.
+    checks: Vec<RansacCheck>,
     inlier_distance: f32,
     min_inlier_share: f32,
     seed: u64,
@@ -141,8 +124,15 @@ pub struct Ransac {
 }
 
 impl Ransac {
-    /// Prepares RANSAC for `model`; fails when the model has no usable viewpoint.
+    /// Prepares RANSAC for `model` with the checks of `params`' sample size
+    /// ([`RansacCheck::for_params`]); fails when the model has no usable viewpoint.
     pub fn new(params: &EstimatorParams, model: Arc<Model>) -> Result<Self> {
+        Ransac::with_checks(params, model, RansacCheck::for_params(params))
+    }
+
+    /// Prepares RANSAC for `model` with the pre-rejection `checks` (each applied at its
+    /// stage of every sample); fails when the model has no usable viewpoint.
+    pub fn with_checks(params: &EstimatorParams, model: Arc<Model>, checks: Vec<RansacCheck>) -> Result<Self> {
         model.validate()?;
         if model.views.is_empty() || model.views.iter().any(|v| v.points.len() < 3) {
             return Err(Error::new(ErrorKind::Model, "model: expected viewpoints of at least 3 points each"));
@@ -163,12 +153,7 @@ impl Ransac {
             model,
             iterations: params.ransac_iterations,
             sample: params.ransac_sample,
-            edge_similarity: params.edge_similarity as f32,
-            // Key points closer than a feature's support share most of it, so their matches
-            // are not independent evidence, and short edges make a shaky rotation.
-            min_edge2: (params.feature_radius as f32).powi(2),
-            table_height: params.table_height,
-            cos_tilt: params.table_tilt.to_radians().cos(),
+            checks,
             inlier_distance,
             min_inlier_share: params.min_inlier_share as f32,
             seed: params.seed,
@@ -258,7 +243,7 @@ impl Ransac {
         // kept if it explains no smaller a share of its view's sample); ICP does the fine
         // work. The pose kept is then counted on its whole view.
         let (refit, sample_inliers) = self.consensus(&pose, view);
-        if let Some(refit) = refit.filter(|r| self.on_table(r)) {
+        if let Some(refit) = refit.filter(|r| self.pose_passes(r)) {
             let refit_view = model.closest_view(&refit, sensor_position_world);
             let refit_inliers = self.score(&refit, refit_view, 0).unwrap_or(0);
             // Shares of two samples compared exactly: a / n >= b / m as a m >= b n.
@@ -390,87 +375,6 @@ impl Ransac {
         }
     }
 
-    /// One 3-match hypothesis, or `None` when the sample is rejected before scoring: three
-    /// distinct key points forming a good triangle, one match of each, edges that agree in
-    /// length, and a fitted pose that rests on the table.
-    fn triple(&self, rng: &mut ChaCha8Rng, scene_keypoints: &[Point3<f32>], model: &Model) -> Option<Isometry3<f64>> {
-        let n = self.matched.len() as u32;
-        let k = [
-            self.matched[rng.random_range(0..n) as usize] as usize,
-            self.matched[rng.random_range(0..n) as usize] as usize,
-            self.matched[rng.random_range(0..n) as usize] as usize,
-        ];
-        if k[0] == k[1] || k[0] == k[2] || k[1] == k[2] {
-            return None;
-        }
-        let s = k.map(|i| scene_keypoints[i]);
-        if !good_scene_triangle(&s, self.min_edge2) {
-            return None;
-        }
-        let f = k.map(|i| self.draw_match(rng, i));
-        if f[0] == f[1] || f[0] == f[2] || f[1] == f[2] {
-            return None;
-        }
-        let m = f.map(|j| model.feature_points[j as usize]);
-        if !edges_agree(&s, &m, self.edge_similarity) {
-            return None;
-        }
-        let mut fit = RigidFit::new();
-        for k in 0..3 {
-            fit.add(&m[k], &s[k]);
-        }
-        let pose = fit.solve()?;
-        if !self.on_table(&pose) {
-            return None;
-        }
-        Some(pose)
-    }
-
-    /// One 2-match hypothesis of a tray resting on the table, or `None` when the sample is
-    /// rejected before scoring. Two key points at least `feature_radius` apart horizontally, one
-    /// match of each; the pair must agree in horizontal length (to `edge_similarity`) and in
-    /// height difference (to twice the inlier distance), as a level tray's would. Yaw is the
-    /// turn between the horizontal directions, x and y the mean offset, z the mean height
-    /// offset, which the table check bounds.
-    fn table_pair(
-        &self,
-        rng: &mut ChaCha8Rng,
-        scene_keypoints: &[Point3<f32>],
-        model: &Model,
-    ) -> Option<Isometry3<f64>> {
-        let n = self.matched.len() as u32;
-        let k = [self.matched[rng.random_range(0..n) as usize], self.matched[rng.random_range(0..n) as usize]]
-            .map(|k| k as usize);
-        if k[0] == k[1] {
-            return None;
-        }
-        let s = k.map(|i| scene_keypoints[i]);
-        let ds = s[1] - s[0];
-        let ls2 = ds.x * ds.x + ds.y * ds.y;
-        if ls2 < self.min_edge2 {
-            return None;
-        }
-        let f = k.map(|i| self.draw_match(rng, i));
-        if f[0] == f[1] {
-            return None;
-        }
-        let m = f.map(|j| model.feature_points[j as usize]);
-        let dm = m[1] - m[0];
-        let lm2 = dm.x * dm.x + dm.y * dm.y;
-        let sim2 = self.edge_similarity * self.edge_similarity;
-        if ls2.min(lm2) < sim2 * ls2.max(lm2) || (ds.z - dm.z).abs() > 2.0 * self.inlier_distance {
-            return None;
-        }
-        let yaw = (ds.y as f64).atan2(ds.x as f64) - (dm.y as f64).atan2(dm.x as f64);
-        let rotation = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw);
-        let mean = |p: &[Point3<f32>; 2]| (p[0].coords.cast::<f64>() + p[1].coords.cast::<f64>()) * 0.5;
-        let translation = mean(&s) - rotation * mean(&m);
-        if translation.z.abs() > self.table_height {
-            return None;
-        }
-        Some(Isometry3::from_parts(Translation3::from(translation), rotation))
-    }
-
     /// Iterations after which a sample of right matches has been drawn with probability
     /// [`CONFIDENCE`], if `pose` is right (the classic RANSAC stopping rule, Fischler and
     /// Bolles): a key point's match counts as right when `pose` puts its model feature within
@@ -521,225 +425,10 @@ impl Ransac {
         share / self.matched.len() as f64
     }
 
-    /// One of key point `k`'s model features, drawn by [`RankWeights`].
-    #[inline]
-    fn draw_match(&self, rng: &mut ChaCha8Rng, k: usize) -> u32 {
-        let (lo, hi) = (self.match_start[k] as usize, self.match_start[k + 1] as usize);
-        let u = rng.random_range(0..self.ranks.total(hi - lo));
-        self.match_model[lo + self.ranks.rank_of(u)]
+    /// Whether `pose` passes the pose checks (the table check).
+    fn pose_passes(&self, pose: &Isometry3<f64>) -> bool {
+        self.checks.iter().all(|c| c.pose(pose))
     }
-
-    /// Groups the matches by key point (a counting sort into the match buffers).
-    fn group_matches(&mut self, keypoints: usize, correspondences: &[Correspondence]) {
-        self.match_start.clear();
-        self.match_start.resize(keypoints + 1, 0);
-        for c in correspondences {
-            self.match_start[c.scene as usize + 1] += 1;
-        }
-        self.matched.clear();
-        for k in 0..keypoints {
-            if self.match_start[k + 1] > 0 {
-                self.matched.push(k as u32);
-            }
-            self.match_start[k + 1] += self.match_start[k];
-        }
-        self.match_model.clear();
-        self.match_model.resize(correspondences.len(), 0);
-        // Filling from the back leaves each `match_start[k + 1]` at key point k's start.
-        for c in correspondences.iter().rev() {
-            let slot = &mut self.match_start[c.scene as usize + 1];
-            *slot -= 1;
-            self.match_model[*slot as usize] = c.model;
-        }
-        self.match_start.copy_within(1..keypoints + 1, 0);
-        self.match_start[keypoints] = correspondences.len() as u32;
-    }
-
-    /// The inliers a hypothesis scored on `view` must beat: the best so far, and at least
-    /// one short of the fewest it needs to be kept (reaching the minimum exactly is enough).
-    fn to_beat(&self, best_inliers: u32, view: usize) -> u32 {
-        best_inliers.max(self.required_in_sample(view).saturating_sub(1))
-    }
-
-    /// Whether [`Ransac::score`] against the lowest bar of `view` tells its outcome against
-    /// any higher bar: a hypothesis dropped against a bar is dropped against every higher
-    /// one. Both early exits are then monotone in the bar: the count left to reach it
-    /// trivially, and the 3-sigma test because `rate n - 3 sqrt(n rate (1 - rate))` rises
-    /// with the rate for rates of at least [`MONOTONE_RATE`] at every count n it checks at
-    /// (at least [`SCORE_BLOCK`] points): its slope in the rate is n - 3 sqrt(n) (1 - 2 rate)
-    /// / (2 sqrt(rate (1 - rate))), at least 9 there, so the steps between whole bars stay
-    /// far above f32 rounding.
-    fn monotone_bar(&self, view: usize) -> bool {
-        let len = self.sample_len(view);
-        len >= SCORE_BLOCK && self.to_beat(0, view) as f64 >= MONOTONE_RATE * len as f64
-    }
-
-    /// The fewest inliers among `view`'s scoring sample a hypothesis needs to be kept.
-    fn required_in_sample(&self, view: usize) -> u32 {
-        (self.min_inlier_share * self.sample_len(view) as f32).ceil() as u32
-    }
-
-    /// Points in `view`'s scoring sample: its first [`SCORE_SAMPLE`].
-    fn sample_len(&self, view: usize) -> usize {
-        self.views[view].len().min(SCORE_SAMPLE)
-    }
-
-    /// The fewest inliers a pose scored on all of `view` needs to be returned.
-    fn required(&self, view: usize) -> u32 {
-        (self.min_inlier_share * self.views[view].len() as f32).ceil() as u32
-    }
-
-    /// The paper's quick rejection: the tray's bottom near the table, its z axis near world z.
-    fn on_table(&self, pose: &Isometry3<f64>) -> bool {
-        let z_axis = pose.rotation * Vector3::z();
-        pose.translation.vector.z.abs() <= self.table_height && z_axis.z >= self.cos_tilt
-    }
-
-    /// Inliers of `pose` among the first [`SCORE_SAMPLE`] points of `view`, or `None` as
-    /// soon as the points scored so far show it will not reach `to_beat`.
-    fn score(&self, pose: &Isometry3<f64>, view: usize, to_beat: u32) -> Option<u32> {
-        let (r, t) = split(pose);
-        let points = &self.views[view][..self.sample_len(view)];
-        let total = points.len();
-        let r2 = self.inlier_distance * self.inlier_distance;
-        let mut inliers = 0u32;
-        let mut moved = [Point3::origin(); SCORE_BLOCK];
-        for (b, block) in points.chunks(SCORE_BLOCK).enumerate() {
-            for (m, p) in moved.iter_mut().zip(block) {
-                *m = r * p + t;
-            }
-            inliers += self.grid.count_within(&moved[..block.len()], r2);
-            let scored = (b * SCORE_BLOCK + block.len()) as u32;
-            let left = total as u32 - scored;
-            if inliers + left <= to_beat && to_beat > 0 {
-                return None;
-            }
-            let rate = to_beat as f32 / total as f32;
-            let expected = rate * scored as f32;
-            let sigma = (expected * (1.0 - rate)).max(0.0).sqrt();
-            if (inliers as f32) < expected - EARLY_EXIT_SIGMAS * sigma {
-                return None;
-            }
-        }
-        Some(inliers)
-    }
-
-    /// Inliers of `pose` on `view`, every point counted.
-    fn count(&self, pose: &Isometry3<f64>, view: usize) -> u32 {
-        let (r, t) = split(pose);
-        let r2 = self.inlier_distance * self.inlier_distance;
-        // In fixed chunks, so the count is the same whatever the number of threads.
-        self.views[view]
-            .par_chunks(4096)
-            .map(|chunk| chunk.iter().filter(|p| self.grid.any_within(&(r * *p + t), r2)).count() as u32)
-            .sum()
-    }
-
-    /// The pose fitted to the inliers of `pose` among the scoring sample of `view` (each
-    /// paired with its nearest scene point), and their count, which is [`Ransac::score`]'s
-    /// with nothing to beat. The sample is fitted in fixed chunks, summed in order, so the
-    /// fit is the same whatever the number of threads.
-    fn consensus(&mut self, pose: &Isometry3<f64>, view: usize) -> (Option<Isometry3<f64>>, u32) {
-        let (r, t) = split(pose);
-        let r2 = self.inlier_distance * self.inlier_distance;
-        let points = &self.views[view][..self.sample_len(view)];
-        let origin = points[0];
-        let target_origin = Point3::from(r * origin.coords + t);
-        let chunks = points.len().div_ceil(CONSENSUS_CHUNK);
-        let mut parts = std::mem::take(&mut self.consensus_parts);
-        parts.clear();
-        parts.resize(chunks, RigidFit::about(&origin, &target_origin));
-        let grid = &self.grid;
-        points.par_chunks(CONSENSUS_CHUNK).zip(parts.par_iter_mut()).for_each(|(chunk, fit)| {
-            for p in chunk {
-                if let Some(s) = grid.nearest_within(&(r * p + t), r2) {
-                    fit.add(p, &s);
-                }
-            }
-        });
-        let mut fit = RigidFit::about(&origin, &target_origin);
-        for part in &parts {
-            fit.merge(part);
-        }
-        self.consensus_parts = parts;
-        (fit.solve(), fit.pairs())
-    }
-}
-
-/// The rotation matrix and translation of `pose` in f32, for transforming many points.
-/// How often a key point's matches are drawn by their rank (0 = the nearest descriptor):
-/// weight 1 / (1 + rank / 2), in whole units so draws are exact and alike on every machine.
-/// A right match is most often the nearest and less often the farther it ranks (measured at
-/// the optimum over 20 scenes: 519 right matches at rank 0, 254 at rank 6, 65 at rank 24), so
-/// favouring near ranks raises the chance of an all-right sample, as PROSAC (Chum and Matas,
-/// 2005) does by ordering, while every match keeps a fair chance: the 25th is drawn 13 times
-/// less often than the first. The stopping rule counts right matches with the same weights.
-#[derive(Debug, Clone)]
-struct RankWeights {
-    /// `cumulative[n]`: the summed weight of ranks 0..n.
-    cumulative: [u32; MAX_K + 1],
-}
-
-impl RankWeights {
-    /// Weight of rank 0; rank r weighs `UNIT / (1 + r / 2)`.
-    const UNIT: u32 = 1 << 16;
-
-    fn new() -> Self {
-        let mut cumulative = [0u32; MAX_K + 1];
-        for rank in 0..MAX_K {
-            cumulative[rank + 1] = cumulative[rank] + Self::UNIT * 2 / (2 + rank as u32);
-        }
-        RankWeights { cumulative }
-    }
-
-    fn weight(&self, rank: usize) -> u32 {
-        self.cumulative[rank + 1] - self.cumulative[rank]
-    }
-
-    /// Summed weight of a key point with `n` matches (1 to [`MAX_K`]).
-    fn total(&self, n: usize) -> u32 {
-        self.cumulative[n]
-    }
-
-    /// The rank whose share of the cumulative weight holds `u` (below `total(n)`).
-    fn rank_of(&self, u: u32) -> usize {
-        self.cumulative[1..].partition_point(|&c| c <= u)
-    }
-}
-
-fn split(pose: &Isometry3<f64>) -> (Matrix3<f32>, Vector3<f32>) {
-    (pose.rotation.to_rotation_matrix().matrix().cast::<f32>(), pose.translation.vector.cast::<f32>())
-}
-
-/// Buch et al.'s polygonal pre-rejection: the scene triangle is usable and every edge of it
-/// and its model counterpart agree to `similarity` (shorter over longer).
-#[cfg(test)]
-fn similar_triangles(s: &[Point3<f32>; 3], m: &[Point3<f32>; 3], similarity: f32, min_edge2: f32) -> bool {
-    good_scene_triangle(s, min_edge2) && edges_agree(s, m, similarity)
-}
-
-/// Scene edges at least `sqrt(min_edge2)` long and a triangle that is not a sliver.
-fn good_scene_triangle(s: &[Point3<f32>; 3], min_edge2: f32) -> bool {
-    let mut longest2 = 0.0f32;
-    for (i, j) in [(0, 1), (1, 2), (2, 0)] {
-        let ls = (s[i] - s[j]).norm_squared();
-        if ls < min_edge2 {
-            return false;
-        }
-        longest2 = longest2.max(ls);
-    }
-    let twice_area = (s[1] - s[0]).cross(&(s[2] - s[0])).norm();
-    twice_area >= MIN_TRIANGLE_SHAPE * longest2
-}
-
-/// Every scene edge and its model counterpart agree to `similarity` (shorter over longer).
-fn edges_agree(s: &[Point3<f32>; 3], m: &[Point3<f32>; 3], similarity: f32) -> bool {
-    let sim2 = similarity * similarity;
-    [(0, 1), (1, 2), (2, 0)].iter().all(|&(i, j)| {
-        let ls = (s[i] - s[j]).norm_squared();
-        let lm = (m[i] - m[j]).norm_squared();
-        ls.min(lm) >= sim2 * ls.max(lm)
-    })
 }
 
 #[cfg(test)]
@@ -747,6 +436,7 @@ mod tests {
     use super::*;
     use crate::testing::{self, Scene, SceneSpec};
     use camplace_config::Cell;
+    use rand::RngExt;
 
     fn params() -> EstimatorParams {
         Cell::default().estimator
@@ -755,23 +445,6 @@ mod tests {
     fn pose_error(a: &Isometry3<f64>, b: &Isometry3<f64>) -> (f64, f64) {
         let d = a.inverse() * b;
         ((a.translation.vector - b.translation.vector).norm(), d.rotation.angle().to_degrees())
-    }
-
-    /// Draws land on each rank in proportion to its weight, and the weights fall with rank.
-    #[test]
-    fn match_draws_follow_the_rank_weights() {
-        let w = RankWeights::new();
-        assert_eq!(w.weight(0), RankWeights::UNIT);
-        assert!((1..MAX_K).all(|r| w.weight(r) < w.weight(r - 1)));
-        for n in [1, 2, 7, 25, MAX_K] {
-            let mut hits = vec![0u32; n];
-            for u in 0..w.total(n) {
-                hits[w.rank_of(u)] += 1;
-            }
-            for (r, &h) in hits.iter().enumerate() {
-                assert_eq!(h, w.weight(r), "n {n} rank {r}");
-            }
-        }
     }
 
     #[test]
@@ -798,20 +471,6 @@ mod tests {
                 assert_eq!(ransac.matched.contains(&k), !want.is_empty());
             }
         }
-    }
-
-    #[test]
-    fn triangle_check_follows_edge_ratios() {
-        let s = [Point3::new(0.0, 0.0, 0.0), Point3::new(100.0, 0.0, 0.0), Point3::new(0.0, 80.0, 0.0)];
-        let same = s.map(|p| p + Vector3::new(5.0, -3.0, 2.0));
-        assert!(similar_triangles(&s, &same, 0.9, 400.0));
-        let stretched = [s[0], Point3::new(115.0, 0.0, 0.0), s[2]];
-        assert!(!similar_triangles(&s, &stretched, 0.9, 400.0));
-        assert!(similar_triangles(&s, &stretched, 0.8, 400.0));
-        let small = s.map(|p| p * 0.1);
-        assert!(!similar_triangles(&small, &small, 0.9, 400.0));
-        let sliver = [s[0], s[1], Point3::new(50.0, 1.0, 0.0)];
-        assert!(!similar_triangles(&sliver, &sliver, 0.9, 400.0));
     }
 
     /// The same scene and matches yield the same pose, and it lies near the truth even
