@@ -17,6 +17,7 @@ mod robot_pose;
 mod same_checks_tests;
 #[cfg(test)]
 mod test_draw;
+mod text;
 mod tolerance_file;
 mod trial_plan;
 mod truth;
@@ -61,6 +62,7 @@ pub use rig::{CameraFile, RectifiedFile, RigFile, MAX_IMAGE_SIDE};
 pub use robot_pose::{
     format_pose, format_pose_exact, parse_pose, LengthUnit, PoseConvention, RobotPoseFormat, QUATERNION_NORM_TOLERANCE,
 };
+pub use text::pct;
 pub use tolerance_file::{
     end_text, offset_text, AxisTolerance, SideView, ToleranceCorner, TolerancePoint, ToleranceReport, WalkEnd,
 };

@@ -8,7 +8,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::{Error, Placement, PlacementParam, Vergence, MAX_DISTANCE_MM};
+use crate::{pct, Error, Placement, PlacementParam, Vergence, MAX_DISTANCE_MM};
 
 type Result<T> = std::result::Result<T, Error>;
 
@@ -20,11 +20,6 @@ pub enum WalkEnd {
     Drop,
     /// The parameter's range ended with every point inside: the tolerance is at least that.
     RangeEnd,
-}
-
-/// A rate as a percentage with one decimal: `0.9712` -> `"97.1 %"`.
-fn pct(r: f64) -> String {
-    format!("{:.1} %", 100.0 * r)
 }
 
 /// One evaluated placement, paired by scene against the nominal.

@@ -122,10 +122,8 @@ impl Summary {
     }
 }
 
-/// A rate as a percentage with one decimal: `0.9712` -> `"97.1 %"`.
-pub fn pct(r: f64) -> String {
-    format!("{:.1} %", 100.0 * r)
-}
+/// A rate as a percentage with one decimal (config's, so files and summaries agree).
+pub use camplace_config::pct;
 
 /// Median of `values` (mean of the middle two for an even count); `None` when empty.
 pub fn median(values: &[f64]) -> Option<f64> {
