@@ -351,11 +351,14 @@ fn the_status_page_shows_the_last_frame_the_outline_and_the_counts() {
     }
     assert_eq!(counts.get("OK"), Some(&2), "{counts:?}");
     let port = served.status_port.unwrap();
+    // The page waits for the work after the last reply (outline, recorder, drift watch), so
+    // it shows trigger 3, the last one answered.
+    let json: serde_json::Value = serde_json::from_slice(&http_get(port, "/status.json")).unwrap();
+    assert_eq!(json["last"]["id"], "3", "the page shows the last trigger: {json}");
     let png = http_get(port, "/frame.png");
     assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"), "a PNG");
     let html = String::from_utf8(http_get(port, "/")).unwrap();
     assert!(html.contains("http-equiv=\"refresh\""), "the page refreshes itself");
-    let json: serde_json::Value = serde_json::from_slice(&http_get(port, "/status.json")).unwrap();
     for status in TRIGGER_STATUSES {
         assert_eq!(json["counts"][status].as_u64(), Some(counts.get(status).copied().unwrap_or(0)), "{status}: {json}");
     }

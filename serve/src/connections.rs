@@ -156,7 +156,7 @@ fn answer(line: &[u8], cx: &Context) -> String {
         }
         Ok(Request::Ping) => "PONG".to_string(),
         Ok(Request::Version) => format!("VERSION {PROTOCOL} camplace={}", cx.version),
-        Ok(Request::Status) => cx.shared.lock().status_line(),
+        Ok(Request::Status) => cx.shared.settled().status_line(),
         Ok(Request::Trigger { id }) => trigger(id, cx),
     }
 }

@@ -3,7 +3,8 @@
 //! model's outline at its pose) and the drift watch's state.
 
 use std::collections::VecDeque;
-use std::sync::Mutex;
+use std::sync::{Condvar, Mutex};
+use std::time::Duration;
 
 use camplace_config::GrayImage;
 use serde::Serialize;
@@ -52,18 +53,42 @@ pub(crate) struct State {
     pub(crate) drift_limits: Option<DriftLimits>,
     pub(crate) camera_error: Option<String>,
     pub(crate) recorded: u64,
+    /// A trigger has been answered and its page, recorder and drift work is still running.
+    pub(crate) settling: bool,
 }
 
 /// The shared state behind one lock; every holder keeps it for a copy's time only.
 #[derive(Debug, Default)]
 pub(crate) struct Shared {
     pub(crate) state: Mutex<State>,
+    /// Signalled when the work after a reply is done.
+    settled: Condvar,
 }
+
+/// Longest a reader waits for the work after a reply before reading the state as it is.
+const SETTLE_WAIT: Duration = Duration::from_secs(2);
 
 impl Shared {
     pub(crate) fn lock(&self) -> std::sync::MutexGuard<'_, State> {
         // A panicking holder leaves plain counters behind, still worth showing.
         self.state.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// The state once the work after the last reply is done (the last frame, its outline and
+    /// the drift check of the trigger just answered), waiting at most [`SETTLE_WAIT`].
+    pub(crate) fn settled(&self) -> std::sync::MutexGuard<'_, State> {
+        let guard = self.lock();
+        match self.settled.wait_timeout_while(guard, SETTLE_WAIT, |s| s.settling) {
+            Ok((guard, _)) => guard,
+            Err(p) => p.into_inner().0,
+        }
+    }
+
+    /// Ends the work after a reply and wakes the readers waiting for it.
+    pub(crate) fn settle(&self, mut state: std::sync::MutexGuard<'_, State>) {
+        state.settling = false;
+        drop(state);
+        self.settled.notify_all();
     }
 
     pub(crate) fn count(&self, status: Status) {
@@ -159,4 +184,38 @@ struct LatencyJson {
     p99: Option<f64>,
     histogram_step_ms: f64,
     histogram: Vec<u64>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Arc;
+
+    #[test]
+    fn a_reader_after_the_reply_waits_for_the_work_after_it() {
+        let shared = Arc::new(Shared::default());
+        shared.lock().settling = true;
+        let worker = {
+            let shared = shared.clone();
+            std::thread::spawn(move || {
+                std::thread::sleep(Duration::from_millis(100));
+                let mut s = shared.lock();
+                s.recorded = 7;
+                shared.settle(s);
+            })
+        };
+        assert_eq!(shared.settled().recorded, 7);
+        assert!(!shared.lock().settling);
+        worker.join().unwrap();
+    }
+
+    #[test]
+    fn a_worker_that_never_settles_holds_readers_for_the_wait_only() {
+        let shared = Shared::default();
+        shared.lock().settling = true;
+        let start = std::time::Instant::now();
+        let s = shared.settled();
+        assert!(s.settling);
+        assert!(start.elapsed() >= SETTLE_WAIT);
+    }
 }

@@ -26,9 +26,9 @@ pub(crate) fn serve_page(listener: TcpListener, shared: Arc<Shared>, stop: Arc<A
         };
         let path = request.url().split('?').next().unwrap_or("/").to_string();
         let (body, kind, code) = match path.as_str() {
-            "/" | "/index.html" => (page(&shared.lock()).into_bytes(), "text/html; charset=utf-8", 200),
+            "/" | "/index.html" => (page(&shared.settled()).into_bytes(), "text/html; charset=utf-8", 200),
             "/status.json" => {
-                let json = serde_json::to_vec(&shared.lock().json()).unwrap_or_default();
+                let json = serde_json::to_vec(&shared.settled().json()).unwrap_or_default();
                 (json, "application/json", 200)
             }
             "/frame.png" => match frame_png(&shared) {
@@ -48,7 +48,7 @@ pub(crate) fn serve_page(listener: TcpListener, shared: Arc<Shared>, stop: Arc<A
 /// The last frame's first left shot as a grey PNG.
 fn frame_png(shared: &Shared) -> Option<Vec<u8>> {
     let image = {
-        let s = shared.lock();
+        let s = shared.settled();
         if s.image.data.is_empty() {
             return None;
         }

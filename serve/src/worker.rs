@@ -77,7 +77,7 @@ impl Worker {
         let info = match grabbed {
             Ok(info) => info,
             Err(e) => {
-                self.finish(&job, &reply);
+                self.finish(&job, &reply, false);
                 (self.log)(&format!("{}: {e}", reply.line()));
                 self.shared.lock().camera_error = Some(e);
                 return;
@@ -89,7 +89,7 @@ impl Worker {
         let pose = match estimated {
             Ok(pose) => pose,
             Err(e) => {
-                self.finish(&job, &reply);
+                self.finish(&job, &reply, false);
                 let e = format!("frame {}: {e}", info.name);
                 (self.log)(&format!("{}: {e}", reply.line()));
                 self.shared.lock().camera_error = Some(e);
@@ -115,7 +115,7 @@ impl Worker {
                 reply.reason = Some(rejected_reason(v));
             }
         }
-        let latency_ms = self.finish(&job, &reply);
+        let latency_ms = self.finish(&job, &reply, true);
 
         // After the reply: the page, the recorder and the drift watch.
         let hull =
@@ -153,6 +153,7 @@ impl Worker {
                 s.recorded += 1;
             }
             s.drift = drift.clone();
+            self.shared.settle(s);
         }
         let mut line = reply.line();
         if let Some(dir) = recorded {
@@ -164,8 +165,11 @@ impl Worker {
         (self.log)(&line);
     }
 
-    /// Sends the reply, counts it and its latency; returns the latency, ms.
-    fn finish(&self, job: &Job, reply: &TriggerReply) -> f64 {
+    /// Sends the reply, counts it and its latency; returns the latency, ms. With `more`, the
+    /// state is marked settling until the work after the reply calls [`Shared::settle`].
+    fn finish(&self, job: &Job, reply: &TriggerReply, more: bool) -> f64 {
+        // Marked before the reply goes, so a reader who has the reply waits for the rest.
+        self.shared.lock().settling = more;
         let _ = job.reply.send(reply.line());
         let latency_ms = job.at.elapsed().as_secs_f64() * 1e3;
         let mut s = self.shared.lock();
