@@ -67,6 +67,7 @@ fn tolerance_json(dir: &Path, placement: &str, mm: f64, deg: f64) {
         axes,
         corner_fraction: 1.0,
         corners: Vec::new(),
+        corner_screen: 0,
     };
     std::fs::write(dir.join("tolerance.json"), serde_json::to_string_pretty(&report).unwrap()).unwrap();
 }

@@ -120,6 +120,10 @@ pub struct ToleranceReport {
     pub corner_fraction: f64,
     /// The distinct corners of the box.
     pub corners: Vec<ToleranceCorner>,
+    /// Scenes every corner was screened on before the lowest ran on to their verdict (0:
+    /// every corner ran to its verdict; absent in files written before it).
+    #[serde(default)]
+    pub corner_screen: u64,
 }
 
 impl ToleranceReport {
@@ -170,9 +174,10 @@ impl ToleranceReport {
         }
         if let Some(w) = self.worst_corner() {
             text.push_str(&format!(
-                "  worst of {} corners ({}): {} at {} (95 % interval {}–{}; {} scenes lost, {} gained)",
+                "  worst of {} corners ({}{}): {} at {} (95 % interval {}–{}; {} scenes lost, {} gained)",
                 self.corners.len(),
                 self.corner_text(),
+                self.screen_text(),
                 pct(w.point.success_rate),
                 w.placement,
                 pct(w.point.success_interval[0]),
@@ -193,6 +198,20 @@ impl ToleranceReport {
         let each: Vec<String> =
             self.axes.iter().map(|a| format!("±{} {} ({})", num(a.limit), a.unit, a.parameter)).collect();
         Some(each.join(", "))
+    }
+
+    /// How the corners were screened, in words after a "; " (empty when every corner ran
+    /// to its verdict).
+    pub fn screen_text(&self) -> String {
+        if self.corner_screen == 0 {
+            return String::new();
+        }
+        let finalists = self.corners.iter().filter(|c| c.point.scenes as u64 != self.corner_screen).count();
+        format!(
+            "; each screened on {} scenes, the lowest {} run on to their verdict",
+            self.corner_screen,
+            finalists.max(1)
+        )
     }
 
     /// Where the corners are, in words.

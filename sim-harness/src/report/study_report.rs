@@ -136,10 +136,11 @@ pub fn write_report(req: &StudyRequest, outcome: &StudyOutcome, started: Instant
         page.table(&["parameter", "may be off by", "found by", "just inside", "just outside"], &rows);
         if let Some(w) = t.worst_corner() {
             page.paragraph(&format!(
-                "Worst of the {} corners of this box ({}): {} (95 % interval {}–{}; {} scenes lost and {} gained \
+                "Worst of the {} corners of this box ({}{}): {} (95 % interval {}–{}; {} scenes lost and {} gained \
                  against the nominal) at {}.",
                 t.corners.len(),
                 t.corner_text(),
+                t.screen_text(),
                 pct(w.point.success_rate),
                 pct(w.point.success_interval[0]),
                 pct(w.point.success_interval[1]),

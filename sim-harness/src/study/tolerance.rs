@@ -144,12 +144,22 @@ impl Judge<'_> {
     /// whether it is inside. A tray that shows a drop settles the point outside and the
     /// trays after it are not run.
     fn point(&self, p: &Placement, offset: f64) -> Result<(TolerancePoint, bool)> {
-        let n = self.scenarios;
+        self.point_over(p, offset, self.scenarios, true)
+    }
+
+    /// [`Judge::point`] over the first `n` scenes (fewer than the nominal's) without
+    /// stopping early: a corner's screening.
+    fn screen(&self, p: &Placement, n: u64) -> Result<TolerancePoint> {
+        Ok(self.point_over(p, 0.0, n, false)?.0)
+    }
+
+    /// [`Judge::point`] over at most `n` scenes, stopped once settled when `settle`.
+    fn point_over(&self, p: &Placement, offset: f64, n: u64, settle: bool) -> Result<(TolerancePoint, bool)> {
         let mut summaries = Vec::new();
         let mut worst: Option<(f64, Paired)> = None;
         for (t, nominal) in self.nominal.iter().enumerate() {
             let run = self.set.evaluate_until(t, p, self.seed, n, TOLERANCE_PART, "tolerance", |m| {
-                verdict_settled(&self.set.outcomes(t, p, self.seed, m as u64), nominal)
+                settle && verdict_settled(&self.set.outcomes(t, p, self.seed, m as u64), nominal)
             });
             let (paired, summary) = match run {
                 Ok(m) => {
@@ -160,6 +170,7 @@ impl Judge<'_> {
                 // Cameras that see no common part of the work volume, or no tray to model:
                 // the estimator cannot run there, so every scene fails.
                 Err(e) if rig_unusable(&e) => {
+                    let nominal = &nominal[..(n as usize).min(nominal.len())];
                     let failed: Vec<Option<bool>> = nominal.iter().map(|o| o.map(|_| false)).collect();
                     let mut summary = Summary::from_records(&[]);
                     summary.scored = failed.iter().flatten().count();
@@ -300,7 +311,7 @@ pub fn measure_tolerance(
         });
     }
 
-    let mut corners: Vec<ToleranceCorner> = Vec::new();
+    let mut boxed: Vec<([f64; 5], Placement)> = Vec::new();
     for mask in 0..(1u32 << axes.len()) {
         let mut offsets = [0.0; 5];
         for (bit, (axis, &i)) in axes.iter().zip(&r.parameters).enumerate() {
@@ -309,13 +320,15 @@ pub fn measure_tolerance(
             let share = |t: f64| round6((r.corner_fraction * t / res + 1e-9).floor() * res);
             offsets[i] = if mask & (1 << bit) == 0 { -share(axis.minus) } else { share(axis.plus) };
         }
-        if corners.iter().any(|c| c.offsets == offsets) {
+        if boxed.iter().any(|(o, _)| *o == offsets) {
             continue; // a parameter with no tolerance on one side folds corners together
         }
         let Some(p) = offset_placement(&nominal, &offsets) else { continue };
-        let (point, _) = judge.point(&p, 0.0)?;
-        corners.push(ToleranceCorner { placement: p.to_string(), offsets, point });
+        boxed.push((offsets, p));
     }
+    let screen = (boxed.len() > CORNER_FINALISTS && judge.scenarios > CORNER_SCREEN).then_some(CORNER_SCREEN);
+    let corners =
+        judge_corners(&boxed, screen, |p, n| judge.screen(p, n), |p| judge.point(p, 0.0).map(|(point, _)| point))?;
 
     let report = ToleranceReport {
         placement: nominal.to_string(),
@@ -328,6 +341,7 @@ pub fn measure_tolerance(
         nominal: nominal_point,
         axes,
         corner_fraction: r.corner_fraction,
+        corner_screen: screen.unwrap_or(0),
         corners,
     };
     let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Other(format!("tolerance.json: {e}")))?;
@@ -335,9 +349,105 @@ pub fn measure_tolerance(
     Ok(report)
 }
 
+/// Scenes every corner is screened on when the box has more than [`CORNER_FINALISTS`]
+/// corners: two parts.
+pub const CORNER_SCREEN: u64 = 2 * TOLERANCE_PART as u64;
+
+/// Corners run on to their verdict after the screening: the lowest screened.
+pub const CORNER_FINALISTS: usize = 4;
+
+/// Success at each corner of the box. With `screen`, every corner is screened on its first
+/// `screen` scenes (`screened`), then the [`CORNER_FINALISTS`] lowest (the earlier on ties)
+/// run on, as a walk's point does, until their verdict is settled (`settled`), so the worst
+/// corner is one of them; without, every corner runs to its verdict.
+fn judge_corners(
+    boxed: &[([f64; 5], Placement)],
+    screen: Option<u64>,
+    mut screened: impl FnMut(&Placement, u64) -> Result<TolerancePoint>,
+    mut settled: impl FnMut(&Placement) -> Result<TolerancePoint>,
+) -> Result<Vec<ToleranceCorner>> {
+    let mut corners = Vec::with_capacity(boxed.len());
+    for (offsets, p) in boxed {
+        let point = match screen {
+            Some(n) => screened(p, n)?,
+            None => settled(p)?,
+        };
+        corners.push(ToleranceCorner { placement: p.to_string(), offsets: *offsets, point });
+    }
+    if screen.is_some() {
+        for k in lowest_corners(&corners, CORNER_FINALISTS) {
+            corners[k].point = settled(&boxed[k].1)?;
+        }
+    }
+    Ok(corners)
+}
+
+/// The indices of the `n` corners of lowest success, the earlier on ties.
+fn lowest_corners(corners: &[ToleranceCorner], n: usize) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..corners.len()).collect();
+    order.sort_by(|&a, &b| corners[a].point.success_rate.total_cmp(&corners[b].point.success_rate).then(a.cmp(&b)));
+    order.truncate(n);
+    order
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_corner_is_screened_and_the_lowest_run_on_to_their_verdict() {
+        let nominal = Placement {
+            r: 600.0,
+            alpha: 30.0,
+            baseline: 100.0,
+            vergence: camplace_config::Vergence::Degrees(5.0),
+            azimuth: 0.0,
+        };
+        // Ten corners whose screened success is known; the run-on success differs from it.
+        let screened_rate = [0.9, 0.5, 0.8, 0.5, 1.0, 0.6, 0.7, 0.95, 0.4, 0.85];
+        let boxed: Vec<([f64; 5], Placement)> = (0..10)
+            .map(|k| ([k as f64, 0.0, 0.0, 0.0, 0.0], PlacementParam::R.set(&nominal, 600.0 + k as f64)))
+            .collect();
+        let index = |p: &Placement| (p.r - 600.0).round() as usize;
+        let mut screens = Vec::new();
+        let mut run_on = Vec::new();
+        let corners = judge_corners(
+            &boxed,
+            Some(12),
+            |p, n| {
+                screens.push((index(p), n));
+                Ok(TolerancePoint { success_rate: screened_rate[index(p)], scenes: 12, ..point(0.0) })
+            },
+            |p| {
+                run_on.push(index(p));
+                Ok(TolerancePoint { success_rate: screened_rate[index(p)] - 0.01, scenes: 44, ..point(0.0) })
+            },
+        )
+        .unwrap();
+        assert_eq!(screens, (0..10).map(|k| (k, 12)).collect::<Vec<_>>());
+        // The four lowest: 0.4 (8), then 0.5 (1 before 3), then 0.6 (5).
+        assert_eq!(run_on, vec![8, 1, 3, 5]);
+        for (k, c) in corners.iter().enumerate() {
+            assert_eq!(c.placement, boxed[k].1.to_string());
+            let (rate, scenes) =
+                if run_on.contains(&k) { (screened_rate[k] - 0.01, 44) } else { (screened_rate[k], 12) };
+            assert_eq!((c.point.success_rate, c.point.scenes), (rate, scenes), "corner {k}");
+        }
+
+        // Without screening every corner runs to its verdict once, nothing screened.
+        let mut run_on = 0;
+        let corners = judge_corners(
+            &boxed,
+            None,
+            |_, _| panic!("no screening"),
+            |p| {
+                run_on += 1;
+                Ok(TolerancePoint { success_rate: screened_rate[index(p)], scenes: 44, ..point(0.0) })
+            },
+        )
+        .unwrap();
+        assert_eq!((run_on, corners.len()), (10, 10));
+    }
     use camplace_config::WalkEnd;
 
     #[test]
@@ -471,6 +581,7 @@ mod tests {
             axes: Vec::new(),
             corner_fraction: 1.0,
             corners: vec![corner(0.9), corner(0.7), corner(0.8), corner(0.7)],
+            corner_screen: 0,
         };
         assert_eq!(report.worst_corner().unwrap().point.success_rate, 0.7);
         assert!(

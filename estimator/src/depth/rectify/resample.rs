@@ -346,8 +346,11 @@ mod tests {
             .collect()
     }
 
+    /// A row kernel: the sources, the raw width, the row's entries and the output rows.
+    type RowKernel = dyn Fn(&[&[u8]], usize, &[RemapEntry], &mut [&mut [u8]]);
+
     /// The vector kernels this machine runs, each with its lane count.
-    type Kernel = (&'static str, usize, Box<dyn Fn(&[&[u8]], usize, &[RemapEntry], &mut [&mut [u8]])>);
+    type Kernel = (&'static str, usize, Box<RowKernel>);
 
     fn kernels() -> Vec<Kernel> {
         let mut kernels: Vec<Kernel> = Vec::new();
@@ -373,7 +376,7 @@ mod tests {
     fn vector_kernel_gives_the_bits_of_one_pixel_at_a_time(
         name: &str,
         lanes: usize,
-        kernel: &dyn Fn(&[&[u8]], usize, &[RemapEntry], &mut [&mut [u8]]),
+        kernel: &RowKernel,
     ) {
         // Rows of awkward lengths, one shot and several at once.
         let mut rng = ChaCha8Rng::seed_from_u64(17);
