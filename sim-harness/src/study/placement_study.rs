@@ -11,6 +11,7 @@
 //! outputs to `all-trays/METHOD/`); re-running resumes.
 
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 use camplace_config::{Cell, Placement, PlacementParam, TrayKind};
 
@@ -246,8 +247,9 @@ pub fn run_study(req: &StudyRequest, mut say: impl FnMut(&str)) -> Result<Option
     let recommendation = recommend(&combos);
     let tolerance = match &recommendation {
         Some(r) if preset.tolerance_scenarios > 0 => {
+            let started = Instant::now();
             let t = tolerance(out, r, seed, preset)?;
-            say(&format!("tolerances around {}:\n{}", r.placement, t.table()));
+            say(&format!("tolerances around {} ({}):\n{}", r.placement, took(started), t.table()));
             Some(t)
         }
         _ => None,
@@ -276,6 +278,7 @@ fn run_combination(
     let base = group[0].1.placement;
     let mut folders = Vec::new();
     let mut sweeps = Vec::new();
+    let started = Instant::now();
     for (name, cell) in group {
         let dir = out.join(name).join(method.to_string());
         let label = format!("{name} {method} sweep");
@@ -295,6 +298,8 @@ fn run_combination(
             .map_err(|e| Error::Other(format!("{}: cannot create the folder: {e}", search_dir.display())))?;
         write_summary_csv(&search_dir.join("summary.csv"), &sweep.rows)?;
     }
+    let swept = took(started);
+    let started = Instant::now();
     let search = if preset.budget > 0 {
         let plan = SearchPlan {
             parameters: PlacementParam::STUDIED.into_iter().filter_map(SearchParameter::default_for).collect(),
@@ -308,6 +313,8 @@ fn run_combination(
     } else {
         None
     };
+    let searched = took(started);
+    let started = Instant::now();
     let fresh = recheck_seed(seed);
     let mut candidates = Vec::new();
     let mut check = |p: Placement, source: &'static str| -> Result<()> {
@@ -326,8 +333,9 @@ fn run_combination(
     }
     // Stable: of two equal candidates the search's (checked first) stays first.
     candidates.sort_by(|a, b| margin_order(&b.summary, &a.summary));
+    let checked = took(started);
     say(&format!(
-        "{trays_label} {method}: sweep best {}; {}",
+        "{trays_label} {method}: sweep best {}; {} (sweep {swept}, search {searched}, re-check {checked})",
         sweep.best.map_or("n/a".into(), |b| format!(
             "{} at {}",
             pct(sweep.rows[b].summary.success_rate),
@@ -340,6 +348,11 @@ fn run_combination(
         ))
     ));
     Ok(Some(Combination { trays_label, method, set, sweeps, sweep, search, search_dir, candidates }))
+}
+
+/// The time since `started`, for a line: "212 s" (a resumed stage counts only what it ran).
+fn took(started: Instant) -> String {
+    format!("{:.0} s", started.elapsed().as_secs_f64())
 }
 
 /// The sweep over several trays: each cell's lowest tray (one tray's sweep as it is).
