@@ -103,12 +103,9 @@ fn drift_limits(a: &Args) -> anyhow::Result<DriftLimits> {
     };
     let t = ToleranceReport::load(path)?;
     let axis = |param: PlacementParam| {
-        let name = param.name();
-        t.axes
-            .iter()
-            .find(|x| x.parameter == name)
+        t.axis(param)
             .map(|x| x.minus.min(x.plus))
-            .with_context(|| format!("{}: axes: expected a tolerance of {name}", path.display()))
+            .with_context(|| format!("{}: axes: expected a tolerance of {param}", path.display()))
     };
     Ok(DriftLimits {
         rotation_deg: axis(PlacementParam::Alpha)?,
