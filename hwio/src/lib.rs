@@ -1,12 +1,14 @@
 //! camplace's hardware side: frame sources (recorded dataset folders always; V4L2 and
 //! FireWire IIDC cameras behind the `v4l` and `dc1394` features), camera pixel formats,
-//! device listing, the projector window (behind `display`), the deployed loop that
+//! device listing, capture into a recorded dataset, the projector window (behind
+//! `display`), the deployed loop that
 //! estimates a tray pose per captured frame, and recorded datasets replayed through the
 //! estimator (poses scored against their truth) or reconstructed to depth and clouds.
 
 mod board_pairs;
 mod capture;
 mod cpu_time;
+mod dataset_capture;
 #[cfg(feature = "dc1394")]
 mod dc1394;
 mod deploy;
@@ -31,6 +33,10 @@ mod v4l2;
 pub use board_pairs::{find_board_pairs, BoardPairs, MAX_CALIBRATION_VIEWS};
 pub use camplace_config::{append_frame, read_background, write_background, write_table_view};
 pub use capture::{Capture, Captured, WhenBehind};
+pub use dataset_capture::{
+    capture_dataset, capture_rig, CaptureKind, CaptureOutcome, CapturePlan, CapturedFrame, MAX_CAPTURE_COUNT,
+    MAX_CAPTURE_EVERY_S,
+};
 pub use deploy::{DeploySource, DeployStats, Deployment, Estimated, FrameTiming};
 pub use devices::{list_devices, DeviceList, FirewireDevice, UsbDevice, V4l2Device};
 #[cfg(feature = "display")]
