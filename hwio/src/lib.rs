@@ -44,7 +44,7 @@ pub use display::{Projector, ProjectorThread};
 pub use error::{Error, ErrorKind, Result};
 pub use frames::{FrameInfo, FrameSource, Frames};
 pub use in_step::{capture_in_step, InStepSource, PatternScreen};
-pub use latency_plot::write_latency_plot;
+pub use latency_plot::{frame_budget_ms, latency_plot_target, write_latency_plot};
 pub use open::open_source;
 pub use paced::Paced;
 pub use pixels::{deinterleave16, luma601, split_side_by_side, to_gray, InterleavedOrder, PixelFormat};
