@@ -52,5 +52,5 @@ pub use reconstruct::{
     match_rectified, reconstruct_dataset, reconstruct_pair, DatasetDepth, PairDepth, RectifiedDepth, RectifiedPair,
 };
 pub use recorded::RecordedSource;
-pub use replay::{estimate_dataset, estimator_for, record as frame_record};
+pub use replay::{estimate_dataset, estimator_for, record as frame_record, DatasetEstimate};
 pub use spec::{parse_source, SourceSpec, SOURCE_FORMS};
