@@ -172,6 +172,15 @@ impl PlacementParam {
         }
     }
 
+    /// The decimals of its step: 1 (0.1 mm) or 2 (0.01°).
+    pub fn decimals(self) -> usize {
+        if self.unit() == "mm" {
+            1
+        } else {
+            2
+        }
+    }
+
     /// Its value in `p` (vergence resolved to degrees).
     pub fn get(self, p: &Placement) -> f64 {
         match self {
@@ -214,6 +223,13 @@ impl std::str::FromStr for PlacementParam {
 }
 
 impl Placement {
+    /// Every parameter to its step, the vergence in degrees, as a drawing would give it:
+    /// `r=605.0,alpha=32.00,baseline=81.0,vergence=3.50,azimuth=0.00`.
+    pub fn to_step_text(&self) -> String {
+        let value = |p: PlacementParam| format!("{}={:.*}", p.name(), p.decimals(), p.get(self));
+        PlacementParam::ALL.map(value).join(",")
+    }
+
     /// Checks ranges; `key` prefixes the key named in an error.
     pub fn validate(&self, key: &str) -> Result<(), Error> {
         let k = |name: &str| if key.is_empty() { name.to_string() } else { format!("{key}.{name}") };
@@ -400,6 +416,7 @@ mod tests {
     fn each_parameter_sets_what_it_gets_and_parses_its_name() {
         for (i, param) in PlacementParam::ALL.into_iter().enumerate() {
             assert_eq!(param.index(), i, "{param}");
+            assert!((param.step() - 10f64.powi(-(param.decimals() as i32))).abs() < 1e-12, "{param}");
             let value = param.get(&base()) + 1.5;
             let p = param.set(&base(), value);
             assert_eq!(param.get(&p), value, "{param}");
@@ -412,6 +429,17 @@ mod tests {
             assert_eq!(serde_json::to_string(&param).unwrap(), format!("\"{param}\""));
         }
         assert!("height".parse::<PlacementParam>().unwrap_err().contains("r, alpha, baseline, vergence, azimuth"));
+        let p = Placement { vergence: Vergence::Auto, azimuth: -12.5, ..base() };
+        assert_eq!(
+            p.to_step_text(),
+            format!(
+                "r={:.1},alpha={:.2},baseline={:.1},vergence={:.2},azimuth=-12.50",
+                p.r,
+                p.alpha,
+                p.baseline,
+                p.vergence.degrees(p.r, p.baseline)
+            )
+        );
     }
 
     #[test]

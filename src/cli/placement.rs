@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context};
-use camplace_config::{Placement, RigFile, ToleranceReport};
+use camplace_config::{RigFile, ToleranceReport};
 use camplace_estimator::Rig;
 use camplace_estimator::{as_built, mounting_check, MountingVerdict};
 use camplace_sim::tolerance_dir;
@@ -59,8 +59,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if a.cell.placement.is_some() && (a.study.is_some() || a.tolerance.is_some()) && plan != cell_plan {
         bail!("--placement: the plan comes from the study or tolerance.json ({plan}); leave --placement out");
     }
-    outln!("as built ({}): {}", a.rig.display(), short(&built.placement));
-    outln!("planned: {}", short(&plan));
+    outln!("as built ({}): {}", a.rig.display(), built.placement.to_step_text());
+    outln!("planned: {}", plan.to_step_text());
     outln!("{:<10} {:>12} {:>12} {:>12} {:>16}", "parameter", "as built", "planned", "difference", "tolerance");
     let check = mounting_check(&built, &plan, limits.as_ref());
     for c in &check.params {
@@ -70,8 +70,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             (Some(l), _) => format!("-{}/+{} within", l.minus, l.plus),
             (None, _) => "not measured".to_string(),
         };
-        // The decimals the parameter's step is written to: 0.1 mm, 0.01 deg.
-        let digits = (-c.param.step().log10()).round() as usize;
+        let digits = c.param.decimals();
         outln!(
             "{name:<10} {:>8.digits$} {unit:<3} {:>8.digits$} {unit:<3} {:>+8.digits$} {unit:<3} {verdict:>16}",
             c.as_built,
@@ -106,18 +105,6 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         outln!("outside its tolerance: {}", names.join(", "));
         Ok(ExitCode::from(1))
     }
-}
-
-/// A placement with the vergence in degrees, rounded as a drawing would give it.
-fn short(p: &Placement) -> String {
-    format!(
-        "r={:.1},alpha={:.2},baseline={:.1},vergence={:.2},azimuth={:.2}",
-        p.r,
-        p.alpha,
-        p.baseline,
-        p.vergence.degrees(p.r, p.baseline),
-        p.azimuth
-    )
 }
 
 fn read_tolerance(path: &Path) -> anyhow::Result<ToleranceReport> {
