@@ -10,7 +10,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use camplace_config::{ToleranceReport, WalkEnd};
+use camplace_config::{PlacementParam, ToleranceReport, WalkEnd};
 use camplace_sim::{run_study, tolerance_dir, Method, Preset, Shard, StudyRequest};
 
 use crate::camplace_cmd::{assert_one_line_error, camplace, stderr};
@@ -277,7 +277,7 @@ fn a_studys_tolerances_are_the_tolerance_command_s_for_its_placement() {
         tolerance_scenarios: 4,
         tolerance_margin: 0.15,
         tolerance_corner_fraction: 1.0,
-        tolerance_parameters: vec![1],
+        tolerance_parameters: vec![PlacementParam::Alpha],
     };
     let study = d.join("study");
     let request = StudyRequest {

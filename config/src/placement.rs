@@ -97,9 +97,6 @@ pub enum PlacementParam {
     Azimuth,
 }
 
-/// What an unknown parameter name is told.
-const PARAMETER_NAMES: &str = "r, alpha, baseline, vergence, azimuth";
-
 impl PlacementParam {
     /// Every parameter, in the order placements are written.
     pub const ALL: [PlacementParam; 5] = [
@@ -123,6 +120,16 @@ impl PlacementParam {
             PlacementParam::Vergence => "vergence",
             PlacementParam::Azimuth => "azimuth",
         }
+    }
+
+    /// Every parameter's name, as an error lists them: `r, alpha, baseline, vergence, azimuth`.
+    pub fn names() -> String {
+        PlacementParam::ALL.map(PlacementParam::name).join(", ")
+    }
+
+    /// Its position in [`PlacementParam::ALL`] (and in every array of offsets ordered so).
+    pub fn index(self) -> usize {
+        self as usize
     }
 
     /// The parameter called `name`, if any.
@@ -165,6 +172,15 @@ impl PlacementParam {
         }
     }
 
+    /// The decimals of its step: 1 (0.1 mm) or 2 (0.01°).
+    pub fn decimals(self) -> usize {
+        if self.unit() == "mm" {
+            1
+        } else {
+            2
+        }
+    }
+
     /// Its value in `p` (vergence resolved to degrees).
     pub fn get(self, p: &Placement) -> f64 {
         match self {
@@ -201,35 +217,49 @@ impl std::str::FromStr for PlacementParam {
 
     /// A name; the error lists the names.
     fn from_str(s: &str) -> Result<PlacementParam, String> {
-        PlacementParam::from_name(s).ok_or_else(|| format!("unknown parameter, expected one of {PARAMETER_NAMES}"))
+        PlacementParam::from_name(s)
+            .ok_or_else(|| format!("unknown parameter, expected one of {}", PlacementParam::names()))
     }
 }
 
 impl Placement {
+    /// Every parameter to its step, the vergence in degrees, as a drawing would give it:
+    /// `r=605.0,alpha=32.00,baseline=81.0,vergence=3.50,azimuth=0.00`.
+    pub fn to_step_text(&self) -> String {
+        let value = |p: PlacementParam| format!("{}={:.*}", p.name(), p.decimals(), p.get(self));
+        PlacementParam::ALL.map(value).join(",")
+    }
+
     /// Checks ranges; `key` prefixes the key named in an error.
     pub fn validate(&self, key: &str) -> Result<(), Error> {
         let k = |name: &str| if key.is_empty() { name.to_string() } else { format!("{key}.{name}") };
         if !(self.r.is_finite() && self.r > 0.0) {
-            return Err(Error::value(k("r"), format!("expected a positive distance in mm, got {}", self.r)));
+            return Err(Error::value(
+                k(PlacementParam::R.name()),
+                format!("expected a positive distance in mm, got {}", self.r),
+            ));
         }
         if !(self.alpha.is_finite() && (0.0..90.0).contains(&self.alpha)) {
             return Err(Error::value(
-                k("alpha"),
+                k(PlacementParam::Alpha.name()),
                 format!("expected a polar angle in [0, 90) degrees, got {}", self.alpha),
             ));
         }
         if !(self.baseline.is_finite() && self.baseline > 0.0) {
             return Err(Error::value(
-                k("baseline"),
+                k(PlacementParam::Baseline.name()),
                 format!("expected a positive baseline in mm, got {}", self.baseline),
             ));
         }
         if self.r > MAX_DISTANCE_MM {
-            return Err(Error::value(k("r"), format!("expected at most {MAX_DISTANCE_MM} mm, got {}", self.r)));
+            return Err(Error::value(
+                k(PlacementParam::R.name()),
+                format!("expected at most {MAX_DISTANCE_MM} mm, got {}", self.r),
+            ));
         }
         if self.baseline > MAX_DISTANCE_MM {
             return Err(Error::value(
-                k("baseline"),
+                k(PlacementParam::Baseline.name()),
                 format!("expected at most {MAX_DISTANCE_MM} mm, got {}", self.baseline),
             ));
         }
@@ -237,7 +267,7 @@ impl Placement {
             Vergence::Degrees(v) => {
                 if !(v.is_finite() && (-45.0..45.0).contains(&v)) {
                     return Err(Error::value(
-                        k("vergence"),
+                        k(PlacementParam::Vergence.name()),
                         format!("expected a toe-in in (-45, 45) degrees or \"auto\", got {v}"),
                     ));
                 }
@@ -248,7 +278,7 @@ impl Placement {
                 let v = self.vergence.degrees(self.r, self.baseline);
                 if v.is_nan() || v >= 45.0 {
                     return Err(Error::value(
-                        k("vergence"),
+                        k(PlacementParam::Vergence.name()),
                         format!(
                             "\"auto\" gives a toe-in of {v:.1} degrees at r {} mm and baseline {} mm; expected under 45 (r larger than half the baseline)",
                             self.r, self.baseline
@@ -259,7 +289,7 @@ impl Placement {
         }
         if !(self.azimuth.is_finite() && (-360.0..=360.0).contains(&self.azimuth)) {
             return Err(Error::value(
-                k("azimuth"),
+                k(PlacementParam::Azimuth.name()),
                 format!("expected an azimuth from -360 to 360 degrees, got {}", self.azimuth),
             ));
         }
@@ -384,7 +414,9 @@ mod tests {
 
     #[test]
     fn each_parameter_sets_what_it_gets_and_parses_its_name() {
-        for param in PlacementParam::ALL {
+        for (i, param) in PlacementParam::ALL.into_iter().enumerate() {
+            assert_eq!(param.index(), i, "{param}");
+            assert!((param.step() - 10f64.powi(-(param.decimals() as i32))).abs() < 1e-12, "{param}");
             let value = param.get(&base()) + 1.5;
             let p = param.set(&base(), value);
             assert_eq!(param.get(&p), value, "{param}");
@@ -397,6 +429,17 @@ mod tests {
             assert_eq!(serde_json::to_string(&param).unwrap(), format!("\"{param}\""));
         }
         assert!("height".parse::<PlacementParam>().unwrap_err().contains("r, alpha, baseline, vergence, azimuth"));
+        let p = Placement { vergence: Vergence::Auto, azimuth: -12.5, ..base() };
+        assert_eq!(
+            p.to_step_text(),
+            format!(
+                "r={:.1},alpha={:.2},baseline={:.1},vergence={:.2},azimuth=-12.50",
+                p.r,
+                p.alpha,
+                p.baseline,
+                p.vergence.degrees(p.r, p.baseline)
+            )
+        );
     }
 
     #[test]

@@ -127,6 +127,11 @@ pub struct ToleranceReport {
 }
 
 impl ToleranceReport {
+    /// The tolerance measured for `param`, if it was walked.
+    pub fn axis(&self, param: PlacementParam) -> Option<&AxisTolerance> {
+        self.axes.iter().find(|a| a.parameter == param.name())
+    }
+
     /// The corner with the lowest success rate (the first of equals), if any.
     pub fn worst_corner(&self) -> Option<&ToleranceCorner> {
         self.corners.iter().fold(None, |worst: Option<&ToleranceCorner>, c| match worst {

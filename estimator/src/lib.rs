@@ -23,6 +23,7 @@ mod error;
 mod estimator_config;
 mod features;
 mod method;
+mod mounting_check;
 mod pipeline;
 mod placement_rig;
 mod pose;
@@ -48,6 +49,7 @@ pub use features::{
     FeatureTimings, KeypointSelector, NormalEstimator, ECSAD_DIM, MIN_NORMAL_NEIGHBOURS, QUANTISATION_STEPS,
 };
 pub use method::{method_for, Method};
+pub use mounting_check::{mounting_check, MountingCheck, MountingLimit, MountingVerdict, ParamCheck};
 pub use pipeline::{Estimator, PoseEstimate, StageTimings};
 pub use placement_rig::{camera_k, look_at, rig_for, rig_pose, sensor_rig};
 pub use pose::{

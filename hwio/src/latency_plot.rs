@@ -1,15 +1,46 @@
 //! The deployed loop's latency for people: per frame, the estimator's stages stacked with
 //! the capture-to-pose latency on top (the gap is the wait for the frame before), and a
-//! histogram of the capture-to-pose latency against the frame budget.
+//! histogram of the capture-to-pose latency against the frame budget (each method's, from
+//! docs/architecture.md §8); and where a `--latency-plot` path puts the two files.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use camplace_config::{save_plot, Plot, SavedPlot, PLOT_FONT_FAMILY as FAMILY};
-use camplace_estimator::StageTimings;
+use camplace_estimator::{Method, StageTimings};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::{FrameTiming, Result};
+use crate::{Error, FrameTiming, Result};
+
+/// The capture-to-pose budget of one frame of `method`, ms: 100 for one shot, a p99 of 150
+/// for 12 shots.
+pub fn frame_budget_ms(method: Method) -> f64 {
+    match method {
+        Method::OneShot => 100.0,
+        Method::Phase12 => 150.0,
+    }
+}
+
+/// The folder and file name stem of a latency plot at `path`, checked before a run so a bad
+/// path cannot end a run whose poses were written. A name ending in `.png` or `.svg` stands
+/// for its stem: both files are drawn either way. The error names `--latency-plot`.
+pub fn latency_plot_target(path: &Path) -> Result<(PathBuf, String)> {
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let stem = |name: &str| {
+        [".png", ".svg"]
+            .iter()
+            .find_map(|ext| name.strip_suffix(ext))
+            .filter(|s| !s.is_empty())
+            .unwrap_or(name)
+            .to_string()
+    };
+    match path.file_name().and_then(|n| n.to_str()) {
+        Some(name) if dir.is_dir() => Ok((dir.to_path_buf(), stem(name))),
+        _ => {
+            Err(Error::input(format!("--latency-plot {}: expected a file name in an existing folder", path.display())))
+        }
+    }
+}
 
 /// Stage colours, in [`StageTimings::STAGES`] order (a qualitative palette: neighbours
 /// differ).
@@ -164,6 +195,18 @@ impl Plot for LatencyPlot<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_latency_plot_named_with_its_extension_is_drawn_under_its_stem() {
+        let dir = std::env::temp_dir();
+        for (given, stem) in
+            [("lat", "lat"), ("lat.png", "lat"), ("lat.svg", "lat"), ("lat.v2", "lat.v2"), (".png", ".png")]
+        {
+            let (folder, name) = latency_plot_target(&dir.join(given)).unwrap();
+            assert_eq!((folder, name.as_str()), (dir.clone(), stem), "--latency-plot {given}");
+        }
+        assert!(latency_plot_target(&dir.join("no/such/folder/lat.png")).is_err());
+    }
 
     fn frame(sequence: u64, latency_ms: f64) -> FrameTiming {
         let stages = StageTimings {

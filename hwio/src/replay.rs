@@ -1,12 +1,13 @@
 //! A recorded dataset through the estimator, shared by `estimate --dataset`, `replay` and
 //! `run --source dir:`: the estimator set up from the dataset's rig and background, each frame's
-//! record scored against its `truth.json` (the estimator's scoring), and `poses.jsonl` written.
+//! record scored against its `truth.json` (the estimator's scoring), `poses.jsonl` written,
+//! and the records summed up with the verification's figures at the threshold in force.
 
 use std::path::Path;
 
 use camplace_config::{remove_stale_temp_files, write_atomic, DATASET_SUMMARY};
 use camplace_config::{Cell, TruthFile};
-use camplace_estimator::{isometry_from_rows, score, FrameRecord};
+use camplace_estimator::{isometry_from_rows, score, FrameRecord, Summary, Verifier};
 use camplace_estimator::{method_for, Estimator, EstimatorConfig, Method, Model, PoseEstimate, Rig};
 
 use crate::{Error, ErrorKind, FrameSource, Frames, RecordedSource, Result};
@@ -55,11 +56,24 @@ pub fn record(
     Ok(record)
 }
 
+/// A recorded dataset's frames through the estimator.
+#[derive(Debug, Clone)]
+pub struct DatasetEstimate {
+    /// Each frame's record, in order.
+    pub records: Vec<FrameRecord>,
+    /// The method the frames were captured with.
+    pub method: Method,
+    /// The records summed up, with the verification's figures at the threshold the
+    /// estimator applied (the model's, else the cell's) when any frame has its truth.
+    pub summary: Summary,
+}
+
 /// Every frame of the dataset `dir` estimated in order; writes `dir/poses.jsonl` and
-/// returns the records and the method. A `summary.json` of an earlier run is removed
-/// before the new poses are written, so it never stands beside poses it does not describe
-/// (`replay` writes a new one when the frames carry their truth).
-pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> Result<(Vec<FrameRecord>, Method)> {
+/// returns the records, the method and their summary. A `summary.json` of an earlier run is
+/// removed before the new poses are written, so it never stands beside poses it does not
+/// describe (`replay` writes a new one when the frames carry their truth).
+pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> Result<DatasetEstimate> {
+    let threshold = Verifier::for_model(&cell.estimator, &model).threshold_in_force();
     let source = RecordedSource::open(dir)?;
     remove_stale_temp_files(dir)?;
     let method = method_for(source.shots());
@@ -94,5 +108,6 @@ pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> Result<(Vec<Fr
         }
     }
     write_atomic(&dir.join("poses.jsonl"), lines.as_bytes())?;
-    Ok((records, method))
+    let summary = Summary::from_records(&records).verified_at(&records, threshold, cell.estimator.verify_max_wrong);
+    Ok(DatasetEstimate { records, method, summary })
 }

@@ -4,14 +4,19 @@
 //! a rig that moved along the table's normal shows it nearer or farther. When the median of
 //! the last checks leaves the limits (the study's mounting tolerances, or the flags'), the
 //! watch warns. Turns about the table's normal and slides along it leave the plane as it
-//! was and are not seen.
+//! was and are not seen. The limits come from a tolerance measurement (alpha's and r's) or
+//! are given.
 
 use std::collections::VecDeque;
 
-use camplace_config::FloatImage;
+use std::path::Path;
+
+use camplace_config::{FloatImage, PlacementParam, ToleranceReport};
 use camplace_estimator::RectifiedCamera;
 use nalgebra::{Matrix3, Point3, Vector3};
 use serde::Serialize;
+
+use crate::{Error, ErrorKind, Result};
 
 /// Checks the warning looks at: the median of this many, so one noisy frame never warns and
 /// a real move warns by the third trigger after it.
@@ -36,6 +41,47 @@ pub struct DriftLimits {
     pub translation_mm: f64,
     /// Where the limits come from (a tolerance.json, or the flags), for the page.
     pub from: String,
+}
+
+impl DriftLimits {
+    /// The turn allowed when none is given, deg: the tolerance walk's resolution for alpha,
+    /// below which a study does not tell placements apart.
+    pub const DEFAULT_ROTATION_DEG: f64 = 1.0;
+    /// The move allowed when none is given, mm: the walk's resolution for r.
+    pub const DEFAULT_TRANSLATION_MM: f64 = 5.0;
+
+    /// The limits of a tolerance measurement (`tolerance.json` read from `path`): alpha's
+    /// tolerance for the turn and r's for the move, the smaller side of each. An error naming
+    /// the file when either was not measured.
+    pub fn from_tolerance(t: &ToleranceReport, path: &Path) -> Result<DriftLimits> {
+        let axis = |param: PlacementParam| {
+            t.axis(param).map(|x| x.minus.min(x.plus)).ok_or_else(|| {
+                Error::new(ErrorKind::Setting, format!("{}: axes: expected a tolerance of {param}", path.display()))
+            })
+        };
+        Ok(DriftLimits {
+            rotation_deg: axis(PlacementParam::Alpha)?,
+            translation_mm: axis(PlacementParam::R)?,
+            from: path.display().to_string(),
+        })
+    }
+
+    /// The limits given (`--drift-deg`, `--drift-mm`), each above 0, the defaults for those
+    /// not given.
+    pub fn given(rotation_deg: Option<f64>, translation_mm: Option<f64>) -> Result<DriftLimits> {
+        let positive = |v: f64, flag: &str| {
+            if v.is_finite() && v > 0.0 {
+                Ok(v)
+            } else {
+                Err(Error::new(ErrorKind::Setting, format!("{flag} {v}: expected a number above 0")))
+            }
+        };
+        Ok(DriftLimits {
+            rotation_deg: positive(rotation_deg.unwrap_or(Self::DEFAULT_ROTATION_DEG), "--drift-deg")?,
+            translation_mm: positive(translation_mm.unwrap_or(Self::DEFAULT_TRANSLATION_MM), "--drift-mm")?,
+            from: if rotation_deg.is_some() || translation_mm.is_some() { "flags" } else { "defaults" }.to_string(),
+        })
+    }
 }
 
 /// What the watch last found.
@@ -193,6 +239,67 @@ fn median(values: impl Iterator<Item = f64>) -> f64 {
 mod tests {
     use super::*;
     use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+
+    /// A tolerance report with `(parameter, minus, plus)` measured.
+    fn tolerances(axes: &[(PlacementParam, f64, f64)]) -> ToleranceReport {
+        use camplace_config::{AxisTolerance, TolerancePoint, WalkEnd};
+        let point = TolerancePoint {
+            offset: 0.0,
+            success_rate: 0.9,
+            success_interval: [0.8, 0.95],
+            scenes: 44,
+            lost: 0,
+            gained: 0,
+            p_lower: 1.0,
+        };
+        let axis = |&(param, minus, plus): &(PlacementParam, f64, f64)| AxisTolerance {
+            parameter: param.name().into(),
+            unit: param.unit().into(),
+            resolution: 1.0,
+            limit: 30.0,
+            minus,
+            minus_end: WalkEnd::Drop,
+            minus_inside: point.clone(),
+            minus_outside: None,
+            minus_range: -30.0,
+            plus,
+            plus_end: WalkEnd::Drop,
+            plus_inside: point.clone(),
+            plus_outside: None,
+            plus_range: 30.0,
+            points: Vec::new(),
+        };
+        ToleranceReport {
+            placement: "r=605,alpha=32,baseline=81,vergence=3.5".into(),
+            method: "one-shot".into(),
+            seed: 0,
+            scenarios: 44,
+            margin: 0.15,
+            level: 0.05,
+            power: 0.8,
+            nominal: point.clone(),
+            axes: axes.iter().map(axis).collect(),
+            corner_fraction: 1.0,
+            corners: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn the_limits_are_the_smaller_side_of_alpha_and_r_or_given() {
+        let path = Path::new("t/tolerance.json");
+        let t = tolerances(&[(PlacementParam::R, 35.0, 20.0), (PlacementParam::Alpha, 3.0, 4.0)]);
+        let l = DriftLimits::from_tolerance(&t, path).unwrap();
+        assert_eq!((l.rotation_deg, l.translation_mm, l.from.as_str()), (3.0, 20.0, "t/tolerance.json"));
+        let t = tolerances(&[(PlacementParam::Alpha, 3.0, 4.0)]);
+        let e = DriftLimits::from_tolerance(&t, path).unwrap_err();
+        assert_eq!(e.to_string(), "t/tolerance.json: axes: expected a tolerance of r");
+        let l = DriftLimits::given(None, None).unwrap();
+        assert_eq!((l.rotation_deg, l.translation_mm, l.from.as_str()), (1.0, 5.0, "defaults"));
+        let l = DriftLimits::given(None, Some(2.5)).unwrap();
+        assert_eq!((l.rotation_deg, l.translation_mm, l.from.as_str()), (1.0, 2.5, "flags"));
+        let e = DriftLimits::given(Some(0.0), None).unwrap_err();
+        assert_eq!(e.to_string(), "--drift-deg 0: expected a number above 0");
+    }
 
     /// A rectified camera 600 mm above the table looking straight down, turned by `tilt_deg`
     /// about its x axis as the calibration does not know.

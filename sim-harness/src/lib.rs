@@ -51,7 +51,8 @@ pub use study::placement_study::{run_study, tolerance_dir, Preset, StudyOutcome,
 pub use study::shard::Shard;
 pub use study::sweep::sweep;
 pub use study::tolerance::{
-    measure_tolerance, ToleranceParameter, ToleranceRequest, TOLERANCE_LEVEL, TOLERANCE_PARAMETERS, TOLERANCE_POWER,
+    measure_tolerance, tolerance_parameter, ToleranceParameter, ToleranceRequest, TOLERANCE_LEVEL,
+    TOLERANCE_PARAMETERS, TOLERANCE_POWER,
 };
 pub use study::Evaluator;
 pub use trial::judge::{

@@ -58,25 +58,9 @@ pub struct Args {
     robot_accuracy_deg: f64,
 }
 
-/// Parses `COLSxROWS@SQUARE_MM`, e.g. `9x6@25`.
+/// Parses `COLSxROWS@SQUARE_MM`, e.g. `9x6@25` (`--board`).
 pub fn parse_board(text: &str) -> anyhow::Result<CalibrationBoard> {
-    let expected = "expected COLSxROWS@SQUARE_MM, e.g. 9x6@25 (inner corners, square side in mm)";
-    let (counts, square) = text.split_once('@').with_context(|| format!("--board {text:?}: {expected}"))?;
-    let (cols, rows) = counts.split_once(['x', 'X']).with_context(|| format!("--board {text:?}: {expected}"))?;
-    let count = |s: &str| s.trim().parse::<usize>().ok().filter(|n| (2..=100).contains(n));
-    let (Some(cols), Some(rows)) = (count(cols), count(rows)) else {
-        bail!("--board {text:?}: {expected}, with 2 to 100 corners a side");
-    };
-    let square_mm = square.trim().parse::<f64>().ok().filter(|v| v.is_finite() && *v > 0.0 && *v <= 1000.0);
-    let Some(square_mm) = square_mm else {
-        bail!("--board {text:?}: {expected}, with a square side above 0 and up to 1000 mm");
-    };
-    if (cols + rows).is_multiple_of(2) {
-        bail!(
-            "--board {text:?}: a {cols}x{rows} board looks the same turned half way round, so its corners cannot be told apart; use one with an odd and an even corner count, e.g. 9x6"
-        );
-    }
-    Ok(CalibrationBoard { cols, rows, square_mm })
+    text.parse().map_err(|e| anyhow::anyhow!("--board {text:?}: {e}"))
 }
 
 /// The table board's pose in the world from `X,Y,Z,YAW`.

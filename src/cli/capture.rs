@@ -6,16 +6,10 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::{Duration, Instant};
 
 use anyhow::bail;
 use camplace_config::{placement_dir, TrialPlan, PLAN_FILE};
-use camplace_hwio::{append_frame, open_source, parse_source, write_background, write_table_view, Frames, SourceSpec};
-
-/// The most frames one run may capture.
-const MAX_COUNT: u64 = 1_000_000;
-/// The longest wait between frames, s.
-const MAX_EVERY_S: f64 = 86_400.0;
+use camplace_hwio::{capture_dataset, capture_rig, open_source, parse_source, CaptureKind, CapturePlan};
 
 /// Flags of `camplace capture`.
 #[derive(clap::Args, Debug)]
@@ -57,18 +51,12 @@ pub struct Args {
 
 /// Runs `camplace capture`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    if !(1..=MAX_COUNT).contains(&a.count) {
-        bail!("--count: expected 1 to {MAX_COUNT} frames, got {}", a.count);
-    }
-    if !(a.every.is_finite() && (0.0..=MAX_EVERY_S).contains(&a.every)) {
-        bail!("--every: expected 0 to {MAX_EVERY_S} seconds, got {}", a.every);
-    }
-    if a.background && a.count != 1 {
-        bail!("--background: the background is one frame; leave out --count {}", a.count);
-    }
-    if a.table && a.count != 1 {
-        bail!("--table: the table view is one frame; leave out --count {}", a.count);
-    }
+    let kind = match (a.background, a.table) {
+        (true, _) => CaptureKind::Background,
+        (_, true) => CaptureKind::TableView,
+        _ => CaptureKind::Frames,
+    };
+    let plan = CapturePlan::new(a.count, a.every, a.skip, kind)?;
     let out = match (&a.out, &a.trial, a.placement) {
         (Some(out), _, _) => out.clone(),
         (None, Some(trial), Some(i)) => {
@@ -85,56 +73,25 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         _ => bail!("--out DIR or --trial DIR --placement I: expected where the frames go"),
     };
     let spec = parse_source(&a.source)?;
-    let rig = match (&a.rig, &spec) {
-        (Some(r), _) => Some(r.clone()),
-        (None, SourceSpec::Recorded(dir)) => Some(dir.join("rig.json")).filter(|p| p.is_file()),
-        (None, _) => None,
-    };
-    if let Some(r) = &rig {
-        camplace_config::RigFile::load(r)?;
-    }
+    let rig = capture_rig(a.rig.as_deref(), &spec)?;
     let mut source = open_source(&spec)?;
-    let mut frames = Frames::new(source.shots());
-    let started = Instant::now();
-    let mut captured = 0;
-    while captured < a.count {
-        if captured > 0 && a.every > 0.0 {
-            // Kept to the schedule from the start, so slow writes do not add up.
-            let due = started + Duration::from_secs_f64(a.every * captured as f64);
-            std::thread::sleep(due.saturating_duration_since(Instant::now()));
-        }
-        let mut info = None;
-        for _ in 0..=a.skip {
-            info = source.next(&mut frames)?;
-            if info.is_none() {
-                break;
-            }
-        }
-        let Some(info) = info else { break };
-        let dir = if a.background {
-            write_background(&out, &frames, rig.as_deref())?
-        } else if a.table {
-            write_table_view(&out, &frames, rig.as_deref())?
-        } else {
-            append_frame(&out, &frames, rig.as_deref())?
-        };
-        captured += 1;
+    let outcome = capture_dataset(source.as_mut(), &plan, &out, rig.as_deref(), |f| {
         outln!(
             "captured {} ({} shot(s) per side, source frame {}) into {} at {:.1} s",
-            info.name,
-            frames.left.len(),
-            info.index,
-            dir.display(),
-            started.elapsed().as_secs_f64()
-        );
-    }
-    if captured == 0 {
+            f.source.name,
+            f.shots,
+            f.source.index,
+            f.dir.display(),
+            f.elapsed_s
+        )
+    })?;
+    if outcome.captured == 0 {
         bail!("--source {}: the source gave no frame", a.source);
     }
-    if captured < a.count {
-        noteln!("note: the source ended after {captured} of {} frames", a.count);
+    if outcome.captured < outcome.requested {
+        noteln!("note: the source ended after {} of {} frames", outcome.captured, outcome.requested);
     }
-    if rig.is_none() && !out.join("rig.json").exists() {
+    if !outcome.has_rig {
         noteln!("note: {} has no rig.json yet; calibrate the rig and copy it there (or pass --rig)", out.display());
     }
     Ok(ExitCode::SUCCESS)

@@ -3,8 +3,7 @@
 
 use anyhow::Context;
 use camplace_config::RigFile;
-use camplace_estimator::{Estimator, EstimatorConfig, Method, Model, Rig, Verifier};
-use camplace_estimator::{FrameRecord, Summary};
+use camplace_estimator::{Estimator, EstimatorConfig, FrameRecord, Method, Model, Rig};
 use camplace_hwio::estimate_dataset;
 use nalgebra::Point3;
 use std::path::{Path, PathBuf};
@@ -53,9 +52,13 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
 }
 
 fn dataset(cell: &camplace_config::Cell, model: Model, dir: &Path) -> anyhow::Result<ExitCode> {
-    let threshold = Verifier::for_model(&cell.estimator, &model).threshold_in_force();
-    let (records, method) = estimate_dataset(cell, model, dir)?;
-    let summary = Summary::from_records(&records).verified_at(&records, threshold, cell.estimator.verify_max_wrong);
-    outln!("{} frames ({method}): {}; wrote {}", records.len(), summary.line(), dir.join("poses.jsonl").display());
+    let d = estimate_dataset(cell, model, dir)?;
+    outln!(
+        "{} frames ({}): {}; wrote {}",
+        d.records.len(),
+        d.method,
+        d.summary.line(),
+        dir.join("poses.jsonl").display()
+    );
     Ok(ExitCode::SUCCESS)
 }

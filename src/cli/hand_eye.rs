@@ -183,7 +183,7 @@ pub fn run(a: HandEyeArgs<'_>, board: &CalibrationBoard) -> anyhow::Result<ExitC
         cal.rms_px,
         a.out.display()
     );
-    print!("{text}");
+    out!("{text}");
     Ok(ExitCode::SUCCESS)
 }
 

@@ -7,9 +7,9 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context};
-use camplace_config::{Placement, PlacementParam, RigFile, ToleranceReport};
+use camplace_config::{RigFile, ToleranceReport};
 use camplace_estimator::Rig;
-use camplace_estimator::{as_built, azimuth_difference};
+use camplace_estimator::{as_built, mounting_check, MountingVerdict};
 use camplace_sim::tolerance_dir;
 
 use super::cell_args::CellArgs;
@@ -59,29 +59,23 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if a.cell.placement.is_some() && (a.study.is_some() || a.tolerance.is_some()) && plan != cell_plan {
         bail!("--placement: the plan comes from the study or tolerance.json ({plan}); leave --placement out");
     }
-    let p = built.placement;
-    outln!("as built ({}): {}", a.rig.display(), short(&p));
-    outln!("planned: {}", short(&plan));
+    outln!("as built ({}): {}", a.rig.display(), built.placement.to_step_text());
+    outln!("planned: {}", plan.to_step_text());
     outln!("{:<10} {:>12} {:>12} {:>12} {:>16}", "parameter", "as built", "planned", "difference", "tolerance");
-    let mut outside = Vec::new();
-    for param in PlacementParam::ALL {
-        let (name, unit, got, want) = (param.name(), param.unit(), param.get(&p), param.get(&plan));
-        let diff = if param == PlacementParam::Azimuth { azimuth_difference(got, want) } else { got - want };
-        let limit = limits.as_ref().and_then(|t| t.axes.iter().find(|x| x.parameter == name));
-        let verdict = match limit {
-            Some(l) if diff < -l.minus - 1e-9 || diff > l.plus + 1e-9 => {
-                outside.push(name);
-                format!("-{}/+{} OUTSIDE", l.minus, l.plus)
-            }
-            Some(l) => format!("-{}/+{} within", l.minus, l.plus),
-            None => "not measured".to_string(),
+    let check = mounting_check(&built, &plan, limits.as_ref());
+    for c in &check.params {
+        let (name, unit) = (c.param.name(), c.param.unit());
+        let verdict = match (c.limit, c.verdict) {
+            (Some(l), MountingVerdict::Outside) => format!("-{}/+{} OUTSIDE", l.minus, l.plus),
+            (Some(l), _) => format!("-{}/+{} within", l.minus, l.plus),
+            (None, _) => "not measured".to_string(),
         };
-        let digits = if unit == "mm" { 1 } else { 2 };
+        let digits = c.param.decimals();
         outln!(
             "{name:<10} {:>8.digits$} {unit:<3} {:>8.digits$} {unit:<3} {:>+8.digits$} {unit:<3} {verdict:>16}",
-            got,
-            want,
-            diff
+            c.as_built,
+            c.planned,
+            c.difference
         );
     }
     outln!("toe-in: left {:.2} deg, right {:.2} deg", built.toe_in[0], built.toe_in[1]);
@@ -103,24 +97,14 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             t.test_text()
         );
     }
+    let outside = check.outside();
     if outside.is_empty() {
         Ok(ExitCode::SUCCESS)
     } else {
-        outln!("outside its tolerance: {}", outside.join(", "));
+        let names: Vec<&str> = outside.iter().map(|p| p.name()).collect();
+        outln!("outside its tolerance: {}", names.join(", "));
         Ok(ExitCode::from(1))
     }
-}
-
-/// A placement with the vergence in degrees, rounded as a drawing would give it.
-fn short(p: &Placement) -> String {
-    format!(
-        "r={:.1},alpha={:.2},baseline={:.1},vergence={:.2},azimuth={:.2}",
-        p.r,
-        p.alpha,
-        p.baseline,
-        p.vergence.degrees(p.r, p.baseline),
-        p.azimuth
-    )
 }
 
 fn read_tolerance(path: &Path) -> anyhow::Result<ToleranceReport> {

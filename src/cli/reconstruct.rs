@@ -2,7 +2,7 @@
 //! dataset, one raw pair with its `rig.json`, or one already rectified pair.
 
 use anyhow::{bail, Context};
-use camplace_estimator::Method;
+use camplace_estimator::{method_for, Method};
 use camplace_hwio::{match_rectified, reconstruct_dataset, reconstruct_pair, RectifiedPair};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -96,7 +96,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     let rig = a.rig.as_ref().context("--rig: expected the rig.json of the pair (or --rectified)")?;
     let d = reconstruct_pair(&cell, rig, &a.left, &a.right, out)?;
-    let method = if a.left.len() == 1 { Method::OneShot } else { Method::Phase12 };
+    let method = method_for(a.left.len());
     outln!("{} points, {:.1} ms; wrote {}; {}", d.points, d.ms, out.display(), rows_text(method, cell.stereo.row_step));
     Ok(ExitCode::SUCCESS)
 }

@@ -6,9 +6,8 @@
 use anyhow::Context;
 use camplace_config::write_atomic;
 use camplace_config::{Cell, DATASET_SUMMARY};
-use camplace_estimator::Summary;
-use camplace_estimator::{Model, Verifier};
-use camplace_hwio::estimate_dataset;
+use camplace_estimator::Model;
+use camplace_hwio::{estimate_dataset, DatasetEstimate};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -40,9 +39,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         }
         None => (Cell::default(), Model::load(&a.model)?),
     };
-    let threshold = Verifier::for_model(&cell.estimator, &model).threshold_in_force();
-    let (records, method) = estimate_dataset(&cell, model, &a.dataset)?;
-    let summary = Summary::from_records(&records).verified_at(&records, threshold, cell.estimator.verify_max_wrong);
+    let DatasetEstimate { records, method, summary } = estimate_dataset(&cell, model, &a.dataset)?;
     let poses = a.dataset.join("poses.jsonl");
     if summary.scored == 0 {
         outln!("{} frames ({method}): {}; wrote {}", records.len(), summary.line(), poses.display());

@@ -7,12 +7,15 @@
 
 use anyhow::{bail, Context};
 use camplace_config::truth_path;
-use camplace_estimator::{method_for, FrameRecord, Method, Summary};
+use camplace_estimator::{method_for, FrameRecord, Summary};
 use camplace_estimator::{Model, Rig};
-use camplace_hwio::{estimator_for, frame_record, parse_source, write_latency_plot, DeploySource, Deployment};
+use camplace_hwio::{
+    estimator_for, frame_budget_ms, frame_record, latency_plot_target, parse_source, write_latency_plot, DeploySource,
+    Deployment,
+};
 use serde::Serialize;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::Duration;
@@ -55,37 +58,10 @@ struct RunLine<'a> {
     record: &'a FrameRecord,
 }
 
-/// The folder and file name stem of `--latency-plot PATH`, checked before the run so a bad
-/// path cannot end a run whose poses were written. A name ending in `.png` or `.svg` stands
-/// for its stem: both files are drawn either way.
-fn plot_target(path: &Path) -> anyhow::Result<(PathBuf, String)> {
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let stem = |name: &str| {
-        [".png", ".svg"]
-            .iter()
-            .find_map(|ext| name.strip_suffix(ext))
-            .filter(|s| !s.is_empty())
-            .unwrap_or(name)
-            .to_string()
-    };
-    match path.file_name().and_then(|n| n.to_str()) {
-        Some(name) if dir.is_dir() => Ok((dir.to_path_buf(), stem(name))),
-        _ => bail!("--latency-plot {}: expected a file name in an existing folder", path.display()),
-    }
-}
-
-/// The capture-to-pose budget of one frame (docs/architecture.md §8), ms.
-fn frame_budget_ms(method: Method) -> f64 {
-    match method {
-        Method::OneShot => 100.0,
-        Method::Phase12 => 150.0,
-    }
-}
-
 /// Runs `camplace run`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let spec = parse_source(&a.deploy.source)?;
-    let plot = a.latency_plot.as_deref().map(plot_target).transpose()?;
+    let plot = a.latency_plot.as_deref().map(latency_plot_target).transpose()?;
     let cell = a.deploy.cell()?;
     let opened = DeploySource::open(&spec, a.deploy.rig.as_deref(), a.deploy.background.as_deref(), a.fps)?;
     let rig = Rig::from_file(&opened.rig);
@@ -147,21 +123,4 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_latency_plot_named_with_its_extension_is_drawn_under_its_stem() {
-        let dir = std::env::temp_dir();
-        for (given, stem) in
-            [("lat", "lat"), ("lat.png", "lat"), ("lat.svg", "lat"), ("lat.v2", "lat.v2"), (".png", ".png")]
-        {
-            let (folder, name) = plot_target(&dir.join(given)).unwrap();
-            assert_eq!((folder, name.as_str()), (dir.clone(), stem), "--latency-plot {given}");
-        }
-        assert!(plot_target(&dir.join("no/such/folder/lat.png")).is_err());
-    }
 }

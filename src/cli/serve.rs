@@ -10,7 +10,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{bail, Context};
-use camplace_config::{Cell, LengthUnit, PlacementParam, PoseConvention, RobotPoseFormat, ToleranceReport};
+use camplace_config::{Cell, LengthUnit, PoseConvention, RobotPoseFormat, ToleranceReport};
 use camplace_estimator::{method_for, Method};
 use camplace_estimator::{Model, Rig};
 use camplace_hwio::{
@@ -75,11 +75,6 @@ pub struct Args {
     seed: Option<u64>,
 }
 
-/// The drift limits when neither --tolerance nor the flags give them: the tolerance walk's
-/// resolution for alpha (1°) and r (5 mm), below which a study does not tell placements apart.
-const DEFAULT_DRIFT_DEG: f64 = 1.0;
-const DEFAULT_DRIFT_MM: f64 = 5.0;
-
 fn address(text: &str, flag: &str) -> anyhow::Result<SocketAddr> {
     text.parse().map_err(|_| anyhow::anyhow!("{flag} {text:?}: expected ADDR:PORT, e.g. 127.0.0.1:50010"))
 }
@@ -94,26 +89,9 @@ fn positive(v: f64, flag: &str) -> anyhow::Result<f64> {
 
 /// The drift limits: alpha's and r's tolerances (the smaller side of each), or the flags.
 fn drift_limits(a: &Args) -> anyhow::Result<DriftLimits> {
-    let Some(path) = &a.tolerance else {
-        return Ok(DriftLimits {
-            rotation_deg: positive(a.drift_deg.unwrap_or(DEFAULT_DRIFT_DEG), "--drift-deg")?,
-            translation_mm: positive(a.drift_mm.unwrap_or(DEFAULT_DRIFT_MM), "--drift-mm")?,
-            from: if a.drift_deg.is_some() || a.drift_mm.is_some() { "flags" } else { "defaults" }.to_string(),
-        });
-    };
-    let t = ToleranceReport::load(path)?;
-    let axis = |param: PlacementParam| {
-        let name = param.name();
-        t.axes
-            .iter()
-            .find(|x| x.parameter == name)
-            .map(|x| x.minus.min(x.plus))
-            .with_context(|| format!("{}: axes: expected a tolerance of {name}", path.display()))
-    };
-    Ok(DriftLimits {
-        rotation_deg: axis(PlacementParam::Alpha)?,
-        translation_mm: axis(PlacementParam::R)?,
-        from: path.display().to_string(),
+    Ok(match &a.tolerance {
+        Some(path) => DriftLimits::from_tolerance(&ToleranceReport::load(path)?, path)?,
+        None => DriftLimits::given(a.drift_deg, a.drift_mm)?,
     })
 }
 

@@ -9,8 +9,7 @@ use std::process::ExitCode;
 use anyhow::bail;
 use camplace_config::PlacementParam;
 use camplace_sim::{
-    measure_tolerance, scenes_for_power, write_tolerance_plots, ToleranceRequest, TOLERANCE_LEVEL,
-    TOLERANCE_PARAMETERS, TOLERANCE_POWER,
+    measure_tolerance, scenes_for_power, write_tolerance_plots, ToleranceRequest, TOLERANCE_LEVEL, TOLERANCE_POWER,
 };
 
 use super::cell_args::{refuse_installed_rig, CellArgs};
@@ -54,16 +53,15 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let seed = a.scene.seed(&trays[0].1);
     let mut parameters = Vec::new();
     for name in a.parameters.split(',').map(str::trim).filter(|n| !n.is_empty()) {
-        let param = PlacementParam::from_name(name);
-        let Some(i) = TOLERANCE_PARAMETERS.iter().position(|p| Some(p.param) == param) else {
-            bail!("--parameters: unknown parameter \"{name}\", expected some of r, alpha, baseline, vergence, azimuth");
+        let Some(param) = PlacementParam::from_name(name) else {
+            bail!("--parameters: unknown parameter \"{name}\", expected some of {}", PlacementParam::names());
         };
-        if !parameters.contains(&i) {
-            parameters.push(i);
+        if !parameters.contains(&param) {
+            parameters.push(param);
         }
     }
     if parameters.is_empty() {
-        bail!("--parameters: expected at least one of r, alpha, baseline, vergence, azimuth");
+        bail!("--parameters: expected at least one of {}", PlacementParam::names());
     }
     parameters.sort_unstable();
     let scenarios = match a.scenarios {

@@ -10,7 +10,7 @@ use std::process::ExitCode;
 use anyhow::{bail, Context};
 use camplace_config::{placement_dir, Axis, Cell, Grid, TrialPlan, PLAN_FILE};
 use camplace_estimator::{Method, Model};
-use camplace_hwio::estimate_dataset;
+use camplace_hwio::{estimate_dataset, DatasetEstimate};
 use camplace_sim::{
     append_label, check_placement_rig, frame_names, make_mock_trial, make_plan, rho_text, scripted_marks, study_grid,
     trial_report, LABELS_FILE, REPORT_HTML, REPORT_JSON,
@@ -227,7 +227,7 @@ fn estimate(a: EstimateArgs) -> anyhow::Result<ExitCode> {
             continue;
         }
         check_placement_rig(&dir, &cell, &plan.placement(i))?;
-        let (records, method) = estimate_dataset(&cell, model.clone(), &dir)?;
+        let DatasetEstimate { records, method, .. } = estimate_dataset(&cell, model.clone(), &dir)?;
         let found = records.iter().filter(|r| r.found).count();
         let accepted = records.iter().filter(|r| r.accepted()).count();
         outln!(

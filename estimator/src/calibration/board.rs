@@ -21,6 +21,33 @@ pub struct CalibrationBoard {
     pub square_mm: f64,
 }
 
+impl std::str::FromStr for CalibrationBoard {
+    type Err = String;
+
+    /// `COLSxROWS@SQUARE_MM`, e.g. `9x6@25`: 2 to 100 inner corners a side, an odd and an
+    /// even count (a board with both even or both odd looks the same turned half way round,
+    /// so its corners cannot be told apart), a square side above 0 and up to 1000 mm.
+    fn from_str(text: &str) -> std::result::Result<CalibrationBoard, String> {
+        let expected = "expected COLSxROWS@SQUARE_MM, e.g. 9x6@25 (inner corners, square side in mm)";
+        let (counts, square) = text.split_once('@').ok_or(expected)?;
+        let (cols, rows) = counts.split_once(['x', 'X']).ok_or(expected)?;
+        let count = |s: &str| s.trim().parse::<usize>().ok().filter(|n| (2..=100).contains(n));
+        let (Some(cols), Some(rows)) = (count(cols), count(rows)) else {
+            return Err(format!("{expected}, with 2 to 100 corners a side"));
+        };
+        let square_mm = square.trim().parse::<f64>().ok().filter(|v| v.is_finite() && *v > 0.0 && *v <= 1000.0);
+        let Some(square_mm) = square_mm else {
+            return Err(format!("{expected}, with a square side above 0 and up to 1000 mm"));
+        };
+        if (cols + rows).is_multiple_of(2) {
+            return Err(format!(
+                "a {cols}x{rows} board looks the same turned half way round, so its corners cannot be told apart; use one with an odd and an even corner count, e.g. 9x6"
+            ));
+        }
+        Ok(CalibrationBoard { cols, rows, square_mm })
+    }
+}
+
 impl CalibrationBoard {
     /// Number of inner corners, `cols * rows`.
     pub fn corner_count(&self) -> usize {
@@ -182,4 +209,29 @@ pub(super) fn check_inputs(board: &CalibrationBoard, views: &[BoardView], width:
         ));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_board_parses_from_its_counts_and_square_and_refuses_what_it_cannot_be() {
+        assert_eq!("9x6@25".parse(), Ok(CalibrationBoard { cols: 9, rows: 6, square_mm: 25.0 }));
+        assert_eq!("7X4@ 12.5".parse(), Ok(CalibrationBoard { cols: 7, rows: 4, square_mm: 12.5 }));
+        for (text, said) in [
+            ("9x6", "expected COLSxROWS@SQUARE_MM"),
+            ("96@25", "expected COLSxROWS@SQUARE_MM"),
+            ("1x6@25", "2 to 100 corners a side"),
+            ("9x101@25", "2 to 100 corners a side"),
+            ("9x6@0", "a square side above 0"),
+            ("9x6@1001", "up to 1000 mm"),
+            ("9x6@inf", "a square side above 0"),
+            ("8x6@25", "a 8x6 board looks the same turned half way round"),
+            ("9x7@25", "a 9x7 board"),
+        ] {
+            let e = text.parse::<CalibrationBoard>().unwrap_err();
+            assert!(e.contains(said), "{text}: {e}");
+        }
+    }
 }

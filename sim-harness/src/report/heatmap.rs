@@ -217,6 +217,7 @@ pub fn viridis(t: f64) -> RGBColor {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use camplace_config::PlacementParam;
 
     #[test]
     fn axis_values_drop_trailing_zeros() {
@@ -272,8 +273,8 @@ mod tests {
     fn a_uniform_full_success_map_is_drawn_in_the_colour_of_100_on_its_legend() {
         let map = HeatMap {
             title: "success rate, % (phase-12)".into(),
-            x_label: "r, mm".into(),
-            y_label: "alpha, deg".into(),
+            x_label: PlacementParam::R.label(),
+            y_label: PlacementParam::Alpha.label(),
             xs: vec![400.0, 500.0, 600.0],
             ys: vec![0.0, 30.0, 60.0],
             values: vec![Some(100.0); 9],

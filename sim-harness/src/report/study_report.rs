@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use camplace_config::{save_plot, Cell, Effect, EstimatorPreset};
+use camplace_config::{save_plot, studied_names, Cell, Effect, EstimatorPreset, PlacementParam};
 
 use super::convergence::{Convergence, Curve};
 use super::html::HtmlPage;
@@ -233,14 +233,16 @@ pub fn write_report(req: &StudyRequest, outcome: &StudyOutcome, started: Instant
     let all: Vec<&Summary> =
         combos.iter().flat_map(|c| c.sweeps.iter().flat_map(|s| s.rows.iter().map(|r| &r.summary))).collect();
     let median_ms = camplace_estimator::median(&all.iter().map(|s| s.median_ms).collect::<Vec<_>>()).unwrap_or(0.0);
-    let search = if preset.budget > 0 {
-        format!(
-            "search over r, alpha, baseline, vergence with {} evaluations of {} scenes; top {} and the grid's best checked on {} fresh scenes",
+    let search =
+        if preset.budget > 0 {
+            format!(
+            "search over {} with {} evaluations of {} scenes; top {} and the grid's best checked on {} fresh scenes",
+            studied_names(),
             preset.budget, preset.search_scenarios, preset.top, preset.recheck_scenarios
         )
-    } else {
-        format!("no search; the grid's best checked on {} fresh scenes", preset.recheck_scenarios)
-    };
+        } else {
+            format!("no search; the grid's best checked on {} fresh scenes", preset.recheck_scenarios)
+        };
     let trays = match req.paper {
         true => "the paper's experiment: built-in trays tray-8 and tray-4, each on its own".to_string(),
         false => format!(
@@ -324,23 +326,28 @@ fn answer(
         }
     };
     let xyz = |v: [f64; 3]| format!("({:.1}, {:.1}, {:.1})", tenth(v[0]), tenth(v[1]), tenth(v[2]));
-    let vergence = rec.vergence_deg;
     let interval = format!("{:.1}–{:.1} %", 100.0 * s.success_interval[0], 100.0 * s.success_interval[1]);
-    let mut rows: Vec<(String, String, String)> = vec![
-        ("trays".into(), "for".into(), r.trays_label()),
-        ("method".into(), "method".into(), r.method.to_string()),
-        ("r".into(), "r (distance of the rig from the table centre)".into(), format!("{:.1} mm", p.r)),
-        ("alpha".into(), "alpha (polar angle from vertical)".into(), format!("{:.2} deg", p.alpha)),
-        ("baseline".into(), "baseline".into(), format!("{:.1} mm", p.baseline)),
-        ("vergence".into(), "vergence (toe-in of each camera)".into(), format!("{vergence:.2} deg")),
-        ("azimuth".into(), "azimuth (about the table's z axis)".into(), format!("{:.1} deg", p.azimuth)),
-        (
-            "success_rate".into(),
-            format!("success on {} fresh scenes", s.scored),
-            format!("{} ({} of {})", pct(s.success_rate), s.successes, s.scored),
-        ),
-        ("success_interval".into(), "95 % interval (Wilson)".into(), interval),
-    ];
+    let mut rows: Vec<(String, String, String)> =
+        vec![("trays".into(), "for".into(), r.trays_label()), ("method".into(), "method".into(), r.method.to_string())];
+    // Each parameter's name, unit and value from PlacementParam; what it means and the
+    // decimals a drawing wants are the report's.
+    for (param, meaning, digits) in [
+        (PlacementParam::R, Some("distance of the rig from the table centre"), 1),
+        (PlacementParam::Alpha, Some("polar angle from vertical"), 2),
+        (PlacementParam::Baseline, None, 1),
+        (PlacementParam::Vergence, Some("toe-in of each camera"), 2),
+        (PlacementParam::Azimuth, Some("about the table's z axis"), 1),
+    ] {
+        let name = param.name();
+        let label = meaning.map_or_else(|| name.to_string(), |m| format!("{name} ({m})"));
+        rows.push((name.into(), label, format!("{:.digits$} {}", param.get(&p), param.unit())));
+    }
+    rows.push((
+        "success_rate".into(),
+        format!("success on {} fresh scenes", s.scored),
+        format!("{} ({} of {})", pct(s.success_rate), s.successes, s.scored),
+    ));
+    rows.push(("success_interval".into(), "95 % interval (Wilson)".into(), interval));
     if r.per_tray.len() > 1 {
         for ((name, _), t) in r.cells.iter().zip(&r.per_tray) {
             rows.push((

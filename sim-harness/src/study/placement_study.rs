@@ -19,7 +19,7 @@ use super::optimize::{recheck_seed, SearchOutcome, SearchParameter, SearchPlan};
 use super::placement_search::optimize_set;
 use super::shard::Shard;
 use super::sweep::sweep;
-use super::tolerance::{measure_tolerance, ToleranceRequest, TOLERANCE_PARAMETERS};
+use super::tolerance::{measure_tolerance, ToleranceRequest};
 use super::tray_set::{lowest, margin_order, TraySet};
 use crate::render::Method;
 use crate::report::sweep_panels::SweepResult;
@@ -56,9 +56,8 @@ pub struct Preset {
     pub tolerance_margin: f64,
     /// The share of each found tolerance the corners of the box are placed at.
     pub tolerance_corner_fraction: f64,
-    /// The parameters whose tolerances are walked, as indices into
-    /// [`TOLERANCE_PARAMETERS`] (every one in both presets).
-    pub tolerance_parameters: Vec<usize>,
+    /// The parameters whose tolerances are walked (every one in both presets).
+    pub tolerance_parameters: Vec<PlacementParam>,
 }
 
 impl Preset {
@@ -78,7 +77,7 @@ impl Preset {
             tolerance_scenarios: 44,
             tolerance_margin: 0.15,
             tolerance_corner_fraction: 1.0,
-            tolerance_parameters: (0..TOLERANCE_PARAMETERS.len()).collect(),
+            tolerance_parameters: PlacementParam::ALL.to_vec(),
         }
     }
 
@@ -97,7 +96,7 @@ impl Preset {
             tolerance_scenarios: 0,
             tolerance_margin: 0.15,
             tolerance_corner_fraction: 1.0,
-            tolerance_parameters: (0..TOLERANCE_PARAMETERS.len()).collect(),
+            tolerance_parameters: PlacementParam::ALL.to_vec(),
         }
     }
 

@@ -41,7 +41,8 @@ pub struct ToleranceParameter {
     pub walk_limit: f64,
 }
 
-/// The parameters, in the order of every offset array: r and baseline to 5 mm, alpha and
+/// The parameters, in the order of [`PlacementParam::ALL`] (every offset array's, and
+/// [`tolerance_parameter`] finds one by its index there): r and baseline to 5 mm, alpha and
 /// azimuth to 1°, vergence to 0.25°. Each is walked at most ±400 mm (r), ±30° (alpha),
 /// ±60 mm (baseline), ±6° (vergence, each camera's toe-in) or ±30° (azimuth): a rig
 /// mounted further off than that is plainly wrong, not within a tolerance. The first step
@@ -79,17 +80,22 @@ pub struct ToleranceRequest {
     pub margin: f64,
     /// The share of each found tolerance the corners are placed at (1: at the edges).
     pub corner_fraction: f64,
-    /// The parameters to walk, as indices into [`TOLERANCE_PARAMETERS`]; the others stay
-    /// at their nominal values (also at the corners).
-    pub parameters: Vec<usize>,
+    /// The parameters to walk, each once; the others stay at their nominal values (also
+    /// at the corners). They are walked, and written, in the order of [`PlacementParam::ALL`].
+    pub parameters: Vec<PlacementParam>,
 }
 
-/// The placement `offsets` (in [`TOLERANCE_PARAMETERS`] order) away from `nominal`, if valid.
+/// How `param`'s tolerance is walked.
+pub fn tolerance_parameter(param: PlacementParam) -> &'static ToleranceParameter {
+    &TOLERANCE_PARAMETERS[param.index()]
+}
+
+/// The placement `offsets` (in [`PlacementParam::ALL`] order) away from `nominal`, if valid.
 /// Values are rounded to a millionth of a mm or degree, so a placement prints as written.
 fn offset_placement(nominal: &Placement, offsets: &[f64; 5]) -> Option<Placement> {
     let mut p = *nominal;
-    for (param, &d) in TOLERANCE_PARAMETERS.iter().zip(offsets) {
-        p = param.param.set(&p, round6(param.param.get(nominal) + d));
+    for (param, &d) in PlacementParam::ALL.into_iter().zip(offsets) {
+        p = param.set(&p, round6(param.get(nominal) + d));
     }
     p.validate("").ok().map(|_| p)
 }
@@ -259,11 +265,18 @@ pub fn measure_tolerance(
         p_lower: 1.0,
     };
 
+    let mut walked = r.parameters.clone();
+    walked.sort_unstable();
+    if walked.is_empty() || walked.windows(2).any(|w| w[0] == w[1]) {
+        return Err(Error::Other(format!(
+            "tolerance: expected each parameter to walk once, at least one, got [{}]",
+            r.parameters.iter().map(|p| p.name()).collect::<Vec<_>>().join(", ")
+        )));
+    }
     let mut axes = Vec::new();
-    for &i in &r.parameters {
-        let Some(param) = TOLERANCE_PARAMETERS.get(i) else {
-            return Err(Error::Other(format!("tolerance: no parameter number {i}")));
-        };
+    for &walked_param in &walked {
+        let param = tolerance_parameter(walked_param);
+        let i = walked_param.index();
         let along = |offset: f64| {
             let mut offsets = [0.0; 5];
             offsets[i] = offset;
@@ -314,8 +327,8 @@ pub fn measure_tolerance(
     let mut boxed: Vec<([f64; 5], Placement)> = Vec::new();
     for mask in 0..(1u32 << axes.len()) {
         let mut offsets = [0.0; 5];
-        for (bit, (axis, &i)) in axes.iter().zip(&r.parameters).enumerate() {
-            let res = TOLERANCE_PARAMETERS[i].resolution;
+        for (bit, (axis, &param)) in axes.iter().zip(&walked).enumerate() {
+            let (i, res) = (param.index(), tolerance_parameter(param).resolution);
             // A share of the tolerance, down to the resolution's grid.
             let share = |t: f64| round6((r.corner_fraction * t / res + 1e-9).floor() * res);
             offsets[i] = if mask & (1 << bit) == 0 { -share(axis.minus) } else { share(axis.plus) };
@@ -527,8 +540,8 @@ mod tests {
     #[test]
     fn a_range_end_names_what_ended_it() {
         let axis = |minus_range: f64, plus_range: f64| AxisTolerance {
-            parameter: "alpha".into(),
-            unit: "deg".into(),
+            parameter: PlacementParam::Alpha.name().into(),
+            unit: PlacementParam::Alpha.unit().into(),
             resolution: 1.0,
             limit: 30.0,
             minus: -minus_range,
@@ -557,7 +570,9 @@ mod tests {
         );
         // The walk's limits are whole resolutions, and the first step about an eighth of
         // them: three or four doublings before the limit.
-        for p in TOLERANCE_PARAMETERS {
+        for (p, param) in TOLERANCE_PARAMETERS.into_iter().zip(PlacementParam::ALL) {
+            assert_eq!(p.param, param);
+            assert_eq!(tolerance_parameter(param), &p);
             let cap = p.walk_limit / p.resolution;
             assert_eq!(cap, cap.round(), "{}", p.param);
             let doublings = (cap / p.first_steps as f64).log2();
