@@ -281,6 +281,7 @@ mod tests {
             axes: axes.iter().map(axis).collect(),
             corner_fraction: 1.0,
             corners: Vec::new(),
+            corner_screen: 0,
         }
     }
 
