@@ -15,6 +15,7 @@ mod rig;
 mod robot_pose;
 #[cfg(test)]
 mod same_checks_tests;
+pub mod splitmix;
 #[cfg(test)]
 mod test_draw;
 mod text;
