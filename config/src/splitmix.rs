@@ -1,7 +1,7 @@
 //! SplitMix64 (Steele, Lea and Flood, 2014): the one definition of its step and its
-//! finaliser that every crate draws from. The simulator keys its scenes, noise and search
-//! steps with the finaliser ([`mix`]); tests draw seeded cases from the stream
-//! ([`SplitMix64`]). Changing a constant here changes every study ever run.
+//! finaliser. The simulator keys its scenes, noise and search steps with the finaliser
+//! ([`mix`]); config's tests draw seeded cases from the stream ([`SplitMix64`]). Changing a
+//! constant here changes every study ever run.
 
 /// The golden-ratio increment of the stream's state, 2^64 / φ.
 pub const GOLDEN_GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;

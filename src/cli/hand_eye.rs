@@ -1,7 +1,8 @@
 //! `camplace calibrate --hand-eye`: where the rig sits in the robot's frame, from board
-//! images paired by index with the robot's flange poses. Reads the pose file, has hwio list
-//! the views and find their corners, calls the estimator's hand-eye calibration, prints each pose's fit and writes the
-//! `[robot]` table the cell reads. Also the pose-format flags `render` shares.
+//! images paired by index with the robot's flange poses. Reads the pose file, has hwio
+//! list the views and find their corners, calls the estimator's hand-eye calibration,
+//! prints each pose's fit and writes the `[robot]` table the cell reads. Also the
+//! pose-format flags `render` shares.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
