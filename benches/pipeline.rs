@@ -25,14 +25,14 @@ pub fn benches(c: &mut Criterion) {
     sim.render(&draw_scenario(&cell, seed, 2).scene(), Method::OneShot, noise_key(seed, 2, false), &mut frame);
     let mut estimator =
         Estimator::new(&EstimatorConfig::from(&cell), sim.rig(), model, Method::OneShot).expect("the estimator builds");
-    estimator.set_background(&background.left, &background.right).expect("the background reconstructs");
-    let pose = estimator.process(&frame.left, &frame.right).expect("the frame is valid");
+    estimator.set_background(&background.shots.left, &background.shots.right).expect("the background reconstructs");
+    let pose = estimator.process(&frame.shots.left, &frame.shots.right).expect("the frame is valid");
     eprintln!("pipeline: found {}, {} inliers, stages {:?}", pose.found, pose.inliers, pose.timings);
 
     let mut group = c.benchmark_group("pipeline");
     group.sample_size(10);
     group.bench_function("one_shot_frame", |b| {
-        b.iter(|| estimator.process(black_box(&frame.left), black_box(&frame.right)).expect("valid"))
+        b.iter(|| estimator.process(black_box(&frame.shots.left), black_box(&frame.shots.right)).expect("valid"))
     });
     let cloud = estimator.reconstruction().cloud.points.clone();
     group.bench_function("pose_from_cloud", |b| b.iter(|| estimator.process_cloud(black_box(&cloud)).expect("valid")));
@@ -43,7 +43,7 @@ pub fn benches(c: &mut Criterion) {
     c.bench_function("pose/verify", |b| b.iter(|| estimator.verify(black_box(&pose.t_world_tray))));
 
     // The drift watch after a trigger: the table plane from the frame's disparity.
-    estimator.process(&frame.left, &frame.right).expect("the frame is valid");
+    estimator.process(&frame.shots.left, &frame.shots.right).expect("the frame is valid");
     let limits = DriftLimits { rotation_deg: 1.0, translation_mm: 5.0, from: "bench".into() };
     let mut watch = DriftWatch::new(limits);
     let (disparity, camera) = (&estimator.reconstruction().disparity, estimator.rectified_camera());

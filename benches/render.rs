@@ -20,14 +20,14 @@ fn render(c: &mut Criterion) {
         b.iter(|| {
             i += 1;
             sim.render(&scenes[i % scenes.len()], Method::OneShot, i as u64, &mut frame);
-            black_box(&frame.left[0].data[0]);
+            black_box(&frame.shots.left[0].data[0]);
         })
     });
     group.bench_function("phase12_set", |b| {
         b.iter(|| {
             i += 1;
             sim.render(&scenes[i % scenes.len()], Method::Phase12, i as u64, &mut frame);
-            black_box(&frame.left[11].data[0]);
+            black_box(&frame.shots.left[11].data[0]);
         })
     });
     let mut distorted = cell.clone();
@@ -37,7 +37,7 @@ fn render(c: &mut Criterion) {
         b.iter(|| {
             i += 1;
             lens_sim.render(&scenes[i % scenes.len()], Method::OneShot, i as u64, &mut frame);
-            black_box(&frame.left[0].data[0]);
+            black_box(&frame.shots.left[0].data[0]);
         })
     });
     let mut plain = cell.clone();
@@ -47,7 +47,7 @@ fn render(c: &mut Criterion) {
         b.iter(|| {
             i += 1;
             plain_sim.render(&scenes[i % scenes.len()], Method::OneShot, i as u64, &mut frame);
-            black_box(&frame.left[0].data[0]);
+            black_box(&frame.shots.left[0].data[0]);
         })
     });
     group.finish();

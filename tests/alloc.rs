@@ -89,9 +89,9 @@ fn warmed_up(method: Method) -> (Estimator, Vec<Frame>) {
         })
         .collect();
     let mut estimator = Estimator::new(&EstimatorConfig::from(&cell), sim.rig(), model, method).unwrap();
-    estimator.set_background(&background.left, &background.right).unwrap();
+    estimator.set_background(&background.shots.left, &background.shots.right).unwrap();
     for frame in &frames {
-        estimator.process(&frame.left, &frame.right).unwrap();
+        estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
     }
     (estimator, frames)
 }
@@ -103,7 +103,7 @@ fn cloud_to_pose_allocates_nothing_in_steady_state() {
     let clouds: Vec<Vec<Point3<f32>>> = frames
         .iter()
         .map(|f| {
-            estimator.process(&f.left, &f.right).unwrap();
+            estimator.process(&f.shots.left, &f.shots.right).unwrap();
             estimator.reconstruction().cloud.points.clone()
         })
         .collect();
@@ -140,7 +140,7 @@ fn assert_frames_allocate_nothing(estimator: &mut Estimator, frames: &[Frame]) -
             .filter(|&i| {
                 let frame = &frames[i % frames.len()];
                 let mut result = Ok(PoseEstimate::default());
-                let n = allocations(|| result = estimator.process(&frame.left, &frame.right));
+                let n = allocations(|| result = estimator.process(&frame.shots.left, &frame.shots.right));
                 assert_eq!(n, 0, "frame {i}: {n} allocations in process");
                 result.unwrap().found
             })

@@ -48,17 +48,17 @@ fn scenes_without_a_tray_give_no_error() {
     let background = background_scene(&cell, seed);
     sim.render(&background, Method::OneShot, noise_key(seed, 0, true), &mut frame);
     let mut estimator = Estimator::new(&EstimatorConfig::from(&cell), sim.rig(), model, Method::OneShot).unwrap();
-    estimator.set_background(&frame.left, &frame.right).unwrap();
+    estimator.set_background(&frame.shots.left, &frame.shots.right).unwrap();
     // The background itself, freshly captured. Background removal leaves much of the table
     // in a new capture, and a table patch can pass RANSAC's inlier share of a view (the
     // tray's base plate is flat too), so a wrong pose is possible here; an error is not.
     sim.render(&background, Method::OneShot, noise_key(seed, 1, true), &mut frame);
-    let pose = estimator.process(&frame.left, &frame.right).unwrap();
+    let pose = estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
     assert!(pose.t_world_tray.to_homogeneous().iter().all(|v| v.is_finite()), "{pose:?}");
     // Without a background, the bare table is all the estimator sees.
     let mut bare =
         Estimator::new(&EstimatorConfig::from(&cell), sim.rig(), estimator.model().clone(), Method::OneShot).unwrap();
-    let pose = bare.process(&frame.left, &frame.right).unwrap();
+    let pose = bare.process(&frame.shots.left, &frame.shots.right).unwrap();
     assert!(pose.t_world_tray.to_homogeneous().iter().all(|v| v.is_finite()), "{pose:?}");
 }
 

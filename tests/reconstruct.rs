@@ -29,14 +29,14 @@ fn score(text: &str, method: Method, n: u64) -> Score {
     let mut rec = Reconstructor::new(&EstimatorConfig::from(&cell), &rig, method).unwrap();
     let mut frame = Frame::default();
     sim.render(&background_scene(&cell, seed), method, noise_key(seed, 0, true), &mut frame);
-    rec.set_background(&frame.left, &frame.right).unwrap();
+    rec.set_background(&frame.shots.left, &frame.shots.right).unwrap();
     let mut out = Reconstruction::default();
     let mut truth = camplace_config::FloatImage::default();
     let (mut errors, mut pixels) = (Vec::new(), 0usize);
     for i in 0..n {
         let scenario = draw_scenario(&cell, seed, i);
         sim.render(&scenario.scene(), method, noise_key(seed, i, false), &mut frame);
-        rec.process(&frame.left, &frame.right, &mut out).unwrap();
+        rec.process(&frame.shots.left, &frame.shots.right, &mut out).unwrap();
         let rect = rec.rectification();
         let cam = &rect.camera;
         rect.disparity_truth(&rig.left, &frame.depth_left, &mut truth);

@@ -21,7 +21,7 @@ fn setup(cell: &Cell, seed: u64) -> (Simulator, Estimator) {
     let mut frame = Frame::default();
     sim.render(&background_scene(cell, seed), Method::OneShot, noise_key(seed, 0, true), &mut frame);
     let mut estimator = Estimator::new(&EstimatorConfig::from(cell), sim.rig(), model, Method::OneShot).unwrap();
-    estimator.set_background(&frame.left, &frame.right).unwrap();
+    estimator.set_background(&frame.shots.left, &frame.shots.right).unwrap();
     (sim, estimator)
 }
 
@@ -46,7 +46,7 @@ fn rejections(cell: &Cell, other: &Cell, other_name: &str) {
     let mut accepted = 0;
     for i in 0..4 {
         sim.render(&draw_scenario(cell, seed, i).scene(), Method::OneShot, noise_key(seed, i, false), &mut frame);
-        let pose = estimator.process(&frame.left, &frame.right).unwrap();
+        let pose = estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
         eprintln!("tray in view {i}: {} (score {:.3})", pose.verification.verdict, pose.verification.score);
         accepted += usize::from(pose.verification.verdict.accepted());
     }
@@ -56,7 +56,7 @@ fn rejections(cell: &Cell, other: &Cell, other_name: &str) {
     for i in 1..4 {
         let empty = draw_scenario(cell, seed, i).scene().background();
         sim.render(&empty, Method::OneShot, noise_key(seed, i, true), &mut frame);
-        let pose = estimator.process(&frame.left, &frame.right).unwrap();
+        let pose = estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
         rejected(&pose, &format!("empty cell {i}"));
     }
 
@@ -73,7 +73,7 @@ fn rejections(cell: &Cell, other: &Cell, other_name: &str) {
     let mut half = scenario.scene();
     half.t_world_tray = Translation3::new(0.0, edge_shift, 0.0) * half.t_world_tray;
     sim.render(&half, Method::OneShot, noise_key(seed, 1, false), &mut frame);
-    let pose = estimator.process(&frame.left, &frame.right).unwrap();
+    let pose = estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
     rejected(&pose, &format!("tray moved {edge_shift} mm along y, half out of view"));
 
     // The other tray under this tray's model, in four scenarios' poses.
@@ -82,7 +82,7 @@ fn rejections(cell: &Cell, other: &Cell, other_name: &str) {
     for i in 0..4 {
         let scene = draw_scenario(other, seed, i).scene();
         other_sim.render(&scene, Method::OneShot, noise_key(seed, i, false), &mut frame);
-        let pose = estimator.process(&frame.left, &frame.right).unwrap();
+        let pose = estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
         rejected(&pose, &format!("{other_name} scene {i} under this tray's model"));
     }
 }
@@ -130,9 +130,9 @@ fn a_fit_resting_on_the_table_is_handed_on_laid_on_it() {
         Estimator::new(&EstimatorConfig::from(&free_cell), sim.rig(), laid.model().clone(), Method::OneShot).unwrap();
     let mut frame = Frame::default();
     sim.render(&background_scene(&cell, seed), Method::OneShot, noise_key(seed, 0, true), &mut frame);
-    free.set_background(&frame.left, &frame.right).unwrap();
+    free.set_background(&frame.shots.left, &frame.shots.right).unwrap();
     sim.render(&draw_scenario(&cell, seed, 0).scene(), Method::OneShot, noise_key(seed, 0, false), &mut frame);
-    laid.process(&frame.left, &frame.right).unwrap();
+    laid.process(&frame.shots.left, &frame.shots.right).unwrap();
     let moved = Isometry3::new(Vector3::new(0.0, 0.0, 2.0), Vector3::new(1f32.to_radians(), 0.0, 0.0));
     let cloud: Vec<Point3<f32>> = laid.reconstruction().cloud.points.iter().map(|p| moved * p).collect();
     let (a, b) = (laid.process_cloud(&cloud).unwrap(), free.process_cloud(&cloud).unwrap());

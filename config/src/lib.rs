@@ -15,6 +15,7 @@ mod rig;
 mod robot_pose;
 #[cfg(test)]
 mod same_checks_tests;
+pub mod splitmix;
 #[cfg(test)]
 mod test_draw;
 mod text;
@@ -47,7 +48,7 @@ pub use formats::mesh::{decode_obj, decode_stl, load_mesh, Mesh};
 pub use formats::pfm::{decode_pfm, encode_pfm, read_pfm, write_pfm};
 pub use formats::plot::{ensure_plot_font, save_plot, Plot, SavedPlot, PLOT_FONT_FAMILY};
 pub use formats::ply::{decode_ply, encode_cloud, read_cloud, read_ply, write_cloud, PlyCloud, PlyData};
-pub use formats::png::{decode_gray, read_gray, read_image_size, write_gray, write_rgb, Gray};
+pub use formats::png::{decode_gray, read_gray, read_image_size, write_gray, write_rgb};
 pub use formats::read::{
     open_checked, read_bounded, read_text, FileKind, MAX_DATA_BYTES, MAX_IMAGE_FILE_BYTES, MAX_IMAGE_PIXELS,
     MAX_MODEL_BYTES, MAX_TEXT_BYTES,

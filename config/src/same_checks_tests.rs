@@ -59,7 +59,7 @@ fn camera_verdicts(fx: f64, fy: f64, size: (u32, u32), dist: [f64; 5]) -> [bool;
 
 #[test]
 fn a_camera_value_refused_in_the_cell_is_refused_in_rig_json_and_the_other_way_round() {
-    let mut d = Draw(40);
+    let mut d = Draw::new(40);
     let (mut refused, mut accepted) = (0, 0);
     for case in 0..600 {
         let (mut fx, mut size, mut dist) = (800.0, (640u32, 480u32), [0.0; 5]);
@@ -95,7 +95,7 @@ fn a_camera_value_refused_in_the_cell_is_refused_in_rig_json_and_the_other_way_r
 
 #[test]
 fn a_tray_or_items_value_refused_in_the_cell_is_refused_in_each_listed_tray() {
-    let mut d = Draw(41);
+    let mut d = Draw::new(41);
     let (mut refused, mut accepted) = (0, 0);
     for case in 0..400 {
         let mut one = Cell::default();

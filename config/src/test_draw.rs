@@ -1,17 +1,21 @@
-//! The seeded stream the crate's own tests draw their cases from (SplitMix64): the same
-//! cases on every run, without a dependency.
+//! The seeded stream the crate's own tests draw their cases from: the same cases on every
+//! run, without a dependency. The bits are SplitMix64's (`splitmix.rs`); this adds the
+//! ranges the tests draw.
+
+use crate::splitmix::SplitMix64;
 
 /// A SplitMix64 stream from its seed.
-pub(crate) struct Draw(pub(crate) u64);
+pub(crate) struct Draw(SplitMix64);
 
 impl Draw {
+    /// The stream seeded `seed`.
+    pub(crate) fn new(seed: u64) -> Self {
+        Draw(SplitMix64(seed))
+    }
+
     /// The next 64 random bits.
     pub(crate) fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
 
     /// Uniform in `0..n`.

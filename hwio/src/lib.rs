@@ -30,7 +30,7 @@ mod spec;
 #[cfg(feature = "v4l")]
 mod v4l2;
 
-pub use board_pairs::{find_board_pairs, BoardPairs, MAX_CALIBRATION_VIEWS};
+pub use board_pairs::{board_view_folders, find_board_pairs, find_board_views, BoardPairs, MAX_CALIBRATION_VIEWS};
 pub use camplace_config::{append_frame, read_background, write_background, write_table_view};
 pub use capture::{Capture, Captured, WhenBehind};
 pub use dataset_capture::{

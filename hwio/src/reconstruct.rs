@@ -163,8 +163,8 @@ pub fn match_rectified(
     if pair.runs == 0 {
         return Err(Error::input("--runs: expected at least one run"));
     }
-    let l = read_one(left)?;
-    let r = read_one(right)?;
+    let l = camplace_config::read_gray(left)?;
+    let r = camplace_config::read_gray(right)?;
     if !l.same_size(&r) {
         return Err(Error::input(format!(
             "{}: expected the size of {} ({} x {}), got {} x {}",
@@ -218,14 +218,8 @@ fn create_dir(dir: &Path) -> Result<()> {
         .map_err(|e| Error::new(ErrorKind::Io, format!("{}: cannot create the folder: {e}", dir.display())))
 }
 
-fn read_one(path: &Path) -> Result<GrayImage> {
-    let g = camplace_config::read_gray(path)?;
-    GrayImage::from_vec(g.width, g.height, g.data)
-        .ok_or_else(|| Error::format(path, "the decoded image does not match its size"))
-}
-
 fn read_all(paths: &[PathBuf]) -> Result<Vec<GrayImage>> {
-    paths.iter().map(|p| read_one(p)).collect()
+    paths.iter().map(|p| Ok(camplace_config::read_gray(p)?)).collect()
 }
 
 /// Writes the rectified images, disparity, depth and cloud of one frame into `dir`.

@@ -261,8 +261,8 @@ fn render<'py>(
     });
     let (frame, drawn) = rendered.map_err(fail)?;
     let d = PyDict::new(py);
-    d.set_item("left", shots(py, &frame.left)?)?;
-    d.set_item("right", shots(py, &frame.right)?)?;
+    d.set_item("left", shots(py, &frame.shots.left)?)?;
+    d.set_item("right", shots(py, &frame.shots.right)?)?;
     d.set_item("depth_left", float_image(py, &frame.depth_left)?)?;
     d.set_item("depth_right", float_image(py, &frame.depth_right)?)?;
     match &drawn {

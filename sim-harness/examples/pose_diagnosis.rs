@@ -97,7 +97,7 @@ fn main() {
     sim.render(&background_scene(&cell, a.seed), Method::OneShot, noise_key(a.seed, 0, true), &mut frame);
     let mut estimator =
         Estimator::new(&EstimatorConfig::from(&cell), sim.rig(), model, Method::OneShot).expect("estimator");
-    estimator.set_background(&frame.left, &frame.right).expect("background");
+    estimator.set_background(&frame.shots.left, &frame.shots.right).expect("background");
     let sensor = estimator.sensor_position();
     let reach = cell.estimator.inlier_distance as f32;
     let mut grid = Neighbours::new();
@@ -111,7 +111,7 @@ fn main() {
     for i in 0..a.count {
         let scenario = draw_scenario(&cell, a.seed, i);
         sim.render(&scenario.scene(), Method::OneShot, noise_key(a.seed, i, false), &mut frame);
-        let pose = estimator.process(&frame.left, &frame.right).expect("process");
+        let pose = estimator.process(&frame.shots.left, &frame.shots.right).expect("process");
         let truth = scenario.t_world_tray;
         let e = pose_errors(&pose.t_world_tray, &truth, &symmetries, &cell.metrics);
         let c = pose_errors(&pose.ransac.t_world_tray, &truth, &symmetries, &cell.metrics);

@@ -111,7 +111,7 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
         filled.sort_unstable();
         let scene = SceneSpec { t_world_tray: poses[v], filled, ..base.clone() };
         sim.render(&scene, method, noise_key(seed, MODEL_NOISE_OFFSET + index as u64, false), frame);
-        rec.process(&frame.left, &frame.right, reconstruction)?;
+        rec.process(&frame.shots.left, &frame.shots.right, reconstruction)?;
         let to_tray = poses[v].inverse().cast::<f32>();
         let raw: Vec<Point3<f32>> = reconstruction
             .cloud

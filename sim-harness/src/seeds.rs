@@ -3,13 +3,7 @@
 //! placement — the common random numbers the study's comparisons rest on — and the search's
 //! steps draw from streams that depend only on its seed.
 
-/// SplitMix64's finaliser: a bijective mix with good avalanche.
-#[inline(always)]
-pub(crate) fn mix(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
+use camplace_config::splitmix::mix;
 
 /// The RNG seed of scenario `index` of `seed`: nearby seeds and indices give unrelated
 /// streams.

@@ -1,7 +1,8 @@
 //! `camplace calibrate --hand-eye`: where the rig sits in the robot's frame, from board
-//! images paired by index with the robot's flange poses. Finds the corners, reads the pose
-//! file, calls the estimator's hand-eye calibration, prints each pose's fit and writes the
-//! `[robot]` table the cell reads. Also the pose-format flags `render` shares.
+//! images paired by index with the robot's flange poses. Reads the pose file, has hwio
+//! list the views and find their corners, calls the estimator's hand-eye calibration,
+//! prints each pose's fit and writes the `[robot]` table the cell reads. Also the
+//! pose-format flags `render` shares.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -9,11 +10,11 @@ use std::process::ExitCode;
 use anyhow::{bail, Context};
 use camplace_config::{read_robot_poses, LengthUnit, PoseConvention, RigFile, RobotPoseFormat, RobotPoses};
 use camplace_estimator::{
-    calibrate_hand_eye, find_board_corners, isometry_from_rows, isometry_to_rows, BoardView, CalibrationBoard,
+    calibrate_hand_eye, isometry_from_rows, isometry_to_rows, BoardView, CalibrationBoard, FoundBoardPair,
     HandEyeCalibration, HandEyeInput, HandEyeSetup, Rig,
 };
+use camplace_hwio::{board_view_folders, find_board_views};
 use nalgebra::Isometry3;
-use rayon::prelude::*;
 
 /// The flags naming a robot pose file's convention and unit.
 #[derive(clap::Args, Debug, Clone)]
@@ -81,7 +82,7 @@ pub fn load_rig(path: &Path) -> anyhow::Result<Rig> {
 pub fn run(a: HandEyeArgs<'_>, board: &CalibrationBoard) -> anyhow::Result<ExitCode> {
     let poses: RobotPoses = read_robot_poses(a.robot_poses, a.formats.format()?)?;
     let frames = a.images.join("frames");
-    let folders = camplace_config::frame_folders(a.images).context("cannot list the board views (frames/NNNN/)")?;
+    let folders = board_view_folders(a.images)?;
     if folders.len() != poses.poses.len() {
         bail!(
             "{}: {} poses, but {} holds {} frames; expected one pose a frame, in the frames' order",
@@ -91,35 +92,12 @@ pub fn run(a: HandEyeArgs<'_>, board: &CalibrationBoard) -> anyhow::Result<ExitC
             folders.len()
         );
     }
-    let (width, height) = (a.rig.left.width, a.rig.left.height);
-    let found: Vec<[Result<Vec<nalgebra::Point2<f64>>, String>; 2]> = folders
-        .par_iter()
-        .map(|folder| -> anyhow::Result<_> {
-            let mut out = [Err(String::new()), Err(String::new())];
-            for (side, slot) in ["left", "right"].into_iter().zip(out.iter_mut()) {
-                let path = folder.join(format!("{side}.png"));
-                let g = camplace_config::read_gray(&path)?;
-                if (g.width, g.height) != (width, height) {
-                    bail!(
-                        "{}: {}x{} pixels, expected {width}x{height} as the rig's cameras",
-                        path.display(),
-                        g.width,
-                        g.height
-                    );
-                }
-                let mut image = camplace_config::GrayImage::default();
-                image.reset(g.width, g.height, 0);
-                image.data = g.data;
-                *slot = find_board_corners(&image, board).map_err(|e| format!("{}: {e}", path.display()));
-            }
-            Ok(out)
-        })
-        .collect::<anyhow::Result<_>>()?;
+    let found = find_board_views(a.images, &folders, board, (a.rig.left.width, a.rig.left.height))?;
     let mut views = Vec::new();
     let mut robot = Vec::new();
     // Input index of each view passed on -> its pose's index and frame name.
     let mut used = Vec::new();
-    for (i, [left, right]) in found.into_iter().enumerate() {
+    for (i, FoundBoardPair { left, right, .. }) in found.into_iter().enumerate() {
         let name = folders[i].file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         if left.is_err() && right.is_err() {
             outln!(

@@ -30,7 +30,7 @@ fn torture(good: &[u8], max_cuts: usize, flips: usize, seed: u64, decode: impl F
     assert!(decode(good), "the undamaged sample must decode");
     let step = good.len().div_ceil(max_cuts).max(1);
     let accepted = (0..good.len()).step_by(step).filter(|&n| decode(&good[..n])).count();
-    let mut d = Damage(Draw(seed));
+    let mut d = Damage(Draw::new(seed));
     for _ in 0..flips {
         decode(&d.flip(good));
     }

@@ -136,7 +136,7 @@ fn write_whole(dir: &Path, frames: &Frames) -> Result<()> {
     if tmp.exists() {
         std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, &e))?;
     }
-    let written = write_shots(&tmp, &frames.left, &frames.right).and_then(|()| {
+    let written = write_shots(&tmp, frames).and_then(|()| {
         // The folder's entries made durable before it takes its name.
         if let Ok(f) = std::fs::File::open(&tmp) {
             let _ = f.sync_all();
@@ -177,11 +177,11 @@ fn write_once(root: &Path, name: &str, what: &str, frames: &Frames, rig: Option<
     Ok(dir)
 }
 
-/// `left.png` + `right.png` (or `left_NN.png` ... for several shots) into `dir`, which is
-/// made when missing.
-pub fn write_shots(dir: &Path, left: &[GrayImage], right: &[GrayImage]) -> Result<()> {
+/// The shots of `frames` as `left.png` + `right.png` (or `left_NN.png` ... for several
+/// shots) into `dir`, which is made when missing.
+pub fn write_shots(dir: &Path, frames: &Frames) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, &e))?;
-    for (side, images) in [("left", left), ("right", right)] {
+    for (side, images) in [("left", &frames.left), ("right", &frames.right)] {
         for (i, img) in images.iter().enumerate() {
             crate::write_gray(&dir.join(image_name(side, i, images.len())), img.width, img.height, &img.data)?;
         }

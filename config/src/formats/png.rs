@@ -3,21 +3,13 @@
 use std::path::Path;
 
 use super::read::{read_bounded, FileKind, MAX_IMAGE_PIXELS};
-use crate::{Error, ErrorKind};
-
-/// A grey image read from a file: width, height and row-major pixels.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Gray {
-    pub width: usize,
-    pub height: usize,
-    pub data: Vec<u8>,
-}
+use crate::{Error, ErrorKind, GrayImage};
 
 /// Reads a PNG (or any image the `image` crate decodes) as 8-bit grey. The file is read
 /// within [`FileKind::Image`]'s budget and its header's size checked against
 /// [`MAX_IMAGE_PIXELS`] before a pixel is decoded, so a small file that would decode to a
 /// huge image is refused for what it would take.
-pub fn read_gray(path: &Path) -> Result<Gray, Error> {
+pub fn read_gray(path: &Path) -> Result<GrayImage, Error> {
     let bytes = read_bounded(path, FileKind::Image)?;
     decode_gray(&bytes).map_err(|e| e.in_file(path))
 }
@@ -36,7 +28,7 @@ pub fn read_image_size(path: &Path) -> Result<(usize, usize), Error> {
 }
 
 /// Decodes image bytes as 8-bit grey within the pixel budget (see [`read_gray`]).
-pub fn decode_gray(bytes: &[u8]) -> Result<Gray, Error> {
+pub fn decode_gray(bytes: &[u8]) -> Result<GrayImage, Error> {
     use image::ImageDecoder;
     let unreadable =
         |e: image::ImageError| Error::new(ErrorKind::Format, "", format!("not a readable image: {e}")).with_source(e);
@@ -62,7 +54,7 @@ pub fn decode_gray(bytes: &[u8]) -> Result<Gray, Error> {
     }
     let img = image::DynamicImage::from_decoder(decoder).map_err(unreadable)?;
     let g = img.to_luma8();
-    Ok(Gray { width: g.width() as usize, height: g.height() as usize, data: g.into_raw() })
+    Ok(GrayImage { width: g.width() as usize, height: g.height() as usize, data: g.into_raw() })
 }
 
 /// Writes an 8-bit grey PNG.

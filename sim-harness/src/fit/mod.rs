@@ -262,7 +262,7 @@ pub fn fit_sensor(dataset: &Path, cell: &Cell, max_frames: usize) -> Result<Sens
     let (fitted, ambient_bg, fitted_pattern, _) = candidates[best].clone();
 
     // The light on the table besides the projector's, frame by frame.
-    let clean = empty.render(&fitted, 0.0, None)?.clone();
+    let clean = empty.render(&fitted, 0.0, None)?.shots.clone();
     let mut levels = Vec::with_capacity(frames);
     for (kept, means) in frame_tiles.iter().zip(&frame_means) {
         if kept.iter().any(|t| t.is_empty()) {
@@ -422,7 +422,7 @@ fn simulated_pattern(
     masks: &[Vec<bool>; 2],
     key: u64,
 ) -> Result<PatternStats> {
-    let frame = empty.render(keys, ambient, Some(key))?;
+    let frame = &empty.render(keys, ambient, Some(key))?.shots;
     Ok(combined(&[
         pattern_stats(&frame.left.iter().collect::<Vec<_>>(), &masks[0]),
         pattern_stats(&frame.right.iter().collect::<Vec<_>>(), &masks[1]),
@@ -437,8 +437,8 @@ fn simulated_structure(
     ambient: f64,
     masks: &[Vec<bool>; 2],
 ) -> Result<[f64; MAX_LAG]> {
-    let a = empty.render(keys, ambient, Some(noise_key(1, 1, false)))?.clone();
-    let b = empty.render(keys, ambient, Some(noise_key(1, 2, false)))?;
+    let a = empty.render(keys, ambient, Some(noise_key(1, 1, false)))?.shots.clone();
+    let b = &empty.render(keys, ambient, Some(noise_key(1, 2, false)))?.shots;
     let mut out = DifferenceStats::default();
     let pairs: [(&Vec<GrayImage>, &Vec<GrayImage>); 2] = [(&a.left, &b.left), (&a.right, &b.right)];
     for (cam, (x, y)) in pairs.into_iter().enumerate() {

@@ -368,10 +368,7 @@ mod tests {
                 if !fits_camera(cam, &board, &pose) {
                     continue;
                 }
-                let g = camplace_config::read_gray(&folder.join(name)).unwrap();
-                let mut image = GrayImage::default();
-                image.reset(g.width, g.height, 0);
-                image.data = g.data;
+                let image = camplace_config::read_gray(&folder.join(name)).unwrap();
                 let found = camplace_estimator::find_board_corners(&image, &board).unwrap();
                 for (p, q) in board.object_points().iter().zip(&found) {
                     let want = cam.project(&(pose * p)).unwrap();

@@ -17,7 +17,7 @@ use crate::Result;
 
 /// Writes the camera images of a frame (and nothing else) into `dir`.
 pub fn write_images(dir: &Path, frame: &Frame) -> Result<()> {
-    Ok(write_shots(dir, &frame.left, &frame.right)?)
+    Ok(write_shots(dir, &frame.shots)?)
 }
 
 /// Writes a whole rendered frame: images, ground-truth depth and ids, `truth.json` and
@@ -36,7 +36,7 @@ pub fn write_frame(
     write_gray(&dir.join("ids_left.png"), &frame.ids_left)?;
     write_gray(&dir.join("ids_right.png"), &frame.ids_right)?;
     truth_of(scenario, placement, method, symmetries).save(&dir.join("truth.json"))?;
-    write_preview(&dir.join("preview.png"), &frame.left[0], &frame.depth_left)?;
+    write_preview(&dir.join("preview.png"), &frame.shots.left[0], &frame.depth_left)?;
     Ok(())
 }
 

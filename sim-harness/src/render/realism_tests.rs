@@ -83,7 +83,7 @@ fn a_step_edge_is_blurred_by_the_cameras_circle_of_confusion() {
         sim.render_clean(&flat(1.0, 0.0, Point3::new(0.0, 0.0, 1500.0), half), Method::OneShot, &mut frame);
         let fx = sim.rig().left.k[(0, 0)];
         let want = circle(cell.optics.camera_focal_length, 1.0, fx, 600.0, r);
-        let got = edge_width(&frame.left[0], want.ceil() as usize + 4);
+        let got = edge_width(&frame.shots.left[0], want.ceil() as usize + 4);
         eprintln!("camera, r {r}: edge {got:.2} px, circle of confusion {want:.2} px");
         assert!((got / want - 1.0).abs() < 0.1, "r {r}: edge {got:.2} px, circle of confusion {want:.2} px");
     }
@@ -122,7 +122,7 @@ fn a_projected_step_is_blurred_by_the_projectors_circle_of_confusion() {
         // camera's near-pinhole lens.
         let var_p = (c_p / 4.0).powi(2) + 0.25 + 1.0 / 6.0;
         let want = 4.0 * (var_p * (fx_c / fx_p).powi(2) + (camera.circle_px(r) / 4.0).powi(2)).sqrt();
-        let img = &frame.left[0];
+        let img = &frame.shots.left[0];
         let got = edge_width(img, want.ceil() as usize + 4);
         assert!(c_p * fx_c / fx_p > 1.5, "r {r}: the blur is too small to test");
         eprintln!("projector, r {r}: edge {got:.2} px, expected {want:.2} px");
@@ -152,7 +152,7 @@ fn a_glossy_highlight_lands_where_the_law_of_reflection_puts_it_and_saturates() 
         let t = c.z / (c.z + lamp.z);
         let m = c + (Point3::new(lamp.x, lamp.y, -lamp.z) - c) * t;
         let want = cam.project(&m).unwrap();
-        let img = &frame.left[0];
+        let img = &frame.shots.left[0];
         let (mut n, mut sx, mut sy) = (0.0, 0.0, 0.0);
         for y in 0..img.height {
             for x in 0..img.width {
@@ -172,7 +172,7 @@ fn a_glossy_highlight_lands_where_the_law_of_reflection_puts_it_and_saturates() 
         matte.effects.specular = false;
         let mut sim = Simulator::new(&matte, &placement, 1).unwrap();
         sim.render_clean(&scene, Method::OneShot, &mut frame);
-        assert!(frame.left[0].data.iter().all(|&g| g < 255));
+        assert!(frame.shots.left[0].data.iter().all(|&g| g < 255));
     }
 }
 

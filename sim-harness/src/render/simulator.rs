@@ -10,7 +10,7 @@
 //! in `Simulator::new` or on the first frame, and reused after.
 
 use camplace_config::{Cell, Effect, Focus, Placement};
-use camplace_config::{FloatImage, GrayImage};
+use camplace_config::{FloatImage, Frames, GrayImage};
 pub use camplace_estimator::Method;
 use camplace_estimator::{fringe_set, look_at, one_shot, sensor_rig, Camera, Rig, PHASE_STEPS};
 use nalgebra::Point3;
@@ -29,13 +29,13 @@ use crate::{Error, Result};
 /// from the default 1.5 m).
 pub const LAMP_MAP_SIZE: usize = 512;
 
-/// One captured frame: the shots of both cameras and their ground truth.
+/// One captured frame: the shots of both cameras, as every frame source hands them on, and
+/// their ground truth.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Frame {
-    /// Left camera images, one per shot.
-    pub left: Vec<GrayImage>,
-    /// Right camera images, one per shot.
-    pub right: Vec<GrayImage>,
+    /// The cameras' images, one per shot: what a camera would capture, passed as they are
+    /// to the estimator, the dataset writer or anything else that takes [`Frames`].
+    pub shots: Frames,
     /// Ground-truth depth along the left camera's z axis, mm; +inf where nothing is seen.
     pub depth_left: FloatImage,
     /// Ground-truth depth along the right camera's z axis, mm; +inf where nothing is seen.
@@ -236,7 +236,7 @@ impl Simulator {
 
     fn render_with(&mut self, scene: &SceneSpec, method: Method, noise_key: Option<u64>, frame: &mut Frame) {
         self.geometry(scene, frame);
-        for (cam, images) in [&mut frame.left, &mut frame.right].into_iter().enumerate() {
+        for (cam, images) in [&mut frame.shots.left, &mut frame.shots.right].into_iter().enumerate() {
             let (w, h) = if cam == 0 {
                 (self.rig.left.width, self.rig.left.height)
             } else {
@@ -550,7 +550,7 @@ mod tests {
         sim.render(&scenario.scene(), Method::OneShot, 5, &mut frame);
         let mut plain = plain;
         plain.render(&scenario.scene(), Method::OneShot, 5, &mut undistorted);
-        assert_eq!((frame.left[0].width, frame.left[0].height), (640, 480));
+        assert_eq!((frame.shots.left[0].width, frame.shots.left[0].height), (640, 480));
         for (cam, depth, ids) in [
             (&sim.rig().left, &frame.depth_left, &frame.ids_left),
             (&sim.rig().right, &frame.depth_right, &frame.ids_right),
@@ -571,8 +571,9 @@ mod tests {
             assert!(table > 100_000, "{table} table pixels");
         }
         // Barrel distortion pulls the corners in: the image differs from the pinhole one.
-        let differ = frame.left[0].data.iter().zip(&undistorted.left[0].data).filter(|(a, b)| a != b).count();
-        assert!(differ > frame.left[0].data.len() / 2, "{differ} pixels differ");
+        let differ =
+            frame.shots.left[0].data.iter().zip(&undistorted.shots.left[0].data).filter(|(a, b)| a != b).count();
+        assert!(differ > frame.shots.left[0].data.len() / 2, "{differ} pixels differ");
         // The noise is the sensor's: the same key gives the same images on any thread count.
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let mut again = Frame::default();
@@ -671,21 +672,21 @@ mod tests {
         for method in [Method::OneShot, Method::Phase12] {
             let a = run(1, 1, 9, method);
             let b = run(2, 1, 9, method);
-            assert_eq!(a.left.len(), if method == Method::OneShot { 1 } else { 12 });
+            assert_eq!(a.shots.left.len(), if method == Method::OneShot { 1 } else { 12 });
             assert!(a == b, "{method}: one and two threads differ");
         }
         let differ = |a: &GrayImage, b: &GrayImage| a.data.iter().zip(&b.data).filter(|(p, q)| p != q).count();
         let a = run(2, 1, 9, Method::OneShot);
         let other_noise = run(2, 1, 10, Method::OneShot);
-        assert!(differ(&a.left[0], &other_noise.left[0]) > a.left[0].data.len() / 2);
-        assert!(differ(&a.right[0], &other_noise.right[0]) > a.right[0].data.len() / 2);
+        assert!(differ(&a.shots.left[0], &other_noise.shots.left[0]) > a.shots.left[0].data.len() / 2);
+        assert!(differ(&a.shots.right[0], &other_noise.shots.right[0]) > a.shots.right[0].data.len() / 2);
         // Another pattern seed moves the dots even without noise.
         let mut sim1 = Simulator::new(&cell, &cell.placement, 1).unwrap();
         let mut sim2 = Simulator::new(&cell, &cell.placement, 2).unwrap();
         let (mut f1, mut f2) = (Frame::default(), Frame::default());
         sim1.render_clean(&scene, Method::OneShot, &mut f1);
         sim2.render_clean(&scene, Method::OneShot, &mut f2);
-        assert!(differ(&f1.left[0], &f2.left[0]) > f1.left[0].data.len() / 4);
+        assert!(differ(&f1.shots.left[0], &f2.shots.left[0]) > f1.shots.left[0].data.len() / 4);
         assert_eq!(f1.depth_left, f2.depth_left);
     }
 
@@ -711,7 +712,13 @@ mod tests {
                         frame
                     };
                     let (pairs, alone) = (render(false), render(true));
-                    for (a, b) in pairs.left.iter().chain(&pairs.right).zip(alone.left.iter().chain(&alone.right)) {
+                    for (a, b) in pairs
+                        .shots
+                        .left
+                        .iter()
+                        .chain(&pairs.shots.right)
+                        .zip(alone.shots.left.iter().chain(&alone.shots.right))
+                    {
                         let off: Vec<u8> = a.data.iter().zip(&b.data).map(|(p, q)| p.abs_diff(*q)).collect();
                         assert!(off.iter().all(|&d| d <= 1), "a shot differs by more than a grey level");
                         assert!(off.iter().filter(|&&d| d > 0).count() <= a.data.len() / 1000);
@@ -816,10 +823,14 @@ mod tests {
         let (mut noisy, mut clean) = (Frame::default(), Frame::default());
         sim.render(&scene, Method::OneShot, 77, &mut noisy);
         sim.render_clean(&scene, Method::OneShot, &mut clean);
-        let (w, h) = (noisy.left[0].width, noisy.left[0].height);
+        let (w, h) = (noisy.shots.left[0].width, noisy.shots.left[0].height);
         let (mut n, mut sum, mut sum2) = (0.0, 0.0, 0.0);
         for img in 0..2 {
-            let (a, b) = if img == 0 { (&noisy.left[0], &clean.left[0]) } else { (&noisy.right[0], &clean.right[0]) };
+            let (a, b) = if img == 0 {
+                (&noisy.shots.left[0], &clean.shots.left[0])
+            } else {
+                (&noisy.shots.right[0], &clean.shots.right[0])
+            };
             for y in 1..h - 1 {
                 for x in 1..w - 1 {
                     assert_eq!(b.get(x, y), b.get(1, 1), "the clean image is flat");
@@ -848,7 +859,7 @@ mod tests {
         let mut frame = Frame::default();
         sim.render(&full, Method::OneShot, 1, &mut frame);
         let (mut tray, mut items) = ((0.0, 0.0), (0.0, 0.0));
-        for (&g, &id) in frame.left[0].data.iter().zip(&frame.ids_left.data) {
+        for (&g, &id) in frame.shots.left[0].data.iter().zip(&frame.ids_left.data) {
             let acc = match id {
                 ID_TRAY => &mut tray,
                 id if id >= ID_FIRST_ITEM => &mut items,

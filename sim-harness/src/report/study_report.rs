@@ -433,7 +433,7 @@ fn answer(
     let mut frame = Frame::default();
     let scenario = draw_scenario(cell, seed, 0);
     sim.render(&scenario.scene(), r.method, noise_key(seed, 0, false), &mut frame);
-    write_preview(&preview, &frame.left[0], &frame.depth_left)?;
+    write_preview(&preview, &frame.shots.left[0], &frame.depth_left)?;
     page.png(&preview, "scenario 0 at the recommended placement: left camera image and its true depth")?;
 
     rec.write(out)?;

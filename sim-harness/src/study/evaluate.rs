@@ -61,7 +61,7 @@ impl Evaluator {
         let mut background = Frame::default();
         sim.render(&background_scene(cell, seed), method, noise_key(seed, 0, true), &mut background);
         let mut estimator = Estimator::new(&EstimatorConfig::from(cell), sim.rig(), model, method)?;
-        estimator.set_background(&background.left, &background.right)?;
+        estimator.set_background(&background.shots.left, &background.shots.right)?;
         Ok(Evaluator { cell: cell.clone(), placement: *placement, method, seed, background, estimator, sim })
     }
 
@@ -106,10 +106,10 @@ impl Worker<'_> {
         if let Some(error) = draw_rig_error(cell, *seed, index) {
             self.estimator.set_rig(&EstimatorConfig::from(cell), &error.apply(self.sim.rig()))?;
             let background = &self.evaluator.background;
-            self.estimator.set_background(&background.left, &background.right)?;
+            self.estimator.set_background(&background.shots.left, &background.shots.right)?;
         }
         self.sim.render(&scenario.scene(), *method, noise_key(*seed, index, false), &mut self.frame);
-        self.pose = self.estimator.process(&self.frame.left, &self.frame.right)?;
+        self.pose = self.estimator.process(&self.frame.shots.left, &self.frame.shots.right)?;
         let mut record = FrameRecord::new(frame_name(index), &self.pose);
         // The truth as a dataset's truth.json carries it (a 4x4 matrix, not a quaternion),
         // so replaying the rendered dataset scores to the last bit alike.
@@ -142,10 +142,10 @@ mod tests {
             let model = worker.estimator.model().clone();
             let mut fresh =
                 Estimator::new(&EstimatorConfig::from(&cell), &error.apply(sim.rig()), model, method).unwrap();
-            fresh.set_background(&evaluator.background.left, &evaluator.background.right).unwrap();
+            fresh.set_background(&evaluator.background.shots.left, &evaluator.background.shots.right).unwrap();
             let scenario = draw_scenario(&cell, seed, index);
             sim.render(&scenario.scene(), method, noise_key(seed, index, false), &mut frame);
-            let pose = fresh.process(&frame.left, &frame.right).unwrap();
+            let pose = fresh.process(&frame.shots.left, &frame.shots.right).unwrap();
             let got = &worker.pose;
             assert_eq!(got.t_world_tray, pose.t_world_tray, "scene {index}");
             assert_eq!(

@@ -373,11 +373,7 @@ mod tests {
         }
     }
 
-    fn vector_kernel_gives_the_bits_of_one_pixel_at_a_time(
-        name: &str,
-        lanes: usize,
-        kernel: &RowKernel,
-    ) {
+    fn vector_kernel_gives_the_bits_of_one_pixel_at_a_time(name: &str, lanes: usize, kernel: &RowKernel) {
         // Rows of awkward lengths, one shot and several at once.
         let mut rng = ChaCha8Rng::seed_from_u64(17);
         let mut vector_steps = 0;
