@@ -13,10 +13,8 @@ use super::html::HtmlPage;
 use super::recommended::Recommended;
 use super::rig_sketch::RigSketch;
 use crate::render::frame_files::write_preview;
-use crate::render::{Frame, Method, Simulator};
-use crate::scene::scenario::draw_scenario;
+use crate::render::{Frame, Method};
 use crate::scene::tray::TrayModel;
-use crate::seeds::noise_key;
 use crate::study::findings::{compare_paired, Paired, Verdict};
 use crate::study::optimize::recheck_seed;
 use crate::study::placement_study::{tolerance_dir, Combination, Preset, Recommendation, StudyOutcome, StudyRequest};
@@ -67,7 +65,7 @@ pub fn write_report(req: &StudyRequest, outcome: &StudyOutcome, started: Instant
                     ))
                 })
                 .collect();
-            answer(&mut page, out, r, seed, preset, &others)?;
+            answer(&mut page, out, r, outcome.preview.as_ref(), seed, preset, &others)?;
             super::verification::verification_section(&mut page, out, combos, seed)?;
         }
         None => page.paragraph("No placement was checked on fresh scenes, so there is nothing to recommend."),
@@ -302,6 +300,7 @@ fn answer(
     page: &mut HtmlPage,
     out: &Path,
     r: &Recommendation,
+    preview: Option<&Frame>,
     seed: u64,
     preset: &Preset,
     other_methods: &[String],
@@ -428,13 +427,11 @@ fn answer(
     if let Some(saved) = save_plot(&sketch, out, "best_rig")? {
         page.svg(&saved.svg)?;
     }
-    let preview = out.join("best_preview.png");
-    let mut sim = Simulator::new(cell, &p, seed)?;
-    let mut frame = Frame::default();
-    let scenario = draw_scenario(cell, seed, 0);
-    sim.render(&scenario.scene(), r.method, noise_key(seed, 0, false), &mut frame);
-    write_preview(&preview, &frame.shots.left[0], &frame.depth_left)?;
-    page.png(&preview, "scenario 0 at the recommended placement: left camera image and its true depth")?;
+    if let Some(frame) = preview {
+        let file = out.join("best_preview.png");
+        write_preview(&file, &frame.shots.left[0], &frame.depth_left)?;
+        page.png(&file, "scenario 0 at the recommended placement: left camera image and its true depth")?;
+    }
 
     rec.write(out)?;
     Ok(())

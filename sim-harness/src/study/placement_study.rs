@@ -21,10 +21,12 @@ use super::shard::Shard;
 use super::sweep::sweep;
 use super::tolerance::{measure_tolerance, ToleranceRequest};
 use super::tray_set::{lowest, margin_order, TraySet};
-use crate::render::Method;
+use crate::render::{Frame, Method, Simulator};
 use crate::report::sweep_panels::SweepResult;
 use crate::report::table::{write_summary_csv, SummaryRow};
 use crate::report::tolerance_plot::write_tolerance_plots;
+use crate::scene::scenario::draw_scenario;
+use crate::seeds::noise_key;
 use crate::{Error, Result};
 use camplace_config::ToleranceReport;
 use camplace_config::{Axis, Grid};
@@ -208,6 +210,9 @@ pub struct StudyOutcome {
     pub recommendation: Option<Recommendation>,
     /// The recommendation's mounting tolerances, when the preset measures them.
     pub tolerance: Option<ToleranceReport>,
+    /// Scenario 0 rendered at the recommended placement with its method, for a look at
+    /// what the rig sees.
+    pub preview: Option<Frame>,
 }
 
 /// Runs the study: every combination's sweep (only shard `shard`'s part of each when it is
@@ -253,7 +258,19 @@ pub fn run_study(req: &StudyRequest, mut say: impl FnMut(&str)) -> Result<Option
         }
         _ => None,
     };
-    Ok(Some(StudyOutcome { grid, combinations: combos, recommendation, tolerance }))
+    let preview = recommendation.as_ref().map(|r| preview_frame(r, seed)).transpose()?;
+    Ok(Some(StudyOutcome { grid, combinations: combos, recommendation, tolerance, preview }))
+}
+
+/// Scenario 0 of `seed` at the recommended placement, rendered with its method through the
+/// first tray's cell.
+fn preview_frame(r: &Recommendation, seed: u64) -> Result<Frame> {
+    let cell = &r.cells[0].1;
+    let mut sim = Simulator::new(cell, &r.placement, seed)?;
+    let mut frame = Frame::default();
+    let scenario = draw_scenario(cell, seed, 0);
+    sim.render(&scenario.scene(), r.method, noise_key(seed, 0, false), &mut frame);
+    Ok(frame)
 }
 
 /// Where a study's tolerances of a placement measured with `method` are.
