@@ -96,7 +96,7 @@ pub fn mounting_check(built: &AsBuilt, plan: &Placement, limits: Option<&Toleran
 mod tests {
     use super::*;
     use crate::placement_rig::rig_for;
-    use camplace_config::{AxisTolerance, Cell, TolerancePoint, Vergence, WalkEnd};
+    use camplace_config::{Cell, Vergence};
 
     fn plan() -> Placement {
         Placement { r: 605.0, alpha: 32.0, baseline: 81.0, vergence: Vergence::Degrees(3.5), azimuth: 0.0 }
@@ -107,51 +107,9 @@ mod tests {
         crate::as_built(&rig_for(p, &Cell::default().sensor)).unwrap()
     }
 
-    fn point() -> TolerancePoint {
-        TolerancePoint {
-            offset: 0.0,
-            success_rate: 0.9,
-            success_interval: [0.8, 0.95],
-            scenes: 44,
-            lost: 0,
-            gained: 0,
-            p_lower: 1.0,
-        }
-    }
-
     /// A tolerance report with `(parameter, minus, plus)` measured.
     fn limits(axes: &[(PlacementParam, f64, f64)]) -> ToleranceReport {
-        let axis = |&(param, minus, plus): &(PlacementParam, f64, f64)| AxisTolerance {
-            parameter: param.name().to_string(),
-            unit: param.unit().to_string(),
-            resolution: 1.0,
-            limit: 30.0,
-            minus,
-            minus_end: WalkEnd::Drop,
-            minus_inside: point(),
-            minus_outside: None,
-            minus_range: -30.0,
-            plus,
-            plus_end: WalkEnd::Drop,
-            plus_inside: point(),
-            plus_outside: None,
-            plus_range: 30.0,
-            points: Vec::new(),
-        };
-        ToleranceReport {
-            placement: plan().to_string(),
-            method: "one-shot".into(),
-            seed: 0,
-            scenarios: 44,
-            margin: 0.15,
-            level: 0.05,
-            power: 0.8,
-            nominal: point(),
-            axes: axes.iter().map(axis).collect(),
-            corner_fraction: 1.0,
-            corners: Vec::new(),
-            corner_screen: 0,
-        }
+        crate::testing::tolerance_report(&plan().to_string(), axes)
     }
 
     fn verdicts(c: &MountingCheck) -> Vec<MountingVerdict> {

@@ -242,47 +242,7 @@ mod tests {
 
     /// A tolerance report with `(parameter, minus, plus)` measured.
     fn tolerances(axes: &[(PlacementParam, f64, f64)]) -> ToleranceReport {
-        use camplace_config::{AxisTolerance, TolerancePoint, WalkEnd};
-        let point = TolerancePoint {
-            offset: 0.0,
-            success_rate: 0.9,
-            success_interval: [0.8, 0.95],
-            scenes: 44,
-            lost: 0,
-            gained: 0,
-            p_lower: 1.0,
-        };
-        let axis = |&(param, minus, plus): &(PlacementParam, f64, f64)| AxisTolerance {
-            parameter: param.name().into(),
-            unit: param.unit().into(),
-            resolution: 1.0,
-            limit: 30.0,
-            minus,
-            minus_end: WalkEnd::Drop,
-            minus_inside: point.clone(),
-            minus_outside: None,
-            minus_range: -30.0,
-            plus,
-            plus_end: WalkEnd::Drop,
-            plus_inside: point.clone(),
-            plus_outside: None,
-            plus_range: 30.0,
-            points: Vec::new(),
-        };
-        ToleranceReport {
-            placement: "r=605,alpha=32,baseline=81,vergence=3.5".into(),
-            method: "one-shot".into(),
-            seed: 0,
-            scenarios: 44,
-            margin: 0.15,
-            level: 0.05,
-            power: 0.8,
-            nominal: point.clone(),
-            axes: axes.iter().map(axis).collect(),
-            corner_fraction: 1.0,
-            corners: Vec::new(),
-            corner_screen: 0,
-        }
+        camplace_estimator::testing::tolerance_report("r=605,alpha=32,baseline=81,vergence=3.5", axes)
     }
 
     #[test]
