@@ -4,6 +4,9 @@
 //! 12-shot frame reads each entry once instead of once a shot. Building the tables lives in
 //! the parent module.
 
+#[cfg(target_arch = "x86_64")]
+use std::ops::Range;
+
 use rayon::prelude::*;
 
 use super::{RemapEntry, FRAC_BITS, FRAC_ONE, OUTSIDE};
@@ -136,6 +139,27 @@ fn remap_pixels(src: &[u8], raw_w: usize, entries: &[RemapEntry], row: &mut [u8]
     }
 }
 
+/// [`remap_pixels`] for every shot over the pixels `span` of the row.
+#[cfg(target_arch = "x86_64")]
+fn remap_span(srcs: &[&[u8]], raw_w: usize, entries: &[RemapEntry], rows: &mut [&mut [u8]], span: Range<usize>) {
+    for (src, row) in srcs.iter().zip(rows.iter_mut()) {
+        remap_pixels(src, raw_w, &entries[span.clone()], &mut row[span.clone()]);
+    }
+}
+
+/// For the vector kernels: the pixels of the row (the shortest output row or the table),
+/// and the bound every lane's index must stay below, or `None` when no step can read
+/// safely. A lane reads src[i ..= i + 3] and src[i + raw_w ..= i + raw_w + 3]: inside when
+/// i + raw_w + 3 < src.len(), which outside lanes (read at i = 0) need as well; the
+/// shortest source bounds the reads of all, and the bound fits a 32-bit lane.
+#[cfg(target_arch = "x86_64")]
+fn vector_bounds(srcs: &[&[u8]], raw_w: usize, entries: &[RemapEntry], rows: &[&mut [u8]]) -> (usize, Option<usize>) {
+    let n = rows.iter().map(|r| r.len()).min().unwrap_or(0).min(entries.len());
+    let len = srcs.iter().map(|s| s.len()).min().unwrap_or(0);
+    let limit = len.saturating_sub(raw_w + 3);
+    (n, (limit > 0 && limit <= i32::MAX as usize).then_some(limit))
+}
+
 /// [`remap_pixels`] for every shot, sixteen pixels a step with AVX-512: the step's entries
 /// are read and unpacked once, then each shot takes two gathers of four bytes per pixel
 /// (the raw row pair's neighbours) and the same 32-bit arithmetic, for the same bits. A
@@ -162,18 +186,10 @@ fn remap_row_avx512(srcs: &[&[u8]], raw_w: usize, entries: &[RemapEntry], rows: 
     use std::arch::x86_64::*;
     const LANES: usize = 16;
     let one_at_a_time = |entries: &[RemapEntry], rows: &mut [&mut [u8]], from: usize, to: usize| {
-        for (src, row) in srcs.iter().zip(rows.iter_mut()) {
-            remap_pixels(src, raw_w, &entries[from..to], &mut row[from..to]);
-        }
+        remap_span(srcs, raw_w, entries, rows, from..to)
     };
-    let n = rows.iter().map(|r| r.len()).min().unwrap_or(0).min(entries.len());
-    let len = srcs.iter().map(|s| s.len()).min().unwrap_or(0);
-    // A lane reads src[i ..= i + 3] and src[i + raw_w ..= i + raw_w + 3]: inside when
-    // i + raw_w + 3 < src.len(), which outside lanes (read at i = 0) need as well.
-    let limit = len.saturating_sub(raw_w + 3);
-    if limit == 0 || limit > i32::MAX as usize {
-        return one_at_a_time(entries, rows, 0, n);
-    }
+    let (n, limit) = vector_bounds(srcs, raw_w, entries, rows);
+    let Some(limit) = limit else { return one_at_a_time(entries, rows, 0, n) };
     let (even, odd) = (
         _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30),
         _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31),
@@ -251,17 +267,10 @@ fn remap_row_avx2_inner(srcs: &[&[u8]], raw_w: usize, entries: &[RemapEntry], ro
     use std::arch::x86_64::*;
     const LANES: usize = 8;
     let one_at_a_time = |entries: &[RemapEntry], rows: &mut [&mut [u8]], from: usize, to: usize| {
-        for (src, row) in srcs.iter().zip(rows.iter_mut()) {
-            remap_pixels(src, raw_w, &entries[from..to], &mut row[from..to]);
-        }
+        remap_span(srcs, raw_w, entries, rows, from..to)
     };
-    let n = rows.iter().map(|r| r.len()).min().unwrap_or(0).min(entries.len());
-    let len = srcs.iter().map(|s| s.len()).min().unwrap_or(0);
-    // As in the AVX-512 loop: a lane reads src[i ..= i + 3] and src[i + raw_w ..= i + raw_w + 3].
-    let limit = len.saturating_sub(raw_w + 3);
-    if limit == 0 || limit > i32::MAX as usize {
-        return one_at_a_time(entries, rows, 0, n);
-    }
+    let (n, limit) = vector_bounds(srcs, raw_w, entries, rows);
+    let Some(limit) = limit else { return one_at_a_time(entries, rows, 0, n) };
     // Entries as eight 32-bit words (index, frac) per four entries: even words to the low
     // half, odd to the high half.
     let split = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
