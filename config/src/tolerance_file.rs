@@ -211,12 +211,7 @@ impl ToleranceReport {
         if self.corner_screen == 0 {
             return String::new();
         }
-        let finalists = self.corners.iter().filter(|c| c.point.scenes as u64 != self.corner_screen).count();
-        format!(
-            "; each screened on {} scenes, the lowest {} run on to their verdict",
-            self.corner_screen,
-            finalists.max(1)
-        )
+        format!("; each screened on {} scenes, the lowest run on until their verdict settled", self.corner_screen)
     }
 
     /// Where the corners are, in words.

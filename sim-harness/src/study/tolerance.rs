@@ -605,5 +605,15 @@ mod tests {
             report.table()
         );
         assert_eq!(report.check(), Ok(()));
+        // Screened corners say so, with the scenes of the screen.
+        let screened = ToleranceReport { corner_screen: 12, ..report };
+        assert!(
+            screened.table().contains(
+                "worst of 4 corners (every parameter at its edge at once; each screened on 12 scenes, the lowest run \
+                 on until their verdict settled): 70.0 %"
+            ),
+            "{}",
+            screened.table()
+        );
     }
 }
