@@ -7,8 +7,9 @@
 //! one-sided exact McNemar test on the scenes only one of the two succeeded on shows its
 //! success lower at the 5 % level ([`TOLERANCE_LEVEL`]). The scene count is chosen for a
 //! margin: a point that truly loses that share of the scenes is put outside with the
-//! stated power. Each side is walked out in growing steps and bisected to the parameter's
-//! resolution ([`super::tolerance_walk`]), or until the parameter's range ends. As in every
+//! stated power. Each side is judged at the parameter's range end first, then, when that
+//! is outside, walked out in growing steps and bisected to the parameter's resolution
+//! ([`super::tolerance_walk`]). As in every
 //! other command, a placement's scenes run with the model built at that placement and the
 //! rig's true calibration: the rig as installed and commissioned. A toe-in given as "auto"
 //! is fixed to its degrees first (to a thousandth of a degree), so moving the rig does not
@@ -46,9 +47,9 @@ pub struct ToleranceParameter {
 /// azimuth to 1°, vergence to 0.25°. Each is walked at most ±400 mm (r), ±30° (alpha),
 /// ±60 mm (baseline), ±6° (vergence, each camera's toe-in) or ±30° (azimuth): a rig
 /// mounted further off than that is plainly wrong, not within a tolerance. The first step
-/// is about an eighth of that range (40 mm, 4°, 10 mm, 0.75°, 4°), so a side that never
-/// drops costs four or five points, and the bisection starts from the first doubling that
-/// dropped: beyond an edge success is noisy (a point a little further may lose fewer
+/// is about an eighth of that range (40 mm, 4°, 10 mm, 0.75°, 4°) and is taken only when
+/// the range's end is outside (a side inside there costs that one point), so the bisection
+/// starts from the first doubling that dropped: beyond an edge success is noisy (a point a little further may lose fewer
 /// scenes than one at the edge), and a wider first bracket can land on a further edge.
 pub const TOLERANCE_PARAMETERS: [ToleranceParameter; 5] = [
     ToleranceParameter { param: PlacementParam::R, resolution: 5.0, first_steps: 8, walk_limit: 400.0 },

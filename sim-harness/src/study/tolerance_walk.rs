@@ -1,13 +1,15 @@
-//! One side of one mounting tolerance found to its edge: a parameter walked out from the
-//! nominal placement in growing steps (1, 2, 4 ... first steps) until a point is judged
-//! outside the tolerance or the parameter's range ends, then bisected between the last
-//! point inside and the first outside down to the parameter's resolution.
+//! One side of one mounting tolerance found to its edge: the parameter's furthest point
+//! (where its range ends) judged first, and when it is inside the side is inside throughout;
+//! otherwise the parameter is walked out from the nominal placement in growing steps
+//! (1, 2, 4 ... first steps) until a point is judged outside, then bisected between the
+//! last point inside and the first outside down to the parameter's resolution.
 //!
 //! Offsets are whole numbers of the resolution, so every walk's points lie on one grid and
 //! a folder's cached placements are met again by a later walk. The walk assumes success
 //! falls off monotonically away from the nominal: on such a profile it finds exactly the
-//! edge a walk in single resolution steps finds, with far fewer points. Judging a point
-//! (the scenes and the paired test) is the caller's.
+//! edge a walk in single resolution steps finds, with far fewer points, and a side whose
+//! furthest point is inside costs that one point. Judging a point (the scenes and the
+//! paired test) is the caller's.
 
 use camplace_config::WalkEnd;
 
@@ -27,17 +29,24 @@ pub struct Walk {
     pub judged: Vec<(u64, bool)>,
 }
 
-/// Walks out to the edge: points `first`, `2 first`, `4 first` ... (in resolutions) until
-/// `inside(k)` says no or the range's last valid point `range` is judged, then bisects
-/// between the last point inside and the first outside until they are one resolution apart.
+/// Walks out to the edge: the range's last valid point `range` first, which ends the walk
+/// when `inside(range)` says yes; otherwise points `first`, `2 first`, `4 first` ... (in
+/// resolutions) until `inside(k)` says no, then bisects between the last point inside and
+/// the first outside until they are one resolution apart. No point is judged twice.
 pub fn walk_to_edge(first: u64, range: u64, mut inside: impl FnMut(u64) -> Result<bool>) -> Result<Walk> {
     let first = first.max(1);
-    let mut judged = Vec::new();
+    let mut judged: Vec<(u64, bool)> = Vec::new();
     let mut judge = |k: u64, judged: &mut Vec<(u64, bool)>| -> Result<bool> {
+        if let Some(&(_, verdict)) = judged.iter().find(|j| j.0 == k) {
+            return Ok(verdict);
+        }
         let verdict = inside(k)?;
         judged.push((k, verdict));
         Ok(verdict)
     };
+    if range == 0 || judge(range, &mut judged)? {
+        return Ok(Walk { inside: range, outside: None, end: WalkEnd::RangeEnd, judged });
+    }
     let mut good = 0;
     let mut bad = None;
     let mut k = first;
@@ -136,10 +145,15 @@ mod tests {
             let (inside_fine, outside_fine) = fine_walk(range, &inside);
             assert_eq!((w.inside, w.outside), (inside_fine, outside_fine), "case {case}: range {range} edge {edge}");
             assert_eq!(w.end, if outside_fine.is_some() { WalkEnd::Drop } else { WalkEnd::RangeEnd });
-            // Growing then halving: about two points per doubling of the edge, not one per step.
-            let bound = 2 * (64 - (range.max(1)).leading_zeros() as u64) + 2;
+            // The range's end, then growing and halving: about two points per doubling of the
+            // edge, not one per step.
+            let bound = 2 * (64 - (range.max(1)).leading_zeros() as u64) + 3;
             assert!((calls as u64) <= bound, "case {case}: {calls} points for range {range}");
             assert_eq!(w.judged.len(), calls);
+            if edge > range {
+                // Inside to the range's end: that one point (none when the range is empty).
+                assert_eq!(calls, usize::from(range > 0), "case {case}: range {range} edge {edge}");
+            }
         }
     }
 
