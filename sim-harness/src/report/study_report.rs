@@ -74,10 +74,11 @@ pub fn write_report(req: &StudyRequest, outcome: &StudyOutcome, started: Instant
         page.heading(2, "Mounting tolerances");
         page.paragraph(&format!(
             "How far each parameter may be off, alone, before success is shown to drop from {} at the recommended \
-             placement (seed {}): each side walked out in growing steps and bisected to the parameter's \
-             resolution; {}. Each side is walked at most {}: a rig mounted further off is plainly wrong, not \
-             within a tolerance. \"At least\" only where that limit, or the placement's own range, ended before \
-             any point was outside.",
+             placement (seed {}): each side judged first where its range ends, and when that is outside \
+             walked out in growing steps and bisected to the parameter's resolution; {}. Each side is walked at \
+             most {}: a rig mounted further off is plainly wrong, not within a tolerance. \"At least\" only where \
+             that limit, or the placement's own range, ended the side with its furthest point inside (success \
+             is taken to fall off away from the nominal, so the points between are not judged).",
             pct(t.nominal.success_rate),
             t.seed,
             t.test_text(),
