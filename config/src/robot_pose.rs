@@ -223,7 +223,7 @@ pub fn parse_pose(line: &str, format: RobotPoseFormat) -> Result<[[f64; 4]; 4], 
         PoseConvention::QuatXyzw => {
             (quaternion_rotation([numbers[6], numbers[3], numbers[4], numbers[5]])?, xyz(&numbers))
         }
-        PoseConvention::Ur => (rotation_vector_rotation([numbers[3], numbers[4], numbers[5]]), xyz(&numbers)),
+        PoseConvention::Ur => (rotation_vector_rotation([numbers[3], numbers[4], numbers[5]])?, xyz(&numbers)),
         PoseConvention::Kuka => (zyx_rotation(numbers[3], numbers[4], numbers[5]), xyz(&numbers)),
         PoseConvention::Fanuc => (zyx_rotation(numbers[5], numbers[4], numbers[3]), xyz(&numbers)),
     };
@@ -232,6 +232,8 @@ pub fn parse_pose(line: &str, format: RobotPoseFormat) -> Result<[[f64; 4]; 4], 
         out[i][..3].copy_from_slice(&rotation[i]);
         out[i][3] = t[i] * scale;
     }
+    // Finite numbers can still make an infinite translation once scaled to mm.
+    check_rigid(&out).map_err(|e| format!("not a rigid transform: {e} ({format})"))?;
     Ok(out)
 }
 
@@ -312,7 +314,8 @@ fn xyz(numbers: &[f64]) -> [f64; 3] {
 /// The rotation of quaternion (w, x, y, z), which must have unit norm.
 fn quaternion_rotation(q: [f64; 4]) -> Result<Rotation, String> {
     let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-    if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
+    // Written so that a norm that overflowed (infinite) or is not a number is refused too.
+    if !((norm - 1.0).abs() <= QUATERNION_NORM_TOLERANCE) {
         return Err(format!(
             "not a rigid transform: the quaternion's norm is {norm:.6}, expected 1 (within {QUATERNION_NORM_TOLERANCE})"
         ));
@@ -347,15 +350,24 @@ fn rotation_quaternion(r: &Rotation) -> [f64; 4] {
     q.map(|v| sign * v / norm)
 }
 
-/// The rotation of rotation vector `v` (axis × angle, radians), by Rodrigues' formula.
-fn rotation_vector_rotation(v: [f64; 3]) -> Rotation {
-    let angle = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    if angle < 1e-300 {
-        return [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+/// The rotation of rotation vector `v` (axis × angle, radians), by Rodrigues' formula. The
+/// angle is the vector's length, taken scaled so that large finite components do not
+/// overflow; a length past what a float holds is refused.
+fn rotation_vector_rotation(v: [f64; 3]) -> Result<Rotation, String> {
+    let largest = v.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+    if largest < 1e-300 {
+        return Ok([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+    }
+    let angle = largest * v.iter().map(|c| (c / largest) * (c / largest)).sum::<f64>().sqrt();
+    if !angle.is_finite() {
+        return Err(format!(
+            "not a rigid transform: the rotation vector [{}, {}, {}] is longer than a number holds",
+            v[0], v[1], v[2]
+        ));
     }
     let half = angle / 2.0;
     let s = half.sin() / angle;
-    quaternion_rotation([half.cos(), v[0] * s, v[1] * s, v[2] * s]).expect("a unit quaternion by construction")
+    quaternion_rotation([half.cos(), v[0] * s, v[1] * s, v[2] * s])
 }
 
 /// The rotation vector of a rotation, its angle in [0, π].
@@ -576,5 +588,33 @@ mod tests {
         assert!(e.contains("not a rigid transform"), "{e}");
         let e = parse_pose("1 2 3 0 0 nan", f(PoseConvention::Ur)).unwrap_err();
         assert!(e.contains("finite"), "{e}");
+        // Finite numbers whose squares or mm overflow: refused, never an infinite or NaN pose.
+        let e = parse_pose("1 2 3 0 0 1e308", f(PoseConvention::Ur)).is_ok();
+        assert!(e, "a long but finite rotation vector is a rotation");
+        let e = parse_pose("1 2 3 1.5e308 1.5e308 0", f(PoseConvention::Ur)).unwrap_err();
+        assert!(e.contains("rotation vector"), "{e}");
+        let e = parse_pose("1 2 3 1e200 0 0 0", f(PoseConvention::QuatWxyz)).unwrap_err();
+        assert!(e.contains("norm"), "{e}");
+        let m = RobotPoseFormat { convention: PoseConvention::Kuka, unit: LengthUnit::M };
+        let e = parse_pose("1e306 0 0 0 0 0", m).unwrap_err();
+        assert!(e.contains("finite numbers"), "{e}");
+    }
+
+    /// Long rotation vectors read as the rotation of their angle modulo a turn, as the
+    /// formula says, and what is read is always a finite rigid transform.
+    #[test]
+    fn any_finite_rotation_vector_reads_as_a_rigid_transform() {
+        let f = RobotPoseFormat { convention: PoseConvention::Ur, unit: LengthUnit::Mm };
+        for exponent in [-300, -20, 0, 3, 50, 150, 154, 155, 200, 300, 307] {
+            for v in [[1.0, 0.0, 0.0], [0.6, -0.8, 0.0], [1.0, 1.0, 1.0]] {
+                let scale = 10f64.powi(exponent);
+                let line = format!("0 0 0 {} {} {}", v[0] * scale, v[1] * scale, v[2] * scale);
+                let t = parse_pose(&line, f).unwrap();
+                assert!(check_rigid(&t).is_ok(), "{line}: {t:?}");
+            }
+        }
+        let quarter = parse_pose(&format!("0 0 0 0 0 {}", std::f64::consts::FRAC_PI_2 + 8.0 * std::f64::consts::PI), f);
+        let [[a, b, _, _], ..] = quarter.unwrap();
+        assert!(a.abs() < 1e-9 && (b + 1.0).abs() < 1e-9, "a quarter turn about z, four turns later");
     }
 }
