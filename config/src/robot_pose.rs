@@ -314,8 +314,8 @@ fn xyz(numbers: &[f64]) -> [f64; 3] {
 /// The rotation of quaternion (w, x, y, z), which must have unit norm.
 fn quaternion_rotation(q: [f64; 4]) -> Result<Rotation, String> {
     let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-    // Written so that a norm that overflowed (infinite) or is not a number is refused too.
-    if !((norm - 1.0).abs() <= QUATERNION_NORM_TOLERANCE) {
+    // A norm that overflowed (infinite) or is not a number is refused too.
+    if norm.is_nan() || (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
         return Err(format!(
             "not a rigid transform: the quaternion's norm is {norm:.6}, expected 1 (within {QUATERNION_NORM_TOLERANCE})"
         ));
