@@ -167,12 +167,17 @@ fn host_name() -> String {
         .unwrap_or_else(|| "unknown".to_string())
 }
 
-/// Field 22 of `/proc/PID/stat`, the process's start in clock ticks since boot.
+/// Field 22 of `/proc/PID/stat`, the process's start in clock ticks since boot, if the
+/// process still runs: a zombie (killed, not yet reaped by its parent) or a dead one has
+/// none, so a `kill -9`ed run's lock is taken over at once.
 fn process_start_ticks(pid: u32) -> Option<u64> {
     let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
     // The command name (field 2) may hold spaces and parentheses: count from its end.
-    let after = &stat[stat.rfind(')')? + 1..];
-    after.split_whitespace().nth(19)?.parse().ok()
+    let mut fields = stat[stat.rfind(')')? + 1..].split_whitespace();
+    if matches!(fields.next()?, "Z" | "X" | "x") {
+        return None;
+    }
+    fields.nth(18)?.parse().ok()
 }
 
 /// Seconds since 1970 as `YYYY-MM-DD HH:MM:SS UTC`.
@@ -232,5 +237,24 @@ mod tests {
         assert_eq!(read_holder(&path).unwrap().pid, std::process::id());
         drop(lock);
         assert!(!path.exists());
+    }
+
+    #[test]
+    fn a_killed_holder_not_yet_reaped_is_dead() {
+        let Ok(mut child) = std::process::Command::new("sleep").arg("30").spawn() else { return };
+        let pid = child.id();
+        assert!(process_start_ticks(pid).is_some(), "a running process has its start");
+        child.kill().unwrap();
+        // Killed but not waited for: a zombie once the kernel has ended it.
+        let state = || std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
+        for _ in 0..500 {
+            if state().rsplit(')').next().is_some_and(|rest| rest.trim_start().starts_with('Z')) {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        assert!(state().contains(") Z"), "the child became a zombie: {}", state());
+        assert_eq!(process_start_ticks(pid), None, "a zombie holds no lock");
+        child.wait().unwrap();
     }
 }
