@@ -87,7 +87,8 @@ fn replay_equals_the_evaluation_and_run_equals_replay() {
     }
     // The verified figures at the threshold the model carries, as replay applied it.
     let threshold = summary.verification.expect("replay reports the verification").threshold;
-    let expected = Summary::from_records(&evaluated).verified_at(&evaluated, threshold, 0.005);
+    let expected =
+        Summary::from_records(&evaluated).verified_at(&evaluated, threshold, 0.005, &Cell::default().metrics);
     assert_eq!(untimed_summary(&summary), untimed_summary(&expected));
     // Not a vacuous comparison: the estimator found trays here.
     assert!(summary.found > 0, "{summary:?}");

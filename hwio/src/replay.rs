@@ -108,6 +108,11 @@ pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> Result<Dataset
         }
     }
     write_atomic(&dir.join("poses.jsonl"), lines.as_bytes())?;
-    let summary = Summary::from_records(&records).verified_at(&records, threshold, cell.estimator.verify_max_wrong);
+    let summary = Summary::from_records(&records).verified_at(
+        &records,
+        threshold,
+        cell.estimator.verify_max_wrong,
+        &cell.metrics,
+    );
     Ok(DatasetEstimate { records, method, summary })
 }

@@ -68,7 +68,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let model = Model::load_checked(&a.deploy.model, &cell, a.deploy.cell.as_deref())?;
     let method = method_for(opened.source.shots());
     let threshold = camplace_estimator::Verifier::for_model(&cell.estimator, &model).threshold_in_force();
-    let max_wrong = cell.estimator.verify_max_wrong;
+    let (max_wrong, metrics) = (cell.estimator.verify_max_wrong, cell.metrics.clone());
     let estimator = estimator_for(&cell, model, &rig, &opened.rig_path, method, opened.background.as_ref())?;
     if opened.background.is_none() {
         noteln!("note: no background to remove (give --background DIR with the empty cell's images)");
@@ -113,7 +113,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         },
     )?;
     noteln!("{}", stats.report());
-    let summary = Summary::from_records(&records).verified_at(&records, threshold, max_wrong);
+    let summary = Summary::from_records(&records).verified_at(&records, threshold, max_wrong, &metrics);
     if summary.scored > 0 {
         noteln!("{}", summary.line());
     }

@@ -1,6 +1,7 @@
 //! Many frames summed up: the success rate with its Wilson 95 % interval, mean and median
 //! errors, mean correct matches and the median time of each stage.
 
+use camplace_config::Metrics;
 use serde::{Deserialize, Serialize};
 
 use super::intervals::wilson_interval;
@@ -81,18 +82,25 @@ impl Summary {
         }
     }
 
-    /// The summary with the verification's figures of `records`: the threshold at which
-    /// wrong poses are at most `max_wrong` of the accepted ones, and the figures at it.
-    pub fn verified(mut self, records: &[FrameRecord], max_wrong: f64) -> Summary {
-        let frames: Vec<Scored> = records.iter().filter_map(Scored::of).collect();
+    /// The summary with the verification's figures of `records` judged by the success
+    /// limits `metrics`: the threshold [`choose_threshold`](super::choose_threshold) picks
+    /// for `max_wrong`, and the figures at it.
+    pub fn verified(mut self, records: &[FrameRecord], max_wrong: f64, metrics: &Metrics) -> Summary {
+        let frames: Vec<Scored> = records.iter().filter_map(|r| Scored::of(r, metrics)).collect();
         self.verification = VerifiedSummary::choose(&frames, max_wrong);
         self
     }
 
     /// The summary with the verification's figures of `records` at `threshold` (the one an
     /// estimator applied), where [`Summary::verified`] chooses it.
-    pub fn verified_at(mut self, records: &[FrameRecord], threshold: f32, max_wrong: f64) -> Summary {
-        let frames: Vec<Scored> = records.iter().filter_map(Scored::of).collect();
+    pub fn verified_at(
+        mut self,
+        records: &[FrameRecord],
+        threshold: f32,
+        max_wrong: f64,
+        metrics: &Metrics,
+    ) -> Summary {
+        let frames: Vec<Scored> = records.iter().filter_map(|r| Scored::of(r, metrics)).collect();
         self.verification = (!frames.is_empty()).then(|| VerifiedSummary::at(&frames, threshold, max_wrong));
         self
     }

@@ -73,8 +73,10 @@ pub fn verification_section(page: &mut HtmlPage, out: &Path, combos: &[Combinati
          that the sensor saw, times the share of measured points inside the tray's box that the model explains. A \
          pose is handed on only when it rests on the table, no unlisted quarter turn explains the data almost as \
          well, and its score reaches the threshold. The threshold is the lowest score at which wrong poses are at \
-         most the cell's estimator.verify_max_wrong of the accepted ones on these fresh scenes; camplace model \
-         measures it the same way and stores it in the model file. The upper bound is the one-sided 95 % \
+         most the cell's estimator.verify_max_wrong of the accepted ones on these fresh scenes; a near miss (within \
+         twice the success limits) counts only where the score tells near misses from correct poses beyond \
+         chance, since the rig's calibration error leaves no trace in the fit. camplace model measures it the same \
+         way and stores it in the model file. Every wrong pose accepted counts in the share and its bound. The upper bound is the one-sided 95 % \
          Clopper–Pearson bound of the wrong share among accepted poses.",
     );
     for (k, c) in combos.iter().enumerate() {
@@ -88,7 +90,8 @@ pub fn verification_section(page: &mut HtmlPage, out: &Path, combos: &[Combinati
         };
         let n = top.summary.scored as u64;
         let records = c.set.tray_records(lowest, &top.placement, recheck_seed(seed), n);
-        let frames: Vec<Scored> = records.iter().filter_map(Scored::of).collect();
+        let metrics = &c.set.trays[lowest].cell.metrics;
+        let frames: Vec<Scored> = records.iter().filter_map(|r| Scored::of(r, metrics)).collect();
         page.paragraph(&format!("{} at {} ({}):", c.name(), top.placement, c.set.trays[lowest].name));
         page.keyed_table(&format!("verification-{k}"), &verified_rows(&c.method.to_string(), &v));
         let curve = precision_recall(&frames);

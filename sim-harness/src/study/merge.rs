@@ -205,7 +205,11 @@ fn merge_leaf(dirs: &[PathBuf], out: &Path) -> Result<usize> {
                 placement,
                 method: method.to_string(),
                 seed,
-                summary: Summary::from_records(&records).verified(&records, settings.cell.estimator.verify_max_wrong),
+                summary: Summary::from_records(&records).verified(
+                    &records,
+                    settings.cell.estimator.verify_max_wrong,
+                    &settings.cell.metrics,
+                ),
             })
             .collect();
         write_summary_json(&out.join("summary.json"), &rows)?;

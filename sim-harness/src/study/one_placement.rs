@@ -36,7 +36,7 @@ pub fn evaluate_placement(
     let jobs = shard_jobs(&[*placement], seed, scenarios, shard);
     JobEvaluator::new(cell, method, &store).with_model_cache(&dir.join(MODELS_FOLDER)).evaluate(&jobs, "evaluate")?;
     let records = store.records(placement, method, seed, scenarios);
-    let summary = Summary::from_records(&records).verified(&records, cell.estimator.verify_max_wrong);
+    let summary = Summary::from_records(&records).verified(&records, cell.estimator.verify_max_wrong, &cell.metrics);
     let rows =
         [SummaryRow { placement: placement.to_string(), method: method.to_string(), seed, summary: summary.clone() }];
     write_summary_json(&dir.join("summary.json"), &rows)?;
@@ -65,7 +65,7 @@ pub fn acceptance_summary(
     }
     runner.evaluate(&jobs, "accept")?;
     let records = store.records(placement, method, seed, scenarios);
-    Ok(Summary::from_records(&records).verified(&records, cell.estimator.verify_max_wrong))
+    Ok(Summary::from_records(&records).verified(&records, cell.estimator.verify_max_wrong, &cell.metrics))
 }
 
 /// The verification threshold of `model` at `placement`, measured on scenarios
@@ -85,6 +85,6 @@ pub fn measure_verification(
     }
     let evaluator = Evaluator::with_model(cell, placement, method, seed, model.clone())?;
     let records = each_index(scenarios as usize, || evaluator.worker(), |worker, i| worker.scene(i as u64))?;
-    let frames: Vec<Scored> = records.iter().filter_map(Scored::of).collect();
+    let frames: Vec<Scored> = records.iter().filter_map(|r| Scored::of(r, &cell.metrics)).collect();
     Ok(VerifiedSummary::choose(&frames, cell.estimator.verify_max_wrong))
 }

@@ -57,7 +57,11 @@ impl TraySet {
             let label = if self.trays.len() > 1 { format!("{label} {}", t.name) } else { label.to_string() };
             JobEvaluator::new(&t.cell, self.method, &t.store).evaluate(&jobs, &label)?;
             let records = t.store.records(placement, self.method, seed, n);
-            out.push(Summary::from_records(&records).verified(&records, t.cell.estimator.verify_max_wrong));
+            out.push(Summary::from_records(&records).verified(
+                &records,
+                t.cell.estimator.verify_max_wrong,
+                &t.cell.metrics,
+            ));
         }
         Ok(out)
     }
@@ -106,7 +110,7 @@ impl TraySet {
             .iter()
             .map(|t| {
                 let records = t.store.records(placement, self.method, seed, n);
-                Summary::from_records(&records).verified(&records, t.cell.estimator.verify_max_wrong)
+                Summary::from_records(&records).verified(&records, t.cell.estimator.verify_max_wrong, &t.cell.metrics)
             })
             .collect()
     }
