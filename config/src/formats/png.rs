@@ -5,8 +5,9 @@ use std::path::Path;
 use super::read::{read_bounded, FileKind, MAX_IMAGE_PIXELS};
 use crate::{Error, ErrorKind, GrayImage};
 
-/// Reads a PNG (or any image the `image` crate decodes) as 8-bit grey. The file is read
-/// within [`FileKind::Image`]'s budget and its header's size checked against
+/// Reads a PNG as 8-bit grey; other image formats are refused (whatever else the `image`
+/// crate might decode, a GIF's canvas, say, can cost seconds of work for a few bytes).
+/// The file is read within [`FileKind::Image`]'s budget and its header's size checked against
 /// [`MAX_IMAGE_PIXELS`] before a pixel is decoded, so a small file that would decode to a
 /// huge image is refused for what it would take.
 pub fn read_gray(path: &Path) -> Result<GrayImage, Error> {
@@ -18,23 +19,18 @@ pub fn read_gray(path: &Path) -> Result<GrayImage, Error> {
 /// [`read_gray`] checks it, no pixel decoded).
 pub fn read_image_size(path: &Path) -> Result<(usize, usize), Error> {
     let (file, _) = super::read::open_checked(path, FileKind::Image)?;
-    let reader = image::ImageReader::new(std::io::BufReader::new(file))
-        .with_guessed_format()
-        .map_err(|e| Error::io(path, &e))?;
-    let (w, h) = reader.into_dimensions().map_err(|e| {
-        Error::new(ErrorKind::Format, "", format!("not a readable image: {e}")).in_file(path).with_source(e)
-    })?;
+    let reader = image::ImageReader::with_format(std::io::BufReader::new(file), image::ImageFormat::Png);
+    let (w, h) = reader
+        .into_dimensions()
+        .map_err(|e| Error::new(ErrorKind::Format, "", not_a_png(&e)).in_file(path).with_source(e))?;
     Ok((w as usize, h as usize))
 }
 
 /// Decodes image bytes as 8-bit grey within the pixel budget (see [`read_gray`]).
 pub fn decode_gray(bytes: &[u8]) -> Result<GrayImage, Error> {
     use image::ImageDecoder;
-    let unreadable =
-        |e: image::ImageError| Error::new(ErrorKind::Format, "", format!("not a readable image: {e}")).with_source(e);
-    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
-        .with_guessed_format()
-        .map_err(|e| Error::format(format!("not a readable image: {e}")))?;
+    let unreadable = |e: image::ImageError| Error::new(ErrorKind::Format, "", not_a_png(&e)).with_source(e);
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Png);
     let mut limits = image::Limits::default();
     // A decoded colour image at the pixel budget, 16 bits a channel, and its grey copy.
     limits.max_alloc = Some(MAX_IMAGE_PIXELS * 8 + MAX_IMAGE_PIXELS);
@@ -55,6 +51,11 @@ pub fn decode_gray(bytes: &[u8]) -> Result<GrayImage, Error> {
     let img = image::DynamicImage::from_decoder(decoder).map_err(unreadable)?;
     let g = img.to_luma8();
     Ok(GrayImage { width: g.width() as usize, height: g.height() as usize, data: g.into_raw() })
+}
+
+/// What a file that does not decode as a PNG is told.
+fn not_a_png(e: &image::ImageError) -> String {
+    format!("not a readable PNG image (expected an 8-bit or 16-bit PNG, grey or colour): {e}")
 }
 
 /// Writes an 8-bit grey PNG.
@@ -145,5 +146,27 @@ mod tests {
         // One within the budget decodes.
         let small = black_png(64, 32);
         assert_eq!(decode_gray(&small).unwrap().data, vec![0u8; 64 * 32]);
+    }
+
+    #[test]
+    fn other_image_formats_are_refused_as_not_png() {
+        // A GIF header with a 3328 x 2629 canvas and no frame data (a GIF decoder fills the
+        // whole canvas for it), and the start of a JPEG and of a BMP.
+        let mut gif = b"GIF89a".to_vec();
+        gif.extend_from_slice(&3328u16.to_le_bytes());
+        gif.extend_from_slice(&2629u16.to_le_bytes());
+        gif.extend_from_slice(&[0, 0, 0, b';']);
+        let jpeg = [0xff, 0xd8, 0xff, 0xe0, 0, 16, b'J', b'F', b'I', b'F', 0];
+        let bmp = *b"BM\x3e\0\0\0\0\0\0\0\x3e\0\0\0";
+        let dir = tempfile::tempdir().unwrap();
+        for (name, bytes) in [("a.gif", &gif[..]), ("b.jpg", &jpeg[..]), ("c.bmp", &bmp[..])] {
+            let e = decode_gray(bytes).unwrap_err().to_string();
+            assert!(e.contains("not a readable PNG image"), "{name}: {e}");
+            let p = dir.path().join(name);
+            std::fs::write(&p, bytes).unwrap();
+            for e in [read_gray(&p).unwrap_err().to_string(), read_image_size(&p).unwrap_err().to_string()] {
+                assert!(e.contains(name) && e.contains("expected an 8-bit or 16-bit PNG"), "{e}");
+            }
+        }
     }
 }
