@@ -12,7 +12,7 @@
 use std::sync::Arc;
 
 use camplace_config::EstimatorParams;
-use nalgebra::{Isometry3, Matrix6, Point3, Vector3, Vector6};
+use nalgebra::{Isometry3, Matrix6, Point3, UnitQuaternion, Vector3, Vector6};
 use rayon::prelude::*;
 
 use crate::error::{Error, ErrorKind, Result};
@@ -121,7 +121,16 @@ pub struct Icp {
     whole: NearestGrid,
     /// The bounding box of `whole_points`, tray frame.
     whole_bounds: (Point3<f32>, Point3<f32>),
+    /// Per whole-tray point, bit `q - 1` set when the tray turned by `q` quarter turns about
+    /// its z axis has no point within [`DISTINCT_MARGIN`] inlier distances of it: the
+    /// parts (a tab, a chamfer) where the tray and that turn of it differ.
+    distinct: Vec<u8>,
 }
+
+/// How far, in inlier distances, a whole-tray point must lie from the turned tray to tell
+/// the tray from its turn: beyond twice the reach, a scene point explained near the body the
+/// two share cannot count for either, however far (up to a reach) the turn is off.
+pub const DISTINCT_MARGIN: f32 = 2.0;
 
 impl std::fmt::Debug for Icp {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -167,11 +176,14 @@ impl Icp {
             },
             || NearestGrid::new(&whole_points, model.surface_resolution, params.inlier_distance as f32),
         );
+        let margin = DISTINCT_MARGIN * params.inlier_distance as f32;
+        let distinct = distinct_parts(&whole_points, model.surface_resolution, margin);
         let capacity = 1 << 15;
         Ok(Icp {
             model,
             whole_points,
             whole,
+            distinct,
             whole_bounds,
             iterations: params.icp_iterations,
             max_distance: params.icp_max_distance as f32,
@@ -340,33 +352,49 @@ impl Icp {
     /// Whether the whole tray has a point within `sqrt(reach2)` of `q` (tray frame): the one
     /// test [`Icp::explained`] and [`Icp::explained_near_and_apart`] count.
     fn explains(&self, q: &Point3<f32>, reach2: f32) -> bool {
-        self.whole.lookup(q).is_some_and(|item| (q - self.whole_points[item as usize]).norm_squared() <= reach2)
+        self.explainer(q, reach2).is_some()
+    }
+
+    /// The whole-tray point within `sqrt(reach2)` of `q` (tray frame) that explains it.
+    fn explainer(&self, q: &Point3<f32>, reach2: f32) -> Option<usize> {
+        self.whole
+            .lookup(q)
+            .map(|item| item as usize)
+            .filter(|&item| (q - self.whole_points[item]).norm_squared() <= reach2)
     }
 
     /// In one pass over the scene cloud (world frame): [`Icp::explained`]'s test at
     /// `t_world_tray` made once per point, and from it (1) among the points inside the whole
     /// tray's bounding box at the pose grown by `reach`, how many the tray explains, and
-    /// (2) for each of `others` (at most [`MAX_OTHER_POSES`]), the points the tray explains
-    /// at the pose but not at the other pose, and at the other but not at the pose.
+    /// (2) for each of the turns `quarters` about the tray's z axis (each 1 to 3 quarter
+    /// turns, at most [`MAX_OTHER_POSES`]), the points the pose's distinct parts explain
+    /// against those the turned pose's distinct parts explain.
     ///
     /// Scene points beside the tray are no evidence either way; inside its box, each is
     /// either the tray's surface or something where the model says there is free space.
-    /// Where two nearly symmetric poses differ, only the points one of them explains tell
-    /// them apart.
+    /// A nearly symmetric tray and its turn differ only in small parts (a tab): only scene
+    /// points on the parts one of them has and the other lacks ([`DISTINCT_MARGIN`] away from
+    /// anything of the other) tell them apart. The body the two share counts for neither, so
+    /// a turn left a millimetre off (it was not refined) gains or loses nothing by it, and a
+    /// scene that does not show the parts gives no evidence for either.
     pub fn explained_near_and_apart(
         &self,
         scene_points: &[Point3<f32>],
         t_world_tray: &Isometry3<f64>,
-        others: &[Isometry3<f64>],
+        quarters: &[u32],
         reach: f32,
     ) -> ExplainedCounts {
-        let others = &others[..others.len().min(MAX_OTHER_POSES)];
+        let quarters = &quarters[..quarters.len().min(MAX_OTHER_POSES)];
         let pose = t_world_tray.inverse().cast::<f32>();
-        let mut other_poses = [pose; MAX_OTHER_POSES];
-        for (slot, other) in other_poses.iter_mut().zip(others) {
-            *slot = other.inverse().cast::<f32>();
+        // Per turn: the turned pose's inverse, the bit of the pose's own distinct parts
+        // against it and the bit of the turned tray's parts against the pose (its turn back).
+        let mut turns = [(pose, 0u8, 0u8); MAX_OTHER_POSES];
+        for (slot, &q) in turns.iter_mut().zip(quarters) {
+            let q = q.clamp(1, 3);
+            let turn = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), f64::from(q) * std::f64::consts::FRAC_PI_2);
+            *slot = ((t_world_tray * turn).inverse().cast::<f32>(), 1 << (q - 1), 1 << (3 - q));
         }
-        let other_poses = &other_poses[..others.len()];
+        let turns = &turns[..quarters.len()];
         let reach2 = reach * reach;
         let grow = Vector3::repeat(reach);
         let (lo, hi) = (self.whole_bounds.0 - grow, self.whole_bounds.1 + grow);
@@ -383,21 +411,46 @@ impl Icp {
                 let mut counts = ExplainedCounts::default();
                 for p in chunk {
                     let q = pose * p;
-                    let own = self.explains(&q, reach2);
+                    let own = self.explainer(&q, reach2);
                     if (0..3).all(|a| q[a] >= lo[a] && q[a] <= hi[a]) {
                         counts.inside += 1;
-                        counts.explained += u32::from(own);
+                        counts.explained += u32::from(own.is_some());
                     }
-                    for (apart, other) in counts.apart.iter_mut().zip(other_poses) {
-                        let theirs = self.explains(&(other * p), reach2);
-                        apart.0 += u32::from(own && !theirs);
-                        apart.1 += u32::from(theirs && !own);
+                    for (apart, (other, own_bit, their_bit)) in counts.apart.iter_mut().zip(turns) {
+                        apart.0 += u32::from(own.is_some_and(|i| self.distinct[i] & own_bit != 0));
+                        let theirs = self.explainer(&(other * p), reach2);
+                        apart.1 += u32::from(theirs.is_some_and(|i| self.distinct[i] & their_bit != 0));
                     }
                 }
                 counts
             })
             .reduce(ExplainedCounts::default, sum)
     }
+}
+
+/// [`Icp`]'s `distinct` bits of `points` (the whole tray, tray frame): bit `q - 1` of a point
+/// set when no point lies within `margin` of it turned back by `q` quarter turns about z,
+/// that is when the tray turned by `q` has nothing near it.
+fn distinct_parts(points: &[Point3<f32>], resolution: f32, margin: f32) -> Vec<u8> {
+    let grid = NearestGrid::new(points, resolution, margin);
+    let margin2 = margin * margin;
+    points
+        .par_iter()
+        .map(|p| {
+            let mut bits = 0u8;
+            for q in 1..4u8 {
+                // p turned back by q quarter turns about z: (x, y) -> (y, -x) per quarter.
+                let back = match q {
+                    1 => Point3::new(p.y, -p.x, p.z),
+                    2 => Point3::new(-p.x, -p.y, p.z),
+                    _ => Point3::new(-p.y, p.x, p.z),
+                };
+                let near = grid.lookup(&back).is_some_and(|i| (back - points[i as usize]).norm_squared() <= margin2);
+                bits |= u8::from(!near) << (q - 1);
+            }
+            bits
+        })
+        .collect()
 }
 
 /// Other poses [`Icp::explained_near_and_apart`] weighs against one pose in the same pass.
@@ -410,7 +463,8 @@ pub struct ExplainedCounts {
     pub explained: u32,
     /// Points inside the tray's grown box at the pose.
     pub inside: u32,
-    /// Per other pose: (points only the pose explains, points only the other pose explains).
+    /// Per turn: (points the pose's distinct parts explain, points the turned pose's
+    /// distinct parts explain).
     pub apart: [(u32, u32); MAX_OTHER_POSES],
 }
 
@@ -543,5 +597,93 @@ mod tests {
         assert!(!out.refined);
         assert_eq!(out.t_world_tray, start);
         assert_eq!(icp.refine(&far, 6, &Point3::new(0.0, 0.0, 800.0), &start).unwrap_err().kind(), ErrorKind::Input);
+    }
+
+    /// The distinct bits as a search over every point finds them: set where the turned tray
+    /// has no point within the margin, clear where it has one, but for points whose nearest
+    /// turned neighbour lies within the grid's rounding (a cell's diagonal) of the margin.
+    #[test]
+    fn distinct_parts_are_where_the_turned_tray_has_nothing() {
+        let params = Cell::default().estimator;
+        let margin = DISTINCT_MARGIN * params.inlier_distance as f32;
+        for symmetric in [false, true] {
+            let model = Arc::new(testing::tray(symmetric, 1));
+            let icp = Icp::new(&params, model.clone()).unwrap();
+            let points = &icp.whole_points;
+            let slack = model.surface_resolution * 3f32.sqrt();
+            let mut set = [0usize; 3];
+            for (p, &bits) in points.iter().zip(&icp.distinct) {
+                for q in 1..4u32 {
+                    let back = quarter_turn(q).inverse_transform_point(p);
+                    let nearest = points.iter().map(|w| (back - w).norm()).fold(f32::INFINITY, f32::min);
+                    let bit = bits & (1 << (q - 1)) != 0;
+                    set[q as usize - 1] += usize::from(bit);
+                    if (nearest - margin).abs() > slack {
+                        assert_eq!(bit, nearest > margin, "{p:?} turned by {q}: nearest {nearest} mm");
+                    }
+                }
+            }
+            // The half turn: only the tab differs, and a tray without one has nothing apart.
+            // The quarter turns of a 200 x 130 mm tray leave whole ends apart.
+            if symmetric {
+                assert!(set[1] * 200 < points.len(), "{set:?} of {}", points.len());
+            } else {
+                assert!(set[1] > 20 && set[1] * 10 < points.len(), "{set:?} of {}", points.len());
+            }
+            assert!(set[0] * 5 > points.len() && set[2] * 5 > points.len(), "{set:?}");
+        }
+    }
+
+    fn quarter_turn(q: u32) -> nalgebra::UnitQuaternion<f32> {
+        nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), q as f32 * std::f32::consts::FRAC_PI_2)
+    }
+
+    /// The scene's tab speaks for the pose that has it there and against its half turn,
+    /// whichever of the two the counts start from; a tray without a tab gives neither any
+    /// evidence.
+    #[test]
+    fn the_tab_alone_tells_a_pose_from_its_half_turn() {
+        let params = Cell::default().estimator;
+        let reach = params.inlier_distance as f32;
+        let half = Isometry3::rotation(Vector3::z() * std::f64::consts::PI);
+        let mut seen = 0;
+        for seed in 0..12 {
+            let model = Arc::new(testing::tray(false, 1));
+            let icp = Icp::new(&params, model.clone()).unwrap();
+            let scene = Scene::generate(&model, false, &SceneSpec { seed, ..SceneSpec::default() });
+            let right = icp.explained_near_and_apart(&scene.points, &scene.t_world_tray, &[2], reach).apart[0];
+            let turned = scene.t_world_tray * half;
+            let wrong = icp.explained_near_and_apart(&scene.points, &turned, &[2], reach).apart[0];
+            // Counted from either side, the same points on the same parts.
+            assert_eq!(right, (wrong.1, wrong.0), "seed {seed}");
+            // The scene points on the tab's outer part (the tab spans x 100..116 mm, y 15..45
+            // mm), counted in the tray's frame without the model.
+            let to_tray = scene.t_world_tray.inverse().cast::<f32>();
+            let on_tab = scene
+                .points
+                .iter()
+                .map(|p| to_tray * p)
+                .filter(|q| q.x > 100.0 + DISTINCT_MARGIN * reach && q.x < 117.0 && q.y > 14.0 && q.y < 46.0)
+                .count();
+            if on_tab >= 20 {
+                let lead = (right.0 as f32 - right.1 as f32) / ((right.0 + right.1) as f32).sqrt();
+                assert!(right.0 >= 20 && lead >= 3.0, "seed {seed}: {right:?} with {on_tab} points on the tab");
+                seen += 1;
+            } else {
+                // A hidden tab leaves only the rare stray point on either's parts.
+                assert!(
+                    right.0 as usize + right.1 as usize <= on_tab + 2,
+                    "seed {seed}: {right:?} with {on_tab} points on the tab"
+                );
+            }
+
+            let model = Arc::new(testing::tray(true, 1));
+            let icp = Icp::new(&params, model.clone()).unwrap();
+            let scene = Scene::generate(&model, true, &SceneSpec { seed, ..SceneSpec::default() });
+            let none = icp.explained_near_and_apart(&scene.points, &scene.t_world_tray, &[2], reach).apart[0];
+            assert!(none.0 + none.1 <= 2, "seed {seed}: {none:?}");
+        }
+        // Not vacuous: most scenes show the tab.
+        assert!(seen >= 6, "{seen} of 12 scenes showed the tab");
     }
 }
