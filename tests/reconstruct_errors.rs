@@ -35,7 +35,7 @@ fn a_file_that_is_not_a_png() {
     rendered_pair(dir.path());
     std::fs::write(dir.path().join("junk.png"), b"\x00\x01 not an image \xff").unwrap();
     let (code, err) = reconstruct(dir.path(), "junk.png", "right.png", "rig.json");
-    assert_one_line_error(code, &err, &["junk.png", "not a readable image"]);
+    assert_one_line_error(code, &err, &["junk.png", "not a readable PNG image"]);
     let (code, err) = reconstruct(dir.path(), "left.png", "missing.png", "rig.json");
     assert_one_line_error(code, &err, &["missing.png"]);
 }
