@@ -71,8 +71,9 @@ pub fn verification_section(page: &mut HtmlPage, out: &Path, combos: &[Combinati
     page.paragraph(
         "After ICP every pose is verified: its score (0 to 1) is the share of the tray's surface facing the sensor \
          that the sensor saw, times the share of measured points inside the tray's box that the model explains. A \
-         pose is handed on only when it rests on the table, no unlisted quarter turn explains the data almost as \
-         well, and its score reaches the threshold. The threshold is the lowest score at which wrong poses are at \
+         pose is handed on only when it rests on the table, the scene shows the parts that tell it from each \
+         unlisted quarter turn (a tab) more where the pose puts them than where the turn does, by a standard \
+         deviation of the counts (or shows neither's), and its score reaches the threshold. The threshold is the lowest score at which wrong poses are at \
          most the cell's estimator.verify_max_wrong of the accepted ones on these fresh scenes; a near miss (within \
          twice the success limits) counts only where the score tells near misses from correct poses beyond \
          chance, since the rig's calibration error leaves no trace in the fit. camplace model measures it the same \
