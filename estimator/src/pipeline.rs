@@ -18,9 +18,9 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use camplace_config::{AsImageView, EstimatorParams};
-use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3};
 
-use crate::pose::on_table;
+use crate::pose::{on_table, quarter_turns};
 use crate::{
     Correspondence, Error, ErrorKind, EstimatorConfig, FeatureExtractor, FeatureMatcher, Icp, IcpResult, Method, Model,
     Ransac, RansacResult, Reconstruction, Reconstructor, Result, Rig, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS,
@@ -447,9 +447,4 @@ impl Stages {
         out.timings.verify_ms = ms(t);
         Ok(out)
     }
-}
-
-/// A turn by `quarters` quarter turns about the tray's z axis.
-fn quarter_turns(quarters: u32) -> UnitQuaternion<f64> {
-    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), f64::from(quarters) * std::f64::consts::FRAC_PI_2)
 }

@@ -330,32 +330,10 @@ impl Icp {
 }
 
 impl Icp {
-    /// Scene points (world frame) that the whole tray, posed at `t_world_tray`, explains:
-    /// a point of any view lies within `reach` mm (up to the lookup grid's half cell). All
-    /// views together describe the tray from every side, so two hypotheses are judged
-    /// against the same surface, and only the parts where they differ change the count.
-    pub fn explained(&self, scene_points: &[Point3<f32>], t_world_tray: &Isometry3<f64>, reach: f32) -> u32 {
-        let pose = t_world_tray.inverse().cast::<f32>();
-        let reach2 = reach * reach;
-        scene_points
-            .par_chunks(CHUNK)
-            .map(|chunk| {
-                let mut count = 0;
-                for p in chunk {
-                    count += u32::from(self.explains(&(pose * p), reach2));
-                }
-                count
-            })
-            .sum()
-    }
-
-    /// Whether the whole tray has a point within `sqrt(reach2)` of `q` (tray frame): the one
-    /// test [`Icp::explained`] and [`Icp::explained_near_and_apart`] count.
-    fn explains(&self, q: &Point3<f32>, reach2: f32) -> bool {
-        self.explainer(q, reach2).is_some()
-    }
-
-    /// The whole-tray point within `sqrt(reach2)` of `q` (tray frame) that explains it.
+    /// The whole-tray point within `sqrt(reach2)` of `q` (tray frame) that explains it: a
+    /// point of any view within reach (up to the lookup grid's half cell). All views together
+    /// describe the tray from every side, so two hypotheses are judged against the same
+    /// surface.
     fn explainer(&self, q: &Point3<f32>, reach2: f32) -> Option<usize> {
         self.whole
             .lookup(q)
@@ -363,8 +341,8 @@ impl Icp {
             .filter(|&item| (q - self.whole_points[item]).norm_squared() <= reach2)
     }
 
-    /// In one pass over the scene cloud (world frame): [`Icp::explained`]'s test at
-    /// `t_world_tray` made once per point, and from it (1) among the points inside the whole
+    /// In one pass over the scene cloud (world frame): whether the whole tray at
+    /// `t_world_tray` explains each point, and from it (1) among the points inside the whole
     /// tray's bounding box at the pose grown by `reach`, how many the tray explains, and
     /// (2) for each of the turns `quarters` about the tray's z axis (each 1 to 3 quarter
     /// turns, at most [`MAX_OTHER_POSES`]), the points the pose's distinct parts explain
@@ -391,8 +369,7 @@ impl Icp {
         let mut turns = [(pose, 0u8, 0u8); MAX_OTHER_POSES];
         for (slot, &q) in turns.iter_mut().zip(quarters) {
             let q = q.clamp(1, 3);
-            let turn = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), f64::from(q) * std::f64::consts::FRAC_PI_2);
-            *slot = ((t_world_tray * turn).inverse().cast::<f32>(), 1 << (q - 1), 1 << (3 - q));
+            *slot = ((t_world_tray * quarter_turns(q)).inverse().cast::<f32>(), 1 << (q - 1), 1 << (3 - q));
         }
         let turns = &turns[..quarters.len()];
         let reach2 = reach * reach;
@@ -426,6 +403,11 @@ impl Icp {
             })
             .reduce(ExplainedCounts::default, sum)
     }
+}
+
+/// A turn by `quarters` quarter turns about the tray's z axis.
+pub(crate) fn quarter_turns(quarters: u32) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), f64::from(quarters) * std::f64::consts::FRAC_PI_2)
 }
 
 /// [`Icp`]'s `distinct` bits of `points` (the whole tray, tray frame): bit `q - 1` of a point

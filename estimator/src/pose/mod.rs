@@ -11,7 +11,7 @@ mod model_load;
 mod ransac;
 mod verify;
 
-pub(crate) use icp::on_table;
+pub(crate) use icp::{on_table, quarter_turns};
 pub use icp::{Icp, IcpResult};
 pub use metrics::{correct_matches, pose_errors, PoseErrors};
 pub use model::{Model, ModelOrigin, ModelVerification, ModelView};

@@ -209,8 +209,8 @@ impl Verifier {
         let counts = icp.explained_near_and_apart(scene_points, pose, &quarters[..n_turns], self.reach);
         v.explained = if counts.inside == 0 { 0.0 } else { counts.explained as f32 / counts.inside as f32 };
         v.score = (v.coverage * v.explained).clamp(0.0, 1.0);
-        // The unlisted quarter turn that comes closest: the points only the pose explains
-        // against those only the turn explains.
+        // The unlisted quarter turn that comes closest: the points on the pose's distinct
+        // parts against those on the turn's.
         for &(own, other) in &counts.apart[..n_turns] {
             let margin = if own + other == 0 { 1.0 } else { (own as f32 - other as f32) / (own + other) as f32 };
             if margin < v.turn_margin {
