@@ -97,11 +97,7 @@ pub fn verification_section(page: &mut HtmlPage, out: &Path, combos: &[Combinati
         page.keyed_table(&format!("verification-{k}"), &verified_rows(&c.method.to_string(), &v));
         let curve = precision_recall(&frames);
         let at = curve.iter().rev().find(|p| p.2 >= v.threshold).map_or((0.0, 1.0), |p| (p.0, p.1));
-        let plot = PrecisionRecallPlot {
-            title: format!("{} at {}: precision against recall", c.name(), top.placement),
-            curve,
-            chosen: at,
-        };
+        let plot = PrecisionRecallPlot { title: format!("{}: precision against recall", c.name()), curve, chosen: at };
         if let Some(saved) = save_plot(&plot, out, &format!("precision_recall_{}", c.method))? {
             page.svg(&saved.svg)?;
         }
