@@ -281,6 +281,7 @@ impl Estimator {
                 s.features.cloud(),
                 &s.sensor_position,
                 t_world_tray,
+                None,
             )
         })
     }
@@ -395,8 +396,12 @@ impl Stages {
         // turns against 28.)
         let reach = p.inlier_distance as f32;
         let pose = if refined { out.icp.t_world_tray } else { coarse };
+        // The pose's counts against its quarter turns, which the verification reuses while
+        // the pose stands.
+        let mut counted = None;
         if p.turn_check {
             let counts = self.icp.explained_near_and_apart(self.features.cloud(), &pose, &[1, 2, 3], reach);
+            counted = Some(counts);
             let lead = |(own, theirs): (u32, u32)| (theirs as f32 - own as f32) / ((own + theirs).max(1) as f32).sqrt();
             // The turn the scene's distinct parts favour most over the pose, if any.
             let favoured = (1..4u32)
@@ -419,6 +424,7 @@ impl Stages {
                     if theirs > own {
                         out.icp = other;
                         refined = true;
+                        counted = None;
                     }
                 }
             }
@@ -436,6 +442,7 @@ impl Stages {
             self.features.cloud(),
             &self.sensor_position,
             &out.t_world_tray,
+            counted.as_ref(),
         );
         // The rig's calibration error moves the whole measured cloud, table and tray alike,
         // so a fit's height and tilt above the table are that error's: a tray that rests on

@@ -25,7 +25,7 @@ use camplace_config::EstimatorParams;
 use nalgebra::{Isometry3, Point3, Vector3};
 use rayon::prelude::*;
 
-use crate::pose::icp::MAX_OTHER_POSES;
+use crate::pose::icp::ExplainedCounts;
 use crate::spatial::SceneGrid;
 use crate::{Icp, Model};
 
@@ -176,7 +176,11 @@ impl Verifier {
     }
 
     /// Verifies `pose` against the scene cloud indexed in `grid` (the same cloud as
-    /// `scene_points`, world frame) seen from `sensor` (world frame). Allocates nothing.
+    /// `scene_points`, world frame) seen from `sensor` (world frame). `counted` is
+    /// [`Icp::explained_near_and_apart`] of this pose against its three quarter turns when
+    /// the turn check has already counted them (the pass is then not made again).
+    /// Allocates nothing.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn verify(
         &self,
         model: &Model,
@@ -185,6 +189,7 @@ impl Verifier {
         scene_points: &[Point3<f32>],
         sensor: &Point3<f32>,
         pose: &Isometry3<f64>,
+        counted: Option<&ExplainedCounts>,
     ) -> Verification {
         let z_axis = pose.rotation * Vector3::z();
         let mut v = Verification {
@@ -194,24 +199,18 @@ impl Verifier {
             ..Verification::default()
         };
         v.coverage = coverage(model, grid, sensor, pose, self.reach);
-        // The quarter turns the tray's symmetries do not list, weighed against the pose in
-        // the same pass over the scene as the explained share.
-        let mut quarters = [0u32; MAX_OTHER_POSES];
-        let mut n_turns = 0;
-        for q in 1..4u32 {
-            let angle = 90.0 * q as f32;
-            if model.symmetries_deg.iter().any(|s| (s.rem_euclid(360.0) - angle).abs() < 1.0) {
-                continue;
-            }
-            quarters[n_turns] = q;
-            n_turns += 1;
-        }
-        let counts = icp.explained_near_and_apart(scene_points, pose, &quarters[..n_turns], self.reach);
+        // The quarter turns weighed against the pose in the same pass over the scene as the
+        // explained share.
+        let counts = match counted {
+            Some(c) => *c,
+            None => icp.explained_near_and_apart(scene_points, pose, &[1, 2, 3], self.reach),
+        };
         v.explained = if counts.inside == 0 { 0.0 } else { counts.explained as f32 / counts.inside as f32 };
         v.score = (v.coverage * v.explained).clamp(0.0, 1.0);
-        // The unlisted quarter turn that comes closest: the points on the pose's distinct
-        // parts against those on the turn's.
-        for &(own, other) in &counts.apart[..n_turns] {
+        // The quarter turn the tray's symmetries do not list that comes closest: the points
+        // on the pose's distinct parts against those on the turn's.
+        let listed = |q: u32| model.symmetries_deg.iter().any(|s| (s.rem_euclid(360.0) - 90.0 * q as f32).abs() < 1.0);
+        for (_, &(own, other)) in (1..4u32).zip(&counts.apart).filter(|(q, _)| !listed(*q)) {
             let margin = if own + other == 0 { 1.0 } else { (own as f32 - other as f32) / (own + other) as f32 };
             if margin < v.turn_margin {
                 (v.turn_margin, v.turn_own, v.turn_other) = (margin, own, other);

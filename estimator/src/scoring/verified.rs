@@ -213,7 +213,7 @@ fn wrong_more_often_below(frames: &[Scored], low: f32, high: f32) -> bool {
 
 /// P(X >= k) for X ~ Hypergeometric(`total` items, `marked` of them marked, `drawn` drawn):
 /// the chance that `drawn` items taken at random hold `k` or more of the marked ones.
-pub fn hypergeometric_upper_tail(k: usize, total: usize, marked: usize, drawn: usize) -> f64 {
+fn hypergeometric_upper_tail(k: usize, total: usize, marked: usize, drawn: usize) -> f64 {
     let top = marked.min(drawn);
     // The fewest marked items a draw can hold.
     let least = (marked + drawn).saturating_sub(total);
