@@ -24,8 +24,8 @@ mod trial_plan;
 mod truth;
 
 pub use camera_checks::{
-    check_distortion, check_focal_px, check_image_size, check_mounting, BYTES_PER_CAMERA_PIXEL,
-    BYTES_PER_PROJECTOR_PIXEL, MEMORY_BUDGET_BYTES, MIN_IMAGE_SIDE,
+    check_distortion, check_focal_px, check_image_size, check_mounting, distortion_fold, DistortionFold,
+    BYTES_PER_CAMERA_PIXEL, BYTES_PER_PROJECTOR_PIXEL, DISTORTION_MARGIN, MEMORY_BUDGET_BYTES, MIN_IMAGE_SIDE,
 };
 pub use cell::realism::{CalibrationError, Effect, Effects, Focus, Occluder, Optics, MAX_ROUGHNESS, MIN_ROUGHNESS};
 pub use cell::trays::{reserved_tray_name, TrayEntry, MAX_TRAYS, STUDY_FILE_ENDINGS, STUDY_FOLDER_NAMES};

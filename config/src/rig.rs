@@ -142,7 +142,7 @@ impl CameraFile {
     fn check(&self, key: &str, bytes_per_pixel: u64) -> Result<(), Error> {
         check_image_size(&format!("{key}.width"), self.width, self.height, bytes_per_pixel, 1)?;
         check_k(key, &self.k, self.width, self.height)?;
-        check_distortion(&format!("{key}.dist"), &self.dist, self.width, self.height, self.k[0][0], self.k[1][1])?;
+        check_distortion(&format!("{key}.dist"), &self.dist, self.width, self.height, &self.k)?;
         let pose = format!("{key}.T_world_camera");
         crate::pose::check_rigid(&self.t_world_camera).map_err(|m| Error::value(&pose, m))?;
         check_mounting(&pose, &self.t_world_camera)

@@ -76,8 +76,11 @@ fn a_camera_value_refused_in_the_cell_is_refused_in_rig_json_and_the_other_way_r
                 fx = f64::from(size.0.max(1));
             }
             _ => {
-                for v in dist.iter_mut() {
-                    *v = if d.next().is_multiple_of(8) { d.wild() } else { d.uniform(-1.5, 1.5) };
+                // Radial terms of any lens and past it; tangential ones as real lenses have
+                // them (a p1 of 1 folds any image, which would leave few lenses accepted).
+                for (i, v) in dist.iter_mut().enumerate() {
+                    let span = if i == 2 || i == 3 { 0.01 } else { 1.5 };
+                    *v = if d.next().is_multiple_of(8) { d.wild() } else { d.uniform(-span, span) };
                 }
             }
         }

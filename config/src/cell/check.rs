@@ -387,11 +387,12 @@ fn load_mesh_checked(key: &str, path: &Path) -> Result<(), Error> {
 /// `camera_dist`, checked as every camera's distortion is (finite, one-to-one over the image).
 fn check_camera_dist(s: &Sensor) -> Result<(), Error> {
     let [w, h] = s.camera_resolution;
-    let fx = if s.camera_k.len() == 3 {
-        s.camera_k[0][0]
+    let k = if s.camera_k.len() == 3 {
+        [s.camera_k[0], s.camera_k[1], s.camera_k[2]]
     } else {
-        (f64::from(w) / 2.0) / (s.camera_hfov.to_radians() / 2.0).tan()
+        // The cell's own K from the field of view: square pixels, centred.
+        let f = (f64::from(w) / 2.0) / (s.camera_hfov.to_radians() / 2.0).tan();
+        [[f, 0.0, f64::from(w) / 2.0], [0.0, f, f64::from(h) / 2.0], [0.0, 0.0, 1.0]]
     };
-    let fy = if s.camera_k.len() == 3 { s.camera_k[1][1] } else { fx };
-    crate::check_distortion("sensor.camera_dist", &s.camera_dist, w, h, fx, fy)
+    crate::check_distortion("sensor.camera_dist", &s.camera_dist, w, h, &k)
 }
