@@ -32,6 +32,24 @@ relative error (%), the reprojection RMS (px; OpenCV: stereoCalibrate's, over vi
 cameras saw; ours: camplace's own figure, over all its views) and the calibration time (s;
 detection is timed apart). The table shows the worse of the two cameras; --per-camera adds
 both.
+
+Real images have no true rig: without one (no DIR/rig.json and no --truth) every
+calibration is scored by what its own images can tell, all on OpenCV's corners of the views
+both cameras saw (frames/ only: table/ of real images may repeat a frame), the same for
+every rig:
+
+  rms px       the calibration's own reprojection RMS (OpenCV: stereoCalibrate's; ours:
+               camplace's, over its corners and all its views);
+  pnp rms px   each camera alone: per-view solvePnP with the rig's K and distortion, RMS of
+               the reprojection over both cameras (how well the lens model fits);
+  epi rms/max  the rectified epipolar error: every corner's ray in each camera turned into
+               the rectified frame both cameras share (x along the baseline, z the mean of
+               the optical axes made square to it, focal length the mean of the four), and the
+               difference of the two rows, px; zero for a perfect rig, whatever the board;
+  xfer rms/max the transfer error: the board's pose from one camera's corners alone
+               (solvePnP), carried to the other camera through the rig's pose between them
+               and projected with its K and distortion, against the corners it found, px;
+               both ways pooled.
 """
 import argparse
 import json
@@ -313,6 +331,73 @@ def rig_errors(truth, est, width, height):
     return {"worse": worse, **cams}
 
 
+# ---------------------------------------------------------------- scores without a truth
+
+def board_pairs(found):
+    """The frames both cameras saw the whole board in; not table/, which may repeat a frame."""
+    return [v for name, v in found.items() if name != "table" and v["left"] is not None and v["right"] is not None]
+
+
+def rays_world(cam, pts):
+    """World-frame rays (unnormalised) of image points through a rig camera's model."""
+    K = cam["K"]
+    xy_d = np.stack([(pts[:, 0] - K[0, 2]) / K[0, 0], (pts[:, 1] - K[1, 2]) / K[1, 1]], 1)
+    xy = undistort(xy_d, cam["dist"])
+    rays = np.concatenate([xy, np.ones((len(xy), 1))], 1)
+    return rays @ cam["T_world_camera"][:3, :3].T
+
+
+def rectified_frame(rig):
+    """Rows: the rectified axes in the world (x along the baseline), and its focal length."""
+    Tl, Tr = rig["left"]["T_world_camera"], rig["right"]["T_world_camera"]
+    x = Tr[:3, 3] - Tl[:3, 3]
+    x /= np.linalg.norm(x)
+    z = Tl[:3, 2] + Tr[:3, 2]
+    z -= x * (z @ x)
+    z /= np.linalg.norm(z)
+    f = np.mean([rig[c]["K"][i, i] for c in CAMERAS for i in (0, 1)])
+    return np.stack([x, np.cross(z, x), z]), f
+
+
+def epipolar_errors(rig, found):
+    """|row_left - row_right| in the rectified frame for every corner both cameras saw, px."""
+    R, f = rectified_frame(rig)
+    errs = []
+    for views in board_pairs(found):
+        rows = []
+        for cam in CAMERAS:
+            d = rays_world(rig[cam], views[cam].reshape(-1, 2).astype(np.float64)) @ R.T
+            rows.append(f * d[:, 1] / d[:, 2])
+        errs.append(np.abs(rows[0] - rows[1]))
+    return np.concatenate(errs)
+
+
+def transfer_errors(rig, obj, found):
+    """The board's pose from one camera alone, seen through the other: distance to its corners, px."""
+    T_cam_world = {c: np.linalg.inv(rig[c]["T_world_camera"]) for c in CAMERAS}
+    errs = []
+    for views in board_pairs(found):
+        for src, dst in (("left", "right"), ("right", "left")):
+            _, rvec, tvec = cv2.solvePnP(obj.astype(np.float64), views[src].astype(np.float64),
+                                         rig[src]["K"], rig[src]["dist"])
+            T_dst_board = T_cam_world[dst] @ rig[src]["T_world_camera"] @ transform(cv2.Rodrigues(rvec)[0], tvec)
+            p = apply(T_dst_board, obj.astype(np.float64))
+            proj, _ = cv2.projectPoints(p, np.zeros(3), np.zeros(3), rig[dst]["K"], rig[dst]["dist"])
+            errs.append(np.linalg.norm(proj.reshape(-1, 2) - views[dst].reshape(-1, 2), axis=1))
+    return np.concatenate(errs)
+
+
+def self_scores(rig, rms, obj, found):
+    rms_of = lambda e: float(np.sqrt(np.mean(e ** 2)))
+    epi, xfer = epipolar_errors(rig, found), transfer_errors(rig, obj, found)
+    return {"rms": rms, "pnp_rms": pnp_rms(rig, obj, found), "epi_rms": rms_of(epi), "epi_max": float(epi.max()),
+            "xfer_rms": rms_of(xfer), "xfer_max": float(xfer.max()), "corners": int(len(epi))}
+
+
+SELF_COLUMNS = [("rms px", "rms"), ("pnp rms", "pnp_rms"), ("epi rms", "epi_rms"), ("epi max", "epi_max"),
+                ("xfer rms", "xfer_rms"), ("xfer max", "xfer_max")]
+
+
 # ---------------------------------------------------------------- report
 
 COLUMNS = [("fx%", "fx_pct", 4), ("fy%", "fy_pct", 4), ("cx px", "cx_px", 3), ("cy px", "cy_px", 3),
@@ -374,7 +459,17 @@ def main():
         results["ours"] = {"rig": rig, "rms": rms, "calib_s": camplace["solve_s"] if camplace else float("nan")}
 
     if truth is None:
-        raise SystemExit(f"no true rig at {truth_path}: nothing to score against")
+        # Real images: each rig scored by its own images (see the top of this file).
+        scores = {name: self_scores(r["rig"], r["rms"], obj, found) for name, r in results.items()}
+        if args.json:
+            print(json.dumps({"missed": missed, "scores": scores}, default=float))
+            return
+        print(f"{args.dir}: no true rig, scored on OpenCV's corners of the {next(iter(scores.values()))['corners']} "
+              f"corner pairs both cameras saw; not found: {', '.join(missed) or 'none'}")
+        print(f"{'method':<28}" + "".join(f"{h:>10}" for h, _ in SELF_COLUMNS))
+        for name, sc in scores.items():
+            print(f"{name:<28}" + "".join(f"{sc[k]:>10.4f}" for _, k in SELF_COLUMNS))
+        return
     for r in results.values():
         r["errors"] = rig_errors(truth, r["rig"], width, height)
 
