@@ -11,6 +11,7 @@ mod commissioning;
 mod data_safety;
 mod deploy;
 mod estimate;
+mod export;
 mod fit_sensor;
 mod hand_eye;
 mod installed_rig;

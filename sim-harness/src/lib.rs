@@ -10,6 +10,7 @@
 //! other crates use is exported here.
 
 mod error;
+mod export;
 mod fit;
 mod model_builder;
 mod progress;
@@ -23,6 +24,7 @@ mod trial;
 mod workers;
 
 pub use error::{Error, Result};
+pub use export::{cell_parts, glb_bytes, write_cell_glb, CellPart, GlbSummary, Primitive};
 pub use fit::{fit_sensor, write_fit, AmbientFit, KeyFit, SensorFit, FIT_FRAGMENT, FIT_HTML, FIT_JSON, MAX_FIT_FRAMES};
 pub use model_builder::{build_model, model_origin, model_points};
 pub use progress::{set_progress, ProgressCallback, ProgressEvent};

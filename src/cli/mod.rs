@@ -18,6 +18,8 @@ mod estimate;
 #[cfg(feature = "sim")]
 mod evaluate;
 #[cfg(feature = "sim")]
+mod export;
+#[cfg(feature = "sim")]
 mod fit_sensor;
 mod hand_eye;
 mod init;
@@ -124,6 +126,9 @@ enum Command {
     /// The review page of a dataset without truth: mark each pose correct, wrong or unsure.
     #[cfg(feature = "sim")]
     Review(review::Args),
+    /// The cell (table, tray, items, lamp, cameras, projector) as a glTF 2.0 binary for 3D tools.
+    #[cfg(feature = "sim")]
+    Export(export::Args),
     /// Fit the cell's sensor keys (noise, blur, projector gain and dots, ambient) to a real dataset.
     #[cfg(feature = "sim")]
     FitSensor(fit_sensor::Args),
@@ -182,6 +187,8 @@ pub fn dispatch() -> anyhow::Result<ExitCode> {
         Command::Trial(a) => trial::run(a),
         #[cfg(feature = "sim")]
         Command::Review(a) => review::run(a),
+        #[cfg(feature = "sim")]
+        Command::Export(a) => export::run(a),
         #[cfg(feature = "sim")]
         Command::FitSensor(a) => fit_sensor::run(a),
     }

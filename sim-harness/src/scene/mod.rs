@@ -6,6 +6,4 @@ pub mod scenario;
 mod spec;
 pub mod tray;
 
-pub use spec::{Gloss, Objects, OccluderBox, SceneSpec, SceneTriangle, ID_TABLE};
-#[cfg(test)]
-pub use spec::{ID_FIRST_ITEM, ID_OCCLUDER, ID_TRAY};
+pub use spec::{Gloss, Objects, OccluderBox, SceneSpec, SceneTriangle, ID_FIRST_ITEM, ID_OCCLUDER, ID_TABLE, ID_TRAY};
