@@ -131,14 +131,37 @@ impl Camera {
     }
 }
 
-/// A rigid transform from a 4x4 matrix (the rotation part re-orthonormalised).
+/// A rigid transform from a 4x4 matrix: the translation as it stands, the rotation the
+/// nearest proper rotation to the upper-left 3x3 block (its polar factor, `U·diag(1, 1,
+/// det(U·Vᵀ))·Vᵀ` from the block's SVD). The polar factor is closed in form, so a half turn
+/// is the half turn it is; an iteration started at the identity (nalgebra's
+/// `Rotation3::from_matrix`) has no gradient to leave it by for a turn of 180°, and read a
+/// robot mounted upside down as a different rotation. Files' matrices are checked
+/// orthonormal before they get here (`camplace_config::check_rigid`); the polar factor only
+/// takes out their last digits' drift.
 pub fn isometry_from_matrix(m: &Matrix4<f64>) -> Isometry3<f64> {
-    let r = m.fixed_view::<3, 3>(0, 0).into_owned();
-    let rot = Rotation3::from_matrix(&r);
+    let block = m.fixed_view::<3, 3>(0, 0).into_owned();
     Isometry3::from_parts(
         Translation3::new(m[(0, 3)], m[(1, 3)], m[(2, 3)]),
-        UnitQuaternion::from_rotation_matrix(&rot),
+        UnitQuaternion::from_rotation_matrix(&nearest_rotation(&block)),
     )
+}
+
+/// The proper rotation nearest to `block` in the Frobenius norm (the orthogonal Procrustes
+/// solution). A block whose SVD does not converge (not finite: every caller's block was
+/// checked finite and orthonormal first) gives a rotation of not-a-numbers, so that the
+/// transform is seen to be broken wherever it is used rather than passing for another.
+fn nearest_rotation(block: &Matrix3<f64>) -> Rotation3<f64> {
+    let finite = block.iter().all(|v| v.is_finite());
+    let svd = finite.then(|| block.try_svd(true, true, f64::EPSILON, 1000)).flatten();
+    let Some((u, v_t)) = svd.and_then(|s| Some((s.u?, s.v_t?))) else {
+        return Rotation3::from_matrix_unchecked(Matrix3::from_element(f64::NAN));
+    };
+    let mut d = Matrix3::identity();
+    if (u * v_t).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    Rotation3::from_matrix_unchecked(u * d * v_t)
 }
 
 /// A 4x4 row-major array of a rigid transform, as the JSON files store it.
@@ -167,6 +190,33 @@ mod tests {
         let depth = cam.t_world_camera.inverse_transform_point(&p).z;
         let back = cam.back_project(px.x, px.y, depth);
         assert!((back - p).norm() < 1e-6, "{back} vs {p}");
+    }
+
+    #[test]
+    fn half_turns_read_as_the_half_turns_they_are() {
+        // Ry(180°), a robot mounted upside down, and the half turn about (0.26, -0.97, 0),
+        // written as a file holds them: R = 2·n·nᵀ − I for the unit axis n, so the
+        // entries of an axis's turn are exactly 0 and ±1.
+        for axis in [Vector3::y(), Vector3::x(), Vector3::z(), Vector3::new(0.26, -0.97, 0.0)] {
+            let n = axis.normalize();
+            let mut m = Matrix4::identity();
+            m.fixed_view_mut::<3, 3>(0, 0).copy_from(&(2.0 * n * n.transpose() - Matrix3::identity()));
+            m.fixed_view_mut::<3, 1>(0, 3).copy_from(&Vector3::new(450.0, -120.0, 1800.0));
+            let read = isometry_from_matrix(&m);
+            let off = (read.to_homogeneous() - m).abs().max();
+            assert!(off < 1e-12, "a half turn about {axis} read {off} off: {read:?}");
+        }
+    }
+
+    #[test]
+    fn a_matrix_off_a_rotation_reads_as_the_nearest_and_a_broken_one_as_broken() {
+        let made = UnitQuaternion::from_euler_angles(0.3, -1.1, 2.9).to_rotation_matrix().into_inner();
+        let mut m = Matrix4::identity();
+        m.fixed_view_mut::<3, 3>(0, 0).copy_from(&(made * 1.000_001));
+        let read = isometry_from_matrix(&m).rotation.to_rotation_matrix().into_inner();
+        assert!((read - made).abs().max() < 1e-12, "{read} vs {made}");
+        m[(1, 1)] = f64::NAN;
+        assert!(isometry_from_matrix(&m).rotation.coords.iter().all(|v| v.is_nan()));
     }
 
     #[test]

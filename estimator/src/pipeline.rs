@@ -23,7 +23,8 @@ use nalgebra::{Isometry3, Point3};
 use crate::pose::{on_table, quarter_turns};
 use crate::{
     Correspondence, Error, ErrorKind, EstimatorConfig, FeatureExtractor, FeatureMatcher, Icp, IcpResult, Method, Model,
-    Ransac, RansacResult, Reconstruction, Reconstructor, Result, Rig, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS,
+    Ransac, RansacResult, Reconstruction, Reconstructor, Result, Rig, Verdict, Verification, Verifier,
+    AMBIGUOUS_TURN_SIGMAS,
 };
 
 /// Time spent in each stage of the last frame, ms (zero for stages a frame skipped).
@@ -99,6 +100,13 @@ pub struct PoseEstimate {
     pub keypoints: u32,
     /// Matches that survived the height filter.
     pub matches: u32,
+}
+
+impl PoseEstimate {
+    /// Whether the pose may be handed on: found, and accepted by the verification.
+    pub fn accepted(&self) -> bool {
+        self.found && self.verification.verdict == Verdict::Accepted
+    }
 }
 
 impl Default for PoseEstimate {
