@@ -119,33 +119,35 @@ fn a_placement_and_a_rig_export_with_their_cameras_where_the_rig_has_them() {
     let o = camplace(d, &["export", "--placement", p, "--scenario", "2", "--out", "placement.glb"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let (at_placement, _) = read_glb(&d.join("placement.glb"));
-    check_against_rig(&at_placement, &rig);
-    // The rig computed here, as a second witness of the placement's geometry.
+    // The placement's rig as planned (a render's rig.json carries the simulated calibration
+    // error in its projector, which the plan has not).
     let placement: Placement = Cell::default().placement.with_overrides(p).unwrap();
     let planned = camplace_estimator::rig_for(&placement, &Cell::default().sensor);
-    let c = planned.left.t_world_camera.translation.vector;
-    let got = world_mm(node(&at_placement, "camera_left"));
-    assert!((got[0] - c.x).abs() < 0.01 && (got[1] - c.y).abs() < 0.01 && (got[2] - c.z).abs() < 0.01, "{got:?}");
+    check_against_rig(&at_placement, &serde_json::to_value(planned.to_file()).unwrap());
 
-    // A calibrated rig moved off the plan: its own cameras are drawn, not the placement's.
+    // A calibrated rig moved off the plan: its own cameras and projector are drawn.
     let mut moved = rig.clone();
-    for key in ["left", "right"] {
+    for key in ["left", "right", "projector"] {
         let v = moved[key]["T_world_camera"][0][3].as_f64().unwrap();
         moved[key]["T_world_camera"][0][3] = (v + 12.5).into();
     }
-    moved["projector"] = Value::Null;
     std::fs::write(d.join("moved.json"), moved.to_string()).unwrap();
     let o = camplace(d, &["export", "--rig", "moved.json", "--out", "rig.glb"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let (from_rig, _) = read_glb(&d.join("rig.glb"));
-    // Without a projector in the file, it is where the placement puts it relative to the
-    // left camera: moved with it.
-    moved["projector"] = rig["projector"].clone();
-    let v = moved["projector"]["T_world_camera"][0][3].as_f64().unwrap();
-    moved["projector"]["T_world_camera"][0][3] = (v + 12.5).into();
-    let (rl, ml) = (world_mm(node(&from_rig, "camera_left")), world_mm(node(&at_placement, "camera_left")));
-    assert!((rl[0] - ml[0] - 12.5).abs() < 0.01, "{rl:?} against {ml:?}");
     check_against_rig(&from_rig, &moved);
+    // Without a projector in the file, one is drawn beside the cameras (where the rig's
+    // as-built placement puts it), the cameras still the file's.
+    let mut bare = moved.clone();
+    bare["projector"] = Value::Null;
+    std::fs::write(d.join("bare.json"), bare.to_string()).unwrap();
+    let o = camplace(d, &["export", "--rig", "bare.json", "--out", "bare.glb"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (bare_glb, _) = read_glb(&d.join("bare.glb"));
+    let (a, b) = (world_mm(node(&bare_glb, "projector")), world_mm(node(&from_rig, "projector")));
+    assert!((0..3).all(|i| (a[i] - b[i]).abs() < 50.0), "{a:?} far from the rig's own projector {b:?}");
+    let (a, b) = (world_mm(node(&bare_glb, "camera_right")), world_mm(node(&from_rig, "camera_right")));
+    assert!((0..3).all(|i| (a[i] - b[i]).abs() < 0.01), "{a:?} against {b:?}");
 
     let Some(validator) = validator() else { return };
     for file in ["placement.glb", "rig.glb"] {
@@ -212,4 +214,150 @@ fn a_frames_cloud_is_exported_as_points_in_metres_y_up() {
     bad(&["export", "--study", "nowhere", "--out", "x.glb"], &["nowhere", "recommended.json"]);
     bad(&["export", "--placement", "r=5", "--out", "x.glb"], &["--placement", "r"]);
     assert!(!d.join("x.glb").exists(), "nothing written on bad input");
+}
+
+/// The (x, y) pixels of a PNG screenshot as RGB, with its width.
+fn screenshot_pixels(path: &Path) -> (Vec<[u8; 3]>, usize) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    let step = info.color_type.samples();
+    let px = buf[..info.buffer_size()].chunks(step).map(|c| [c[0], c[1], c[2]]).collect();
+    (px, info.width as usize)
+}
+
+/// The JSON of `<script type="application/json" id="scene3d">` in a page.
+fn inline_scene(html: &str) -> Value {
+    let open = "<script type=\"application/json\" id=\"scene3d\">";
+    let at = html.find(open).expect("the page holds the scene as inline JSON") + open.len();
+    let text = &html[at..at + html[at..].find("</script>").unwrap()];
+    serde_json::from_str(&text.replace("<\\/", "</")).expect("the scene parses")
+}
+
+/// Every URL the page asks the network for: http(s) and ws(s) in Chromium's net log.
+fn network_urls(log: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(log).unwrap_or_else(|e| panic!("{}: {e}", log.display()));
+    let mut urls = Vec::new();
+    for scheme in ["\"http://", "\"https://", "\"ws://", "\"wss://"] {
+        let mut rest = text.as_str();
+        while let Some(at) = rest.find(scheme) {
+            let url = &rest[at + 1..];
+            let end = url.find('"').unwrap_or(url.len());
+            urls.push(url[..end].to_string());
+            rest = &url[end..];
+        }
+    }
+    urls
+}
+
+#[test]
+fn the_reports_3d_view_draws_the_recommended_rig_offline() {
+    let Some(browser) = ["chromium", "chromium-browser"].into_iter().find(|b| crate::own_cell::which(b)) else {
+        assert!(std::env::var_os("CAMPLACE_BROWSER").is_none(), "CAMPLACE_BROWSER is set but no chromium is installed");
+        eprintln!("no chromium: the 3D view's browser test is skipped (CI installs it and sets CAMPLACE_BROWSER)");
+        return;
+    };
+    let out = crate::own_cell::study();
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let rec: Value = serde_json::from_slice(&std::fs::read(out.join("recommended.json")).unwrap()).unwrap();
+    let scene = inline_scene(&html);
+    eprintln!("report.html: {} bytes, of which the 3D view's scene {} bytes", html.len(), scene.to_string().len());
+    let dir = tempfile::tempdir().unwrap();
+    let run = |page: &Path, extra: &[String]| {
+        let mut args: Vec<String> =
+            ["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", "--window-size=1280,800"]
+                .iter()
+                .map(|s| s.to_string())
+                .collect();
+        args.extend_from_slice(extra);
+        args.push(format!("file://{}", page.display()));
+        Command::new(browser).args(&args).current_dir(dir.path()).output().expect("chromium runs")
+    };
+
+    // The view alone at the top of the window, as a screenshot: the canvas is drawn.
+    let top = dir.path().join("top.html");
+    let style = "<style>#view3d{position:fixed;top:0;left:0;z-index:9;background:#fff}</style>";
+    std::fs::write(&top, html.replace("</body>", &format!("{style}</body>"))).unwrap();
+    let shot = dir.path().join("shot.png");
+    let o = run(&top, &["--virtual-time-budget=5000".into(), format!("--screenshot={}", shot.display())]);
+    assert!(shot.is_file(), "no screenshot: {}", stderr(&o));
+    let (px, width) = screenshot_pixels(&shot);
+    let canvas: Vec<[u8; 3]> = px
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| i % width >= 2 && i % width < 820 && i / width >= 2 && i / width < 560)
+        .map(|(_, p)| *p)
+        .collect();
+    let mut colours: Vec<[u8; 3]> = canvas.clone();
+    colours.sort_unstable();
+    colours.dedup();
+    let background = [0xf4, 0xf6, 0xf8];
+    let drawn = canvas.iter().filter(|p| **p != background).count();
+    assert!(colours.len() > 20, "the canvas holds {} colours", colours.len());
+    assert!(drawn > canvas.len() / 20, "{drawn} of {} canvas pixels drawn", canvas.len());
+    // Every sensor's colour is somewhere in the picture (its frustum's edges).
+    for part in ["camera_left", "camera_right", "projector"] {
+        let c = scene["parts"].as_array().unwrap().iter().find(|p| p["name"] == part).unwrap()["colour"].clone();
+        let hex = c.as_str().unwrap();
+        let rgb: Vec<u8> = (0..3).map(|i| u8::from_str_radix(&hex[1 + 2 * i..3 + 2 * i], 16).unwrap()).collect();
+        let near = |p: &[u8; 3]| p.iter().zip(&rgb).all(|(a, b)| a.abs_diff(*b) <= 12);
+        assert!(canvas.iter().any(near), "{part}'s colour {hex} is nowhere on the canvas");
+    }
+
+    // The page as loaded, with the network logged: what it drew and where from.
+    let page = dir.path().join("report.html");
+    std::fs::write(&page, &html).unwrap();
+    let log = dir.path().join("net.json");
+    let o = run(
+        &page,
+        &[
+            "--virtual-time-budget=5000".into(),
+            "--dump-dom".into(),
+            format!("--log-net-log={}", log.display()),
+            "--host-resolver-rules=MAP * ~NOTFOUND".into(),
+        ],
+    );
+    let dom = String::from_utf8_lossy(&o.stdout).into_owned();
+    let attr = |name: &str| -> String {
+        let at = dom.find(&format!("{name}=\"")).unwrap_or_else(|| panic!("no {name} on the canvas: {}", stderr(&o)));
+        let v = &dom[at + name.len() + 2..];
+        v[..v.find('"').unwrap()].replace("&quot;", "\"")
+    };
+    assert!(attr("data-drawn").parse::<usize>().unwrap() > 10, "the view drew its scene");
+    let apexes: Value = serde_json::from_str(&attr("data-apexes")).unwrap();
+    for (part, key) in [("camera_left", "left_camera"), ("camera_right", "right_camera"), ("projector", "projector")] {
+        let want = &rec["world_mm"][key];
+        for i in 0..3 {
+            let w = want[i].as_f64().unwrap();
+            let drawn = apexes[part][i].as_f64().unwrap();
+            let listed = scene["sensors"][part]["centre"][i].as_f64().unwrap();
+            assert!((drawn - w).abs() < 0.01, "{part} drawn at {} against recommended.json {want}", apexes[part]);
+            assert!((listed - w).abs() < 0.01, "{part} in the scene at {} against {want}", scene["sensors"][part]);
+        }
+    }
+    let markers = scene["markers"].as_array().unwrap();
+    assert!(markers.iter().filter(|m| m["from"] == "grid").count() >= 4, "the grid's placements are marked");
+    let urls = network_urls(&log);
+    assert!(urls.is_empty(), "the report asked the network for {urls:?}");
+    // The log does show a request when there is one: an image from 127.0.0.1 (refused, port 9).
+    let leaky = dir.path().join("leaky.html");
+    std::fs::write(&leaky, html.replace("</body>", "<img src=\"http://127.0.0.1:9/x.png\"></body>")).unwrap();
+    let leak_log = dir.path().join("leak.json");
+    run(
+        &leaky,
+        &["--virtual-time-budget=3000".into(), "--dump-dom".into(), format!("--log-net-log={}", leak_log.display())],
+    );
+    assert!(
+        network_urls(&leak_log).iter().any(|u| u.starts_with("http://127.0.0.1:9/")),
+        "the net log misses a request"
+    );
+
+    // Time to interactive (the view drawn and its handlers set), in real time: reported only.
+    let o = run(&page, &["--dump-dom".into()]);
+    let dom = String::from_utf8_lossy(&o.stdout);
+    if let Some(at) = dom.find("data-ready-ms=\"") {
+        let v = &dom[at + 15..];
+        eprintln!("the 3D view was interactive {} ms after navigation (headless chromium)", &v[..v.find('"').unwrap()]);
+    }
 }

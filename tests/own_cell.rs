@@ -48,7 +48,7 @@ fn write_cell(d: &Path) {
 }
 
 /// A quick one-shot study of the two-tray cell, run once for the tests here.
-fn study() -> &'static Path {
+pub(crate) fn study() -> &'static Path {
     static FOLDER: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
     &FOLDER
         .get_or_init(|| {
@@ -370,6 +370,6 @@ fn the_report_opens_in_a_browser_with_every_image_and_the_summary_numbers() {
     assert!(size > 10_000, "a screenshot of the first screen: {} bytes, {}", size, stderr(&o));
 }
 
-fn which(program: &str) -> bool {
+pub(crate) fn which(program: &str) -> bool {
     std::env::var_os("PATH").is_some_and(|paths| std::env::split_paths(&paths).any(|p| p.join(program).is_file()))
 }

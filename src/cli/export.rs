@@ -7,7 +7,7 @@ use std::process::ExitCode;
 
 use anyhow::bail;
 use camplace_config::{RecordedDataset, RigFile};
-use camplace_estimator::{rig_for, sensor_rig};
+use camplace_estimator::{as_built, rig_for, sensor_rig, Rig};
 use camplace_sim::{cell_parts, draw_scenario, write_cell_glb};
 
 use super::cell_args::CellArgs;
@@ -18,8 +18,8 @@ pub struct Args {
     /// The cell, and the placement its rig is drawn at (unless --rig or --study give it).
     #[command(flatten)]
     cell: CellArgs,
-    /// A calibrated rig.json: its cameras (and its projector, else the placement's, relative
-    /// to its left camera).
+    /// A calibrated rig.json: its cameras (and its projector, else the one its as-built
+    /// placement would have, relative to its left camera).
     #[arg(long, value_name = "FILE", conflicts_with_all = ["placement", "study"])]
     rig: Option<PathBuf>,
     /// A study folder: the rig at its recommended placement (recommended.json).
@@ -53,7 +53,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     let rig = match &a.rig {
         Some(path) => {
-            cell.rig = Some(RigFile::load(path)?);
+            let file = RigFile::load(path)?;
+            // A rig.json without a projector gets the one its as-built placement would have.
+            let built = as_built(&Rig::from_file(&file)).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+            placement = built.placement;
+            cell.rig = Some(file);
             sensor_rig(&cell, &placement)
         }
         None => rig_for(&placement, &cell.sensor),

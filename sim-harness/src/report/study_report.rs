@@ -12,6 +12,7 @@ use super::convergence::{Convergence, Curve};
 use super::html::HtmlPage;
 use super::recommended::Recommended;
 use super::rig_sketch::RigSketch;
+use super::view3d::{scene_json, view_html, CheckedPlacement, View3d};
 use crate::render::frame_files::write_preview;
 use crate::render::{Frame, Method};
 use crate::scene::tray::TrayModel;
@@ -66,6 +67,7 @@ pub fn write_report(req: &StudyRequest, outcome: &StudyOutcome, started: Instant
                 })
                 .collect();
             answer(&mut page, out, r, outcome.preview.as_ref(), seed, preset, &others)?;
+            view3d_section(&mut page, r, tolerance, combos, seed)?;
             super::verification::verification_section(&mut page, out, combos, seed)?;
         }
         None => page.paragraph("No placement was checked on fresh scenes, so there is nothing to recommend."),
@@ -435,6 +437,50 @@ fn answer(
     }
 
     rec.write(out)?;
+    Ok(())
+}
+
+/// The cell in 3D at the recommended placement, with the method's other checked placements
+/// (grid cells and re-checked candidates) as markers.
+fn view3d_section(
+    page: &mut HtmlPage,
+    r: &Recommendation,
+    tolerance: Option<&camplace_config::ToleranceReport>,
+    combos: &[Combination],
+    seed: u64,
+) -> Result<()> {
+    let cell = &r.cells[0].1;
+    let rig = rig_for(&r.placement, &cell.sensor);
+    let scenario = crate::scene::scenario::draw_scenario(cell, seed, 0);
+    let mut checked = Vec::new();
+    for c in combos.iter().filter(|c| c.method == r.method && c.trays_label == r.trays_label()) {
+        for row in &c.sweep.rows {
+            if let Ok(p) = cell.placement.with_overrides(&row.placement) {
+                checked.push(CheckedPlacement { placement: p, from: "grid".into(), success: row.summary.success_rate });
+            }
+        }
+        for k in &c.candidates {
+            checked.push(CheckedPlacement {
+                placement: k.placement,
+                from: format!("{} (fresh scenes)", k.source),
+                success: k.summary.success_rate,
+            });
+        }
+    }
+    checked.retain(|c| c.placement != r.placement);
+    let view = View3d { cell, placement: r.placement, rig: &rig, scenario: &scenario, tolerance, checked };
+    let scene = scene_json(&view)?;
+    page.heading(3, "The cell in 3D");
+    page.paragraph(&format!(
+        "The rig at the recommended placement over scenario 0 of seed {seed}: each camera's and the projector's view \
+         down to the table, the part of the table all three cover ({:.0} cm²){}, and the rig of every other \
+         placement checked with {} as a dot coloured by its success on the maps' scale. camplace export writes the \
+         same cell as a glTF file for 3D tools.",
+        scene["covered_area_mm2"].as_f64().unwrap_or(0.0) / 100.0,
+        if tolerance.is_some() { ", the box the rig may hang in within its mounting tolerances" } else { "" },
+        r.method
+    ));
+    page.raw(&view_html(&scene));
     Ok(())
 }
 
