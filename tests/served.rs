@@ -64,6 +64,11 @@ impl Served {
         Served { child, port, status_port, log }
     }
 
+    /// The process id, for its figures in /proc.
+    pub(crate) fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
     pub(crate) fn connect(&self) -> TcpStream {
         let s = TcpStream::connect(("127.0.0.1", self.port)).unwrap();
         s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();

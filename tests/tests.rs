@@ -19,6 +19,7 @@ mod integrity;
 mod key_checks;
 mod meshes;
 mod own_cell;
+mod pages;
 mod placement;
 mod reconstruct;
 mod reconstruct_errors;

@@ -1,48 +1,49 @@
-//! The status page over HTTP (tiny_http): `/` an HTML page that reloads itself every two
-//! seconds (the last left image with the model's outline at the pose, the verdict and
-//! score, counts by status, the latency histogram, the drift state), `/frame.png` that image
-//! and `/status.json` the same figures for programs.
+//! The status page over HTTP (camplace-http, so no client can stall or starve it): `/` an
+//! HTML page that reloads itself every two seconds (the last left image with the model's
+//! outline at the pose, the verdict and score, counts by status, the latency histogram, the
+//! drift state), `/frame.png` that image and `/status.json` the same figures for programs.
 
-use std::io::Cursor;
 use std::net::TcpListener;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
-use std::time::Duration;
 
+use camplace_http::{Limits, Request, Response, Server};
 use image::ImageEncoder;
-use tiny_http::{Header, Response, Server};
 
 use crate::protocol::Status;
 use crate::state::{Shared, State, HISTOGRAM_BARS, HISTOGRAM_STEP_MS};
 
-/// Serves the page until `stop` is set.
+/// Serves the page until `stop` is set (seen within a tenth of a second).
 pub(crate) fn serve_page(listener: TcpListener, shared: Arc<Shared>, stop: Arc<AtomicBool>) {
-    let Ok(server) = Server::from_listener(listener, None) else { return };
-    while !stop.load(Ordering::SeqCst) {
-        let request = match server.recv_timeout(Duration::from_millis(100)) {
-            Ok(Some(r)) => r,
-            Ok(None) => continue,
-            Err(_) => continue,
+    // No route takes a body: the server's default body limit (none) stands.
+    let Ok(mut server) = Server::new(listener, Limits::default(), move |r: &Request| answer(&shared, r)) else {
+        return;
+    };
+    server.run(&stop);
+}
+
+/// The answer to one request.
+fn answer(shared: &Shared, request: &Request) -> Response {
+    let known = matches!(request.path.as_str(), "/" | "/index.html" | "/status.json" | "/frame.png");
+    if request.method != "GET" {
+        return if known {
+            Response::text(405, "only GET is answered").with_header("Allow", "GET")
+        } else {
+            Response::text(404, "not found")
         };
-        let path = request.url().split('?').next().unwrap_or("/").to_string();
-        let (body, kind, code) = match path.as_str() {
-            "/" | "/index.html" => (page(&shared.settled()).into_bytes(), "text/html; charset=utf-8", 200),
-            "/status.json" => {
-                let json = serde_json::to_vec(&shared.settled().json()).unwrap_or_default();
-                (json, "application/json", 200)
-            }
-            "/frame.png" => match frame_png(&shared) {
-                Some(png) => (png, "image/png", 200),
-                None => (b"no frame yet".to_vec(), "text/plain", 404),
-            },
-            _ => (b"not found".to_vec(), "text/plain", 404),
-        };
-        let header = Header::from_bytes(&b"Content-Type"[..], kind.as_bytes()).expect("a valid header");
-        let no_cache = Header::from_bytes(&b"Cache-Control"[..], &b"no-store"[..]).expect("a valid header");
-        let response =
-            Response::new(code.into(), vec![header, no_cache], Cursor::new(body.clone()), Some(body.len()), None);
-        let _ = request.respond(response);
     }
+    let response = match request.path.as_str() {
+        "/" | "/index.html" => Response::new(200, "text/html; charset=utf-8", page(&shared.settled())),
+        "/status.json" => {
+            Response::new(200, "application/json", serde_json::to_vec(&shared.settled().json()).unwrap_or_default())
+        }
+        "/frame.png" => match frame_png(shared) {
+            Some(png) => Response::new(200, "image/png", png),
+            None => Response::text(404, "no frame yet"),
+        },
+        _ => Response::text(404, "not found"),
+    };
+    response.with_header("Cache-Control", "no-store")
 }
 
 /// The last frame's first left shot as a grey PNG.

@@ -68,3 +68,4 @@ pub use trial::report::{
     rho_text, study_grid, sweep_folder, trial_report, PlacementRow, TrialReport, REPORT_HTML, REPORT_JSON,
 };
 pub use trial::review_page::review_page;
+pub use trial::review_server::{serve_review, ReviewEnd, Reviewed, MAX_LABEL_BYTES};

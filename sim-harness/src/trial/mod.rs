@@ -11,3 +11,4 @@ pub mod plan;
 pub mod rank;
 pub mod report;
 pub mod review_page;
+pub mod review_server;
