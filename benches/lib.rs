@@ -6,6 +6,7 @@ mod phase;
 mod pipeline;
 mod pose;
 mod render;
+mod slots;
 mod stereo;
 
 criterion::criterion_group!(phase_benches, phase::benches);
@@ -17,6 +18,7 @@ criterion::criterion_main!(
     phase_benches,
     feature_benches,
     pose::benches,
+    slots::benches,
     pipeline_benches,
     hand_eye::benches
 );

@@ -128,8 +128,11 @@ fn cloud_to_pose_allocates_nothing_in_steady_state() {
     let allocating: Vec<(usize, usize)> =
         counts.iter().enumerate().filter(|(_, c)| c.0 > 0).map(|(i, c)| (i, c.0)).collect();
     assert!(allocating.is_empty(), "(frame, allocations) in process_cloud: {allocating:?}");
-    // The frames must exercise every stage, RANSAC's success path and ICP included.
+    // The frames must exercise every stage, RANSAC's success path and ICP included, and the
+    // slot judge after them.
     assert!(found > 0, "no frame found the tray, so ICP never ran");
+    let last_found = counts.last().is_some_and(|c| c.1);
+    assert_eq!(estimator.slots().len(), if last_found { 8 } else { 0 }, "the model's slots, judged under a pose");
 }
 
 /// Runs 20 frames on a rayon worker and asserts that none allocates; returns how many found

@@ -25,6 +25,7 @@ mod reconstruct;
 mod reconstruct_errors;
 mod serve;
 mod served;
+mod slots;
 mod study;
 mod study_folder;
 mod tolerance;

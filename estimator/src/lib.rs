@@ -57,10 +57,14 @@ pub use pose::{
     RansacCheck, RansacResult, Verdict, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS, MODEL_FORMAT_VERSION,
     RESTING_HEIGHT_MM, RESTING_TILT_DEG,
 };
+pub use pose::{
+    slot_letters, SlotJudge, SlotLayout, SlotReading, SlotState, EDGE_CELL, FLOOR_TOLERANCE_MM, MAX_MISMATCH_SHARE,
+    MIN_SEEN_SHARE,
+};
 pub use rig::Rig;
 pub use scoring::{
     choose_threshold, clopper_pearson_upper, median, pct, precision_recall, score, wilson_interval, FrameRecord, Score,
-    Scored, Summary, Timings, VerifiedSummary,
+    Scored, SlotRecord, SlotScore, SlotSummary, Summary, Timings, VerifiedSummary,
 };
 // The image buffers are camplace-config's (image files hold them too); callers name them
 // there, the stages here as `crate::GrayImage`.

@@ -9,7 +9,8 @@
 //! (a square one under quarter turns too), so the pose turned by 90°, 180° and 270° about
 //! the tray's z axis is scored too and the one whose whole tray explains most of the scene
 //! is kept. Last, the verification scores the pose against the scene cloud and gives it a
-//! verdict (`pose/verify.rs`).
+//! verdict (`pose/verify.rs`), and each slot of the tray is judged filled, empty or unseen
+//! under that pose from the same cloud (`pose/slots.rs`).
 //!
 //! Allocation policy: `Estimator::new` sizes every buffer for a full camera frame; a frame
 //! larger than any seen before may grow one once, after which `process` allocates nothing.
@@ -23,8 +24,8 @@ use nalgebra::{Isometry3, Point3};
 use crate::pose::{on_table, quarter_turns};
 use crate::{
     Correspondence, Error, ErrorKind, EstimatorConfig, FeatureExtractor, FeatureMatcher, Icp, IcpResult, Method, Model,
-    Ransac, RansacResult, Reconstruction, Reconstructor, Result, Rig, Verdict, Verification, Verifier,
-    AMBIGUOUS_TURN_SIGMAS,
+    Ransac, RansacResult, Reconstruction, Reconstructor, Result, Rig, SlotJudge, SlotReading, Verdict, Verification,
+    Verifier, AMBIGUOUS_TURN_SIGMAS,
 };
 
 /// Time spent in each stage of the last frame, ms (zero for stages a frame skipped).
@@ -141,6 +142,10 @@ struct Stages {
     ransac: Ransac,
     icp: Icp,
     verifier: Verifier,
+    /// The judge of the model's slots, when it carries them.
+    slots: Option<SlotJudge>,
+    /// Whether the last frame's slots were judged (a pose was found).
+    slots_judged: bool,
 }
 
 /// The tray-pose estimator of one rig and model, with every buffer it needs.
@@ -190,8 +195,11 @@ impl Estimator {
             ..Reconstruction::default()
         };
         let verifier = Verifier::for_model(&params, &model);
+        let slots = model.slots.clone().map(SlotJudge::new).transpose()?;
         let stages = Stages {
             verifier,
+            slots,
+            slots_judged: false,
             features: FeatureExtractor::new(&params, pixels)?,
             ransac: Ransac::new(&params, Arc::clone(&model))?,
             icp: Icp::new(&params, Arc::clone(&model))?,
@@ -322,6 +330,16 @@ impl Estimator {
         &self.reconstructor.rectification().camera
     }
 
+    /// The last frame's slots, judged under its pose from the scene cloud (one reading per
+    /// slot, each with its frame in the world); empty when the model carries no slots or the
+    /// frame found no pose. Only an accepted pose's readings may be handed on.
+    pub fn slots(&self) -> &[SlotReading] {
+        match &self.stages.slots {
+            Some(judge) if self.stages.slots_judged => judge.readings(),
+            _ => &[],
+        }
+    }
+
     /// The last frame's down-sampled scene cloud, world mm.
     pub fn scene_cloud(&self) -> &[Point3<f32>] {
         self.stages.features.cloud()
@@ -343,6 +361,7 @@ impl Stages {
         let p = &self.params;
         let mut out = PoseEstimate::default();
         self.correspondences.clear();
+        self.slots_judged = false;
 
         let f = self.features.extract(points, &self.sensor_position)?;
         out.timings.downsample_ms = f.downsample_ms;
@@ -460,6 +479,12 @@ impl Stages {
             out.t_world_tray = on_table(&out.t_world_tray);
         }
         out.timings.verify_ms = ms(t);
+        // Each slot's floor and the item's top are read under the pose handed on; the time
+        // counts in the frame's total.
+        if let Some(judge) = &mut self.slots {
+            judge.judge(self.features.cloud(), &out.t_world_tray);
+            self.slots_judged = true;
+        }
         Ok(out)
     }
 }

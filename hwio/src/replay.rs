@@ -7,7 +7,7 @@ use std::path::Path;
 
 use camplace_config::{remove_stale_temp_files, write_atomic, DATASET_SUMMARY};
 use camplace_config::{Cell, TruthFile};
-use camplace_estimator::{isometry_from_rows, score, FrameRecord, Summary, Verifier};
+use camplace_estimator::{isometry_from_rows, score, FrameRecord, SlotScore, Summary, Verifier};
 use camplace_estimator::{method_for, Estimator, EstimatorConfig, Method, Model, PoseEstimate, Rig};
 
 use crate::{Error, ErrorKind, FrameSource, Frames, RecordedSource, Result};
@@ -46,12 +46,15 @@ pub fn record(
     name: &str,
     truth: Option<&Path>,
 ) -> Result<FrameRecord> {
-    let mut record = FrameRecord::new(name, pose).with_robot(cell);
+    let mut record = FrameRecord::new(name, pose).with_slots(estimator.slots()).with_robot(cell);
     if let Some(path) = truth {
         let truth = TruthFile::load(path)?;
         let symmetries: Vec<f32> = truth.symmetries.iter().map(|&s| s as f32).collect();
         let t = isometry_from_rows(&truth.t_world_tray);
         record.score = Some(score(pose, estimator, &t, &symmetries, &cell.metrics));
+        if !estimator.slots().is_empty() {
+            record.slot_score = Some(SlotScore::of(estimator.slots(), &truth.filled, &pose.t_world_tray, &t));
+        }
     }
     Ok(record)
 }

@@ -126,6 +126,19 @@ fn pose_dict<'py>(py: Python<'py>, pose: &PoseEstimate) -> PyResult<Bound<'py, P
     Ok(d)
 }
 
+/// Each slot's state and frame as a list of dicts.
+fn slot_list<'py>(py: Python<'py>, readings: &[camplace_estimator::SlotReading]) -> PyResult<Bound<'py, PyList>> {
+    let list = PyList::empty(py);
+    for r in readings {
+        let d = PyDict::new(py);
+        d.set_item("state", r.state.as_str())?;
+        d.set_item("askew", r.askew)?;
+        d.set_item("frame", matrix(py, &r.t_world_slot))?;
+        list.append(d)?;
+    }
+    Ok(list)
+}
+
 /// The tray-pose estimator of one rig and tray model, as `camplace run` runs it.
 ///
 /// Estimator(cell, model, *, rig=None, placement=None, method="one-shot", tray=None)
@@ -179,8 +192,10 @@ impl Estimator {
     /// rows, e.g. a crop of a wider array), or lists of them for a phase-12 frame. They are
     /// read in place, never copied, and the interpreter runs other threads meanwhile.
     /// Returns {"found", "pose" (4 x 4 T_world_tray, mm), "score", "verdict", "accepted",
-    /// "inliers", "timings_ms" (each stage and "total")}. Only an accepted pose is meant for
-    /// a robot.
+    /// "inliers", "timings_ms" (each stage and "total"), "slots" (per slot {"state":
+    /// "filled" | "empty" | "unseen", "askew", "frame" (4 x 4 T_world_slot, mm)}; empty for a
+    /// model without slots or a frame without a pose)}. Only an accepted pose is meant for a
+    /// robot.
     fn process<'py>(
         &mut self,
         py: Python<'py>,
@@ -191,7 +206,9 @@ impl Estimator {
         let (lv, rv) = (views("left", &l)?, views("right", &r)?);
         let inner = &mut self.inner;
         let pose = py.detach(|| inner.process(&lv, &rv)).map_err(fail)?;
-        pose_dict(py, &pose)
+        let d = pose_dict(py, &pose)?;
+        d.set_item("slots", slot_list(py, self.inner.slots())?)?;
+        Ok(d)
     }
 
     /// The address of the first left shot's pixels the last process() read: equal to

@@ -157,13 +157,15 @@ fn answer(line: &[u8], cx: &Context) -> String {
         Ok(Request::Ping) => "PONG".to_string(),
         Ok(Request::Version) => format!("VERSION {PROTOCOL} camplace={}", cx.version),
         Ok(Request::Status) => cx.shared.settled().status_line(),
-        Ok(Request::Trigger { id }) => trigger(id, cx),
+        Ok(Request::Trigger { id }) => trigger(id, None, cx),
+        // The worker holds the last pose's slots: it answers in turn with the triggers.
+        Ok(Request::Slot { n }) => trigger(None, Some(n), cx),
     }
 }
 
-fn trigger(id: Option<String>, cx: &Context) -> String {
+fn trigger(id: Option<String>, slot: Option<usize>, cx: &Context) -> String {
     let (reply, replied) = bounded(1);
-    let job = Job { id: id.clone(), at: Instant::now(), reply };
+    let job = Job { id: id.clone(), at: Instant::now(), reply, slot };
     match cx.jobs.try_send(job) {
         Ok(()) => {}
         Err(TrySendError::Full(_)) => {

@@ -22,6 +22,8 @@ pub enum Request {
     Status,
     /// The protocol and program versions.
     Version,
+    /// Slot `n`'s frame (0-based, the cell's slot order) under the last accepted pose.
+    Slot { n: usize },
 }
 
 /// Why a request line was refused (`BAD_REQUEST <reason>`).
@@ -39,6 +41,10 @@ pub enum BadRequest {
     BadId,
     /// More words than the command takes.
     ExtraWords,
+    /// `SLOT` without a slot number of 1 to 4 digits.
+    BadSlot,
+    /// A slot number past the tray's last slot.
+    NoSuchSlot,
 }
 
 impl BadRequest {
@@ -51,6 +57,8 @@ impl BadRequest {
             BadRequest::UnknownCommand => "unknown-command",
             BadRequest::BadId => "bad-id",
             BadRequest::ExtraWords => "extra-words",
+            BadRequest::BadSlot => "bad-slot",
+            BadRequest::NoSuchSlot => "no-such-slot",
         }
     }
 }
@@ -81,6 +89,13 @@ pub fn parse_request(line: &[u8]) -> Result<Request, BadRequest> {
         "PING" => no_more(Request::Ping),
         "STATUS" => no_more(Request::Status),
         "VERSION" => no_more(Request::Version),
+        "SLOT" => match rest[..] {
+            [n] if (1..=4).contains(&n.len()) && n.bytes().all(|b| b.is_ascii_digit()) => {
+                n.parse().map(|n| Request::Slot { n }).map_err(|_| BadRequest::BadSlot)
+            }
+            [_] | [] => Err(BadRequest::BadSlot),
+            _ => Err(BadRequest::ExtraWords),
+        },
         _ => Err(BadRequest::UnknownCommand),
     }
 }
@@ -148,6 +163,9 @@ pub struct TriggerReply {
     pub capture_ms: f64,
     /// The estimator on that frame, ms.
     pub compute_ms: f64,
+    /// Each slot's state under the pose, one letter per slot (only with `Ok`, and a model
+    /// that carries slots): see [`slot_letters`](camplace_estimator::slot_letters).
+    pub slots: Option<String>,
 }
 
 impl TriggerReply {
@@ -175,8 +193,25 @@ impl TriggerReply {
             s.push_str(&format!(" score={score:.4}"));
         }
         s.push_str(&format!(" capture_ms={:.1} compute_ms={:.1}", self.capture_ms, self.compute_ms));
+        // Last, so a client that reads the fields before it by position still finds them.
+        if let Some(slots) = &self.slots {
+            s.push_str(" slots=");
+            s.push_str(slots);
+        }
         s
     }
+}
+
+/// The reply to `SLOT n`: the slot's state and its frame in the robot's format after an
+/// accepted pose (`state` as `SlotState::as_str`, `askew` 0 or 1, `frame` the trigger's).
+pub fn slot_line(n: usize, state: &str, askew: bool, frame: &str, pose: &str) -> String {
+    format!("{} slot={n} state={state} askew={} frame={frame} pose={pose}", Status::Ok.as_str(), u8::from(askew))
+}
+
+/// The reply to `SLOT n` when the last trigger gave no accepted pose (or the model carries
+/// no slots): there is no frame to give.
+pub fn slot_without_pose_line(n: usize) -> String {
+    format!("{} slot={n}", Status::NoPose.as_str())
 }
 
 /// The reply to a refused request.
@@ -228,6 +263,12 @@ mod tests {
         assert_eq!(parse_request(b"PING\x00"), Err(BadRequest::NotAscii));
         assert_eq!(parse_request("TRIGGER é".as_bytes()), Err(BadRequest::NotAscii));
         assert_eq!(parse_request(&[b'P'; MAX_REQUEST_BYTES + 1]), Err(BadRequest::TooLong));
+        assert_eq!(parse_request(b"SLOT 3"), Ok(Request::Slot { n: 3 }));
+        assert_eq!(parse_request(b"slot 0012\r"), Ok(Request::Slot { n: 12 }));
+        assert_eq!(parse_request(b"SLOT"), Err(BadRequest::BadSlot));
+        assert_eq!(parse_request(b"SLOT -1"), Err(BadRequest::BadSlot));
+        assert_eq!(parse_request(b"SLOT 12345"), Err(BadRequest::BadSlot));
+        assert_eq!(parse_request(b"SLOT 1 2"), Err(BadRequest::ExtraWords));
     }
 
     #[test]
@@ -241,10 +282,21 @@ mod tests {
             score: Some(0.25),
             capture_ms: 1.25,
             compute_ms: 40.0,
+            slots: None,
         };
         assert_eq!(r.line(), "REJECTED poor-fit id=9 frame=0003 score=0.2500 capture_ms=1.2 compute_ms=40.0");
         let ok = TriggerReply { status: Status::Ok, reason: None, pose: Some("1,2,3,0,0,0".into()), ..r };
         assert_eq!(ok.line(), "OK id=9 frame=0003 pose=1,2,3,0,0,0 score=0.2500 capture_ms=1.2 compute_ms=40.0");
+        let slots = TriggerReply { slots: Some("FA?E".into()), ..ok };
+        assert_eq!(
+            slots.line(),
+            "OK id=9 frame=0003 pose=1,2,3,0,0,0 score=0.2500 capture_ms=1.2 compute_ms=40.0 slots=FA?E"
+        );
+        assert_eq!(
+            slot_line(2, "filled", true, "0003", "1,2,3"),
+            "OK slot=2 state=filled askew=1 frame=0003 pose=1,2,3"
+        );
+        assert_eq!(slot_without_pose_line(5), "NO_POSE slot=5");
         assert_eq!(bad_request_line(BadRequest::TooLong), "BAD_REQUEST too-long");
         assert_eq!(busy_line("queue-full", Some("4")), "BUSY queue-full id=4");
     }

@@ -1,14 +1,17 @@
 //! The trigger worker: the one thread that owns the camera and the estimator. It takes
 //! triggers from a small queue one at a time: capture, estimate, verify, reply; then it
 //! updates the page's state, keeps a refused frame in the flight recorder and runs the
-//! drift watch, after the reply has gone.
+//! drift watch, after the reply has gone. It keeps the last accepted pose's slot frames and
+//! answers `SLOT n` from them, in turn with the triggers.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use camplace_config::{format_pose_exact, RobotPoseFormat};
-use camplace_estimator::{isometry_from_rows, isometry_to_rows, Camera as LensCamera, Estimator, Verdict};
+use camplace_estimator::{
+    isometry_from_rows, isometry_to_rows, slot_letters, Camera as LensCamera, Estimator, SlotState, Verdict,
+};
 use camplace_hwio::Frames;
 use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};
 use nalgebra::Point3;
@@ -16,7 +19,9 @@ use nalgebra::Point3;
 use crate::camera::Camera;
 use crate::drift::DriftWatch;
 use crate::outline::{outline, outline_points};
-use crate::protocol::{rejected_reason, Status, TriggerReply};
+use crate::protocol::{
+    bad_request_line, rejected_reason, slot_line, slot_without_pose_line, BadRequest, Status, TriggerReply,
+};
 use crate::recorder::FlightRecorder;
 use crate::state::{LastTrigger, Shared};
 use crate::Log;
@@ -27,6 +32,20 @@ pub(crate) struct Job {
     /// When the request line was read.
     pub(crate) at: Instant,
     pub(crate) reply: Sender<String>,
+    /// `SLOT n`: the slot asked for, answered from the last trigger instead of a capture.
+    pub(crate) slot: Option<usize>,
+}
+
+/// The last trigger's slots, for `SLOT n`.
+#[derive(Default)]
+struct LastSlots {
+    /// Whether the last trigger's pose was accepted (only then are its frames handed on).
+    accepted: bool,
+    /// The frame's name.
+    frame: String,
+    /// Each slot's state, askew flag and frame (slot -> robot base, or world without a
+    /// `[robot]`) in the robot's pose format.
+    slots: Vec<(SlotState, bool, String)>,
 }
 
 pub(crate) struct Worker {
@@ -41,14 +60,32 @@ pub(crate) struct Worker {
     pub(crate) log: Log,
 }
 
+/// Slot `n` of `last` as the reply to `SLOT n`; `slot_count` is the model's slots.
+fn slot_reply(n: usize, last: &LastSlots, slot_count: usize) -> String {
+    if n >= slot_count && slot_count > 0 {
+        return bad_request_line(BadRequest::NoSuchSlot);
+    }
+    match last.slots.get(n) {
+        Some((state, askew, pose)) if last.accepted => slot_line(n, state.as_str(), *askew, &last.frame, pose),
+        _ => slot_without_pose_line(n),
+    }
+}
+
 impl Worker {
     /// Serves `jobs` until `stop` is set; the trigger in hand is finished first.
     pub(crate) fn run(mut self, jobs: Receiver<Job>, stop: Arc<AtomicBool>) {
         let points = outline_points(self.estimator.model());
+        let slot_count = self.estimator.model().slots.as_ref().map_or(0, |l| l.slots.len());
         let mut frames = Frames::new(0);
+        let mut last = LastSlots::default();
         while !stop.load(Ordering::SeqCst) {
             match jobs.recv_timeout(Duration::from_millis(100)) {
-                Ok(job) => self.trigger(job, &mut frames, &points),
+                Ok(job) => match job.slot {
+                    Some(n) => {
+                        let _ = job.reply.send(slot_reply(n, &last, slot_count));
+                    }
+                    None => self.trigger(job, &mut frames, &points, &mut last),
+                },
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => break,
             }
@@ -60,8 +97,10 @@ impl Worker {
         }
     }
 
-    fn trigger(&mut self, job: Job, frames: &mut Frames, points: &[Point3<f64>]) {
+    fn trigger(&mut self, job: Job, frames: &mut Frames, points: &[Point3<f64>], last: &mut LastSlots) {
         let start = Instant::now();
+        // A `SLOT n` after this trigger answers for its pose, not an older one.
+        last.accepted = false;
         let grabbed = self.camera.grab(frames);
         let capture_ms = start.elapsed().as_secs_f64() * 1e3;
         let mut reply = TriggerReply {
@@ -73,6 +112,7 @@ impl Worker {
             score: None,
             capture_ms,
             compute_ms: 0.0,
+            slots: None,
         };
         let info = match grabbed {
             Ok(info) => info,
@@ -109,6 +149,24 @@ impl Worker {
                 };
                 reply.status = Status::Ok;
                 reply.pose = Some(format_pose_exact(&t, self.format).replace(' ', ","));
+                let readings = self.estimator.slots();
+                if !readings.is_empty() {
+                    let mut letters = String::with_capacity(readings.len());
+                    slot_letters(readings, &mut letters);
+                    reply.slots = Some(letters);
+                    // Each slot's frame as the pose is formatted: rows, then the robot's frame.
+                    last.frame.clone_from(&info.name);
+                    last.slots.clear();
+                    for r in readings {
+                        let rows = isometry_to_rows(&r.t_world_slot);
+                        let t = match &self.t_robot_world {
+                            Some(w) => isometry_to_rows(&(isometry_from_rows(w) * isometry_from_rows(&rows))),
+                            None => rows,
+                        };
+                        last.slots.push((r.state, r.askew, format_pose_exact(&t, self.format).replace(' ', ",")));
+                    }
+                    last.accepted = true;
+                }
             }
             (true, v) => {
                 reply.status = Status::Rejected;

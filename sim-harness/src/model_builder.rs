@@ -4,7 +4,9 @@
 //! the paper takes one item at a time — every capture rendered and reconstructed by the very sensor
 //! and estimator stages of the placement. Each capture's key points and descriptors are
 //! the estimator's own (same spacing, radius and relief filter); a viewpoint's fill states
-//! then share the features they agree on. The file format is the estimator's.
+//! then share the features they agree on. The model carries the tray's slots and the item's
+//! footprint profile, so the deployed estimator can judge them. The file format is the
+//! estimator's.
 
 use camplace_config::{Cell, Placement};
 use camplace_estimator::MIN_NORMAL_NEIGHBOURS;
@@ -16,6 +18,7 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
 use crate::render::{Frame, Simulator};
+use crate::scene::tray::slot_layout;
 use crate::scene::SceneSpec;
 use crate::seeds::noise_key;
 use crate::workers::each_index;
@@ -124,10 +127,13 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
         describe(features, &raw, &eye)
     })?;
 
+    // Footprint cells of two voxels hold a few scene points each wherever the slot is seen.
+    let slot_cell_mm = 2.0 * params.surface_resolution;
     let mut model = Model {
         surface_resolution: params.surface_resolution as f32,
         symmetries_deg: cell.tray.symmetries.iter().map(|&s| s as f32).collect(),
         origin: Some(origin),
+        slots: slot_layout(&probe.objects().tray, &probe.objects().item, slot_cell_mm),
         ..Model::default()
     };
     for v in 0..viewpoints {

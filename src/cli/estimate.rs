@@ -47,11 +47,14 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let points: Vec<Point3<f32>> = cloud.points.iter().map(|p| Point3::from(*p)).collect();
     let mut estimator = Estimator::new(&EstimatorConfig::from(&cell), &rig, model, Method::OneShot)?;
     let pose = estimator.process_cloud(&points).with_context(|| path.display().to_string())?;
-    outln!("{}", FrameRecord::new(path.display().to_string(), &pose).with_robot(&cell).to_line());
+    let record = FrameRecord::new(path.display().to_string(), &pose).with_slots(estimator.slots()).with_robot(&cell);
+    outln!("{}", record.to_line());
     Ok(ExitCode::SUCCESS)
 }
 
 fn dataset(cell: &camplace_config::Cell, model: Model, dir: &Path) -> anyhow::Result<ExitCode> {
+    // Marks made on the poses about to be replaced keep saying which poses they judged.
+    camplace_sim::tie_marks_to_poses(dir)?;
     let d = estimate_dataset(cell, model, dir)?;
     outln!(
         "{} frames ({}): {}; wrote {}",

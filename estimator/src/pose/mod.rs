@@ -1,6 +1,7 @@
 //! From feature matches to the tray's pose: the tray model, prerejective RANSAC for the
 //! coarse pose, point-to-plane ICP to refine it, the rigid fit both use, and the quality
-//! metrics of an estimate against the truth, and the verification of the pose found.
+//! metrics of an estimate against the truth, and the verification of the pose found, and the states of the
+//! tray's slots under it.
 
 mod icp;
 mod kabsch;
@@ -9,6 +10,7 @@ mod model;
 mod model_file;
 mod model_load;
 mod ransac;
+mod slots;
 mod verify;
 
 pub(crate) use icp::{on_table, quarter_turns};
@@ -17,4 +19,8 @@ pub use metrics::{correct_matches, pose_errors, PoseErrors};
 pub use model::{Model, ModelOrigin, ModelVerification, ModelView};
 pub use model_file::MODEL_FORMAT_VERSION;
 pub use ransac::{Ransac, RansacCheck, RansacResult};
+pub use slots::{
+    slot_letters, SlotJudge, SlotLayout, SlotReading, SlotState, EDGE_CELL, FLOOR_TOLERANCE_MM, MAX_MISMATCH_SHARE,
+    MIN_SEEN_SHARE,
+};
 pub use verify::{Verdict, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS, RESTING_HEIGHT_MM, RESTING_TILT_DEG};

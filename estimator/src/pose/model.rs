@@ -11,6 +11,7 @@ use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::error::{Error, ErrorKind, Result};
 use crate::features::Descriptor;
+use crate::pose::SlotLayout;
 
 /// The tray as the estimator knows it.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -33,6 +34,9 @@ pub struct Model {
     /// The verification threshold measured in simulation for this model; `None` when it was
     /// not measured (a file older than version 4, a test fixture).
     pub verification: Option<ModelVerification>,
+    /// The tray's slots and the item they hold, so a frame's slots can be judged; `None`
+    /// for a model without them (a file older than version 5, a test fixture).
+    pub slots: Option<SlotLayout>,
 }
 
 /// The verification threshold a model carries and what it was measured on, so that the
@@ -139,6 +143,9 @@ impl Model {
                 ));
             }
         }
+        if let Some(slots) = &self.slots {
+            slots.validate()?;
+        }
         Ok(())
     }
 
@@ -205,6 +212,14 @@ pub(crate) mod tests {
                 accepted: 280,
                 wrong_accepted: 1,
                 wrong_upper: 0.0166,
+            }),
+            slots: seed.is_multiple_of(3).then(|| SlotLayout {
+                slots: vec![[-25.0, 0.0, 5.0, 0.0], [25.0, 0.0, 5.0, 90.0 + seed as f64]],
+                footprint_min_mm: [-15.0, -14.0],
+                cell_mm: [3.75, 3.5],
+                cols: 8,
+                rows: 8,
+                top_mm: (0..64).map(|i| if i % 8 == 0 { crate::pose::EDGE_CELL } else { 30.0 }).collect(),
             }),
         }
     }

@@ -6,17 +6,20 @@
 use nalgebra::{Point3, Vector3};
 
 use super::model::{Model, ModelOrigin, ModelVerification, ModelView};
+use super::slots::SlotLayout;
 use crate::error::{Error, ErrorKind, Result};
 use crate::features::{quantise, ECSAD_DIM, QUANTISATION_STEPS};
 use camplace_config::ContentHash;
 
-/// Version of the binary layout written by [`Model::to_bytes`]. Version 4 added the `VRFY`
+/// Version of the binary layout written by [`Model::to_bytes`]. Version 5 added the `SLOT`
+/// section (the slots' poses and the item's footprint profile); older files read without
+/// slots, so their frames carry no slot states. Version 4 added the `VRFY`
 /// section (the verification threshold measured in simulation). Version 3 stores points as
 /// 16-bit multiples of a power-of-two step, normals in 16-bit octahedral coordinates and
 /// descriptors as the bytes the matcher compares; version 2 added the `ORIG` section.
 /// Versions 1 to 3 still read (1 and 2 hold everything as `f32`, 1 has no origin); they
 /// carry no verification threshold, so the cell's `estimator.verify_threshold` applies.
-pub const MODEL_FORMAT_VERSION: u32 = 4;
+pub const MODEL_FORMAT_VERSION: u32 = 5;
 
 /// First bytes of every model file.
 pub const MODEL_MAGIC: [u8; 8] = *b"CPLMODEL";
@@ -27,6 +30,12 @@ const TAG_VIEW: [u8; 4] = *b"VIEW";
 const TAG_SYMM: [u8; 4] = *b"SYMM";
 const TAG_ORIG: [u8; 4] = *b"ORIG";
 const TAG_VRFY: [u8; 4] = *b"VRFY";
+const TAG_SLOT: [u8; 4] = *b"SLOT";
+/// The most slots a `SLOT` section may hold (a tray's slots are named by one byte in the
+/// simulator's object ids and by `SLOT n` in the robot protocol).
+const MAX_SLOTS: usize = 1 << 12;
+/// The most footprint cells a `SLOT` section may hold.
+const MAX_FOOTPRINT_CELLS: usize = 1 << 16;
 /// The `VRFY` payload of a measured threshold: threshold, max wrong, upper bound (f32) and
 /// scenes, accepted, wrong accepted (u32).
 const VERIFICATION_BYTES: usize = 6 * 4;
@@ -50,7 +59,7 @@ const MIN_STEP_EXP: i32 = -20;
 const MAX_STEP_EXP: i32 = 20;
 
 impl Model {
-    /// The model in its binary file layout (little endian), format version 4:
+    /// The model in its binary file layout (little endian), format version 5:
     /// magic `CPLMODEL`, format version (u32), body length (u64), body, CRC-32 of all before.
     /// The body is tagged sections, each `tag[4] length(u64) payload`: `HEAD` (surface
     /// resolution f32, feature, view and symmetry counts u32), `FEAT` (the step s f32, then
@@ -72,7 +81,7 @@ impl Model {
         self.encode(MODEL_FORMAT_VERSION)
     }
 
-    /// The layout of format `version` (1 to 4); versions 1 to 3 for tests of old files.
+    /// The layout of format `version` (1 to 5); versions 1 to 4 for tests of old files.
     fn encode(&self, version: u32) -> Vec<u8> {
         let compact = version >= 3;
         let (feature_bytes, point_bytes, step_bytes) =
@@ -82,12 +91,15 @@ impl Model {
         let origin_bytes = if version >= 2 { 12 + origin.len() } else { 0 };
         let verification_len = if self.verification.is_some() { VERIFICATION_BYTES } else { 0 };
         let verification_bytes = if version >= 4 { 12 + verification_len } else { 0 };
+        let slots = self.slots.as_ref().map(encode_slots).unwrap_or_default();
+        let slot_bytes = if version >= 5 { 12 + slots.len() } else { 0 };
         let body_len = (12 + 16)
             + (12 + step_bytes + self.feature_points.len() * feature_bytes)
             + view_bytes
             + (12 + 4 * self.symmetries_deg.len())
             + origin_bytes
-            + verification_bytes;
+            + verification_bytes
+            + slot_bytes;
         let mut out = Vec::with_capacity(PREAMBLE_LEN + body_len + 4);
         out.extend_from_slice(&MODEL_MAGIC);
         out.extend_from_slice(&version.to_le_bytes());
@@ -153,6 +165,10 @@ impl Model {
                     put_u32(&mut out, n);
                 }
             }
+        }
+        if version >= 5 {
+            section(&mut out, TAG_SLOT, slots.len());
+            out.extend_from_slice(&slots);
         }
         let crc = crc32(&out);
         put_u32(&mut out, crc);
@@ -268,9 +284,11 @@ impl Model {
         symm.finish()?;
         let origin = if version >= 2 { decode_origin(r.section(TAG_ORIG)?)? } else { None };
         let verification = if version >= 4 { decode_verification(r.section(TAG_VRFY)?)? } else { None };
+        let slots = if version >= 5 { decode_slots(r.section(TAG_SLOT)?)? } else { None };
         if r.remaining() != 0 {
             let last = match version {
-                4.. => "VRFY",
+                5.. => "SLOT",
+                4 => "VRFY",
                 2 | 3 => "ORIG",
                 _ => "SYMM",
             };
@@ -289,6 +307,7 @@ impl Model {
             symmetries_deg,
             origin,
             verification,
+            slots,
         };
         model.validate()?;
         // A model is what the current format holds, whichever version it was read from: an
@@ -363,6 +382,63 @@ fn decode_verification(mut s: Reader<'_>) -> Result<Option<ModelVerification>> {
     let wrong_accepted = s.u32("the verification's wrong accepted poses")?;
     s.finish()?;
     Ok(Some(ModelVerification { threshold, max_wrong, scenes, accepted, wrong_accepted, wrong_upper }))
+}
+
+fn encode_slots(l: &SlotLayout) -> Vec<u8> {
+    let mut out = Vec::with_capacity(4 + 32 * l.slots.len() + 24 + 4 * l.top_mm.len());
+    put_u32(&mut out, l.slots.len() as u32);
+    for s in &l.slots {
+        for v in s {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    for v in l.footprint_min_mm.iter().chain(&l.cell_mm) {
+        put_f32(&mut out, *v);
+    }
+    put_u32(&mut out, l.cols);
+    put_u32(&mut out, l.rows);
+    for v in &l.top_mm {
+        put_f32(&mut out, *v);
+    }
+    out
+}
+
+/// The `SLOT` section: empty for a model without slots. Counts are checked against the
+/// section's length before anything is allocated.
+fn decode_slots(mut s: Reader<'_>) -> Result<Option<SlotLayout>> {
+    if s.remaining() == 0 {
+        return Ok(None);
+    }
+    let n = s.u32("the slot count")? as usize;
+    if n > MAX_SLOTS || n * 32 > s.remaining() {
+        return Err(Error::new(
+            ErrorKind::Model,
+            format!("model: corrupted: expected at most {MAX_SLOTS} slots in the section's bytes, found count {n}"),
+        ));
+    }
+    let mut slots = Vec::with_capacity(n);
+    for _ in 0..n {
+        let mut pose = [0.0; 4];
+        for v in &mut pose {
+            *v = f64::from_le_bytes(s.take(8, "a slot pose")?.try_into().expect("8 bytes"));
+        }
+        slots.push(pose);
+    }
+    let footprint_min_mm = [s.f32("the footprint corner")?, s.f32("the footprint corner")?];
+    let cell_mm = [s.f32("the footprint cell size")?, s.f32("the footprint cell size")?];
+    let cols = s.u32("the footprint columns")?;
+    let rows = s.u32("the footprint rows")?;
+    let cells = (cols as usize).saturating_mul(rows as usize);
+    if cells > MAX_FOOTPRINT_CELLS {
+        return Err(Error::new(
+            ErrorKind::Model,
+            format!("model: corrupted: expected at most {MAX_FOOTPRINT_CELLS} footprint cells, found {cols} x {rows}"),
+        ));
+    }
+    s.expect_len(cells, 4, "footprint cells")?;
+    let top_mm = (0..cells).map(|_| s.f32("a footprint cell")).collect::<Result<Vec<_>>>()?;
+    s.finish()?;
+    Ok(Some(SlotLayout { slots, footprint_min_mm, cell_mm, cols, rows, top_mm }))
 }
 
 /// The power of two (mm) that fits every coordinate of `points` into i16 steps, at least
@@ -604,7 +680,32 @@ mod tests {
             };
             assert_eq!(read, expected, "version {v}");
         }
-        assert_eq!(m.to_bytes(), files[3]);
+        assert_eq!(m.encode(4), files[3]);
+    }
+
+    /// A version 5 file carries the slots as written, bit for bit; a version 4 file of the
+    /// same model reads without them.
+    #[test]
+    fn slots_round_trip_and_older_files_have_none() {
+        let m = small_model(3);
+        let slots = m.slots.clone().expect("small_model(3) has slots");
+        let back = Model::from_bytes(&m.to_bytes()).unwrap();
+        assert_eq!(back.slots.as_ref(), Some(&slots));
+        assert_eq!(Model::from_bytes(&m.encode(4)).unwrap(), Model { slots: None, ..back.clone() });
+        // A corrupted slot count or grid is refused by name, not allocated.
+        let bytes = m.to_bytes();
+        let end = bytes.len() - 4;
+        let section = end - encode_slots(&slots).len();
+        assert_eq!(&bytes[section - 12..section - 8], b"SLOT");
+        for (offset, value) in [(0usize, u32::MAX), (0, 3), (4 + 64 + 16, 1 << 20)] {
+            let mut b = bytes.clone();
+            b[section + offset..section + offset + 4].copy_from_slice(&value.to_le_bytes());
+            let crc = crc32(&b[..end]);
+            b[end..].copy_from_slice(&crc.to_le_bytes());
+            let e = Model::from_bytes(&b).unwrap_err();
+            assert_eq!(e.kind(), ErrorKind::Model, "{e}");
+            assert!(e.to_string().contains("expected"), "{e}");
+        }
     }
 
     /// Version 3 has no NaN to write; the f32 layouts carry it to the reader, which refuses it.
@@ -644,8 +745,8 @@ mod tests {
             normals(&g.normals, &v.normals);
         }
         assert_eq!(
-            (got.surface_resolution, &got.symmetries_deg, &got.origin, &got.verification),
-            (m.surface_resolution, &m.symmetries_deg, &m.origin, &m.verification)
+            (got.surface_resolution, &got.symmetries_deg, &got.origin, &got.verification, &got.slots),
+            (m.surface_resolution, &m.symmetries_deg, &m.origin, &m.verification, &m.slots)
         );
     }
 
@@ -662,7 +763,7 @@ mod tests {
             assert_close(&twice, &m);
             // Versions 1 and 2 hold every number as written, and read as version 3 holds them;
             // versions before 4 carry no verification threshold.
-            let without = Model { verification: None, ..once.clone() };
+            let without = Model { verification: None, slots: None, ..once.clone() };
             assert_eq!(Model::from_bytes(&m.encode(2)).unwrap(), without);
             assert_eq!(Model::from_bytes(&m.encode(3)).unwrap(), without);
         }
@@ -734,7 +835,7 @@ mod tests {
 
     #[test]
     fn a_version_1_file_reads_without_an_origin() {
-        let m = Model { origin: None, verification: None, ..small_model(6) };
+        let m = Model { origin: None, verification: None, slots: None, ..small_model(6) };
         let v1 = m.encode(1);
         assert_eq!(Model::from_bytes(&v1).unwrap(), Model::from_bytes(&m.to_bytes()).unwrap());
         for len in 0..v1.len() {
@@ -748,9 +849,10 @@ mod tests {
     fn a_damaged_origin_is_an_error_or_another_origin_never_a_panic() {
         let bytes = small_model(7).to_bytes();
         let end = bytes.len() - 4;
-        // An empty `VRFY` section (no threshold measured) follows `ORIG`.
-        assert!(small_model(7).verification.is_none());
-        let orig = end - 12 - 12 - encode_origin(small_model(7).origin.as_ref().unwrap()).len();
+        // An empty `VRFY` section (no threshold measured) and an empty `SLOT` section follow
+        // `ORIG`.
+        assert!(small_model(7).verification.is_none() && small_model(7).slots.is_none());
+        let orig = end - 12 - 12 - 12 - encode_origin(small_model(7).origin.as_ref().unwrap()).len();
         assert_eq!(&bytes[orig..orig + 4], b"ORIG");
         let mut rng = ChaCha8Rng::seed_from_u64(11);
         let mut failures = 0;
@@ -844,7 +946,7 @@ mod tests {
         let mut b = small_model(4).to_bytes();
         b[8..12].copy_from_slice(&7u32.to_le_bytes());
         let e = Model::from_bytes(&b).unwrap_err();
-        assert!(e.to_string().contains("version 1 to 4") && e.to_string().contains("version 7"), "{e}");
+        assert!(e.to_string().contains("version 1 to 5") && e.to_string().contains("version 7"), "{e}");
         let mut b = small_model(4).to_bytes();
         b.push(0);
         assert_eq!(Model::from_bytes(&b).unwrap_err().kind(), ErrorKind::Model);

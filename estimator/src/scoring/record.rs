@@ -1,9 +1,10 @@
-//! One frame's result as a JSON line: the pose, the counts of each stage, the stage timings
-//! and, where the truth is known, the paper's metrics.
+//! One frame's result as a JSON line: the pose, the counts of each stage, the stage timings,
+//! each slot's state and grasp frame and, where the truth is known, the paper's metrics and
+//! the slots' accuracy.
 
 use crate::{correct_matches, pose_errors};
 use crate::{isometry_from_rows, isometry_to_rows};
-use crate::{Estimator, PoseEstimate, StageTimings, Verdict};
+use crate::{Estimator, PoseEstimate, SlotReading, SlotState, StageTimings, Verdict};
 use camplace_config::{Cell, Metrics};
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
@@ -152,6 +153,107 @@ pub struct FrameRecord {
     /// was found (row-major 4 × 4, mm).
     #[serde(rename = "T_robot_tray", default, skip_serializing_if = "Option::is_none")]
     pub t_robot_tray: Option<[[f64; 4]; 4]>,
+    /// Each slot as judged under the pose, in slot order; absent when the model carries no
+    /// slots (a file older than format 5) or no pose was found.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slots: Option<Vec<SlotRecord>>,
+    /// The slots' states against the truth, where it is known.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slot_score: Option<SlotScore>,
+}
+
+/// One slot of one frame, as `poses.jsonl` holds it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SlotRecord {
+    /// `filled`, `empty` or `unseen`.
+    pub state: String,
+    /// Filled with something that is not an upright item (tilted, another size).
+    pub askew: bool,
+    /// Measured points in the footprint above the raise height.
+    pub points_above: u32,
+    /// The share of the footprint measured, in [0, 1].
+    pub seen_share: f32,
+    /// The slot's frame (where its item's bottom centre sits) -> world frame, row-major 4 × 4.
+    #[serde(rename = "T_world_slot")]
+    pub t_world_slot: [[f64; 4]; 4],
+    /// The slot's frame in the robot's base frame, for a filled slot of an accepted pose when
+    /// the cell has a `[robot]`.
+    #[serde(rename = "T_robot_slot", default, skip_serializing_if = "Option::is_none")]
+    pub t_robot_slot: Option<[[f64; 4]; 4]>,
+}
+
+impl SlotRecord {
+    /// The record of one reading.
+    pub fn of(r: &SlotReading) -> SlotRecord {
+        SlotRecord {
+            state: r.state.as_str().to_string(),
+            askew: r.askew,
+            points_above: r.points_above,
+            seen_share: r.seen_share,
+            t_world_slot: isometry_to_rows(&r.t_world_slot),
+            t_robot_slot: None,
+        }
+    }
+
+    /// Whether the slot was judged filled.
+    pub fn filled(&self) -> bool {
+        self.state == SlotState::Filled.as_str()
+    }
+}
+
+/// A frame's slot states against the truth's filled slots.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct SlotScore {
+    /// Slots judged.
+    pub slots: u32,
+    /// Slots holding an item judged empty.
+    pub filled_called_empty: u32,
+    /// Empty slots judged filled.
+    pub empty_called_filled: u32,
+    /// Slots judged unseen, whatever they held.
+    pub unseen: u32,
+    /// The largest distance of a truly filled slot's frame from its true place, mm.
+    #[serde(default)]
+    pub grasp_error_mm: f64,
+    /// The largest angle of a truly filled slot's frame from its true orientation, deg.
+    #[serde(default)]
+    pub grasp_error_deg: f64,
+}
+
+impl SlotScore {
+    /// `readings`, judged under the pose `t_world_tray`, against the truth's filled slots
+    /// `filled` and its pose `truth`: each grasp frame is compared with the same slot's frame
+    /// under the true pose (no symmetry is undone: a turned tray holds its slots elsewhere).
+    pub fn of(
+        readings: &[SlotReading],
+        filled: &[usize],
+        t_world_tray: &Isometry3<f64>,
+        truth: &Isometry3<f64>,
+    ) -> SlotScore {
+        let mut s = SlotScore { slots: readings.len() as u32, ..SlotScore::default() };
+        let to_truth = truth * t_world_tray.inverse();
+        for &n in filled {
+            let Some(r) = readings.get(n) else { continue };
+            let want = to_truth * r.t_world_slot;
+            let d = want.inverse() * r.t_world_slot;
+            s.grasp_error_mm = s.grasp_error_mm.max(d.translation.vector.norm());
+            s.grasp_error_deg = s.grasp_error_deg.max(d.rotation.angle().to_degrees());
+        }
+        for (n, r) in readings.iter().enumerate() {
+            match (r.state, filled.contains(&n)) {
+                (SlotState::Unseen, _) => s.unseen += 1,
+                (SlotState::Empty, true) => s.filled_called_empty += 1,
+                (SlotState::Filled, false) => s.empty_called_filled += 1,
+                _ => {}
+            }
+        }
+        s
+    }
+
+    /// Slots called filled when empty or empty when filled.
+    pub fn wrong(&self) -> u32 {
+        self.filled_called_empty + self.empty_called_filled
+    }
 }
 
 impl FrameRecord {
@@ -173,7 +275,16 @@ impl FrameRecord {
             ms: pose.timings.total_ms,
             score: None,
             t_robot_tray: None,
+            slots: None,
+            slot_score: None,
         }
+    }
+
+    /// Adds each slot's state and frame (`estimator.slots()` of the frame); nothing when
+    /// there are none.
+    pub fn with_slots(mut self, readings: &[SlotReading]) -> Self {
+        self.slots = (!readings.is_empty()).then(|| readings.iter().map(SlotRecord::of).collect());
+        self
     }
 
     /// Whether the pose was accepted by the verification (false for a record written
@@ -188,6 +299,12 @@ impl FrameRecord {
         self.t_robot_tray = cell.robot.as_ref().filter(|_| self.accepted()).map(|r| {
             isometry_to_rows(&(isometry_from_rows(&r.t_robot_world) * isometry_from_rows(&self.t_world_tray)))
         });
+        if let (Some(robot), true, Some(slots)) = (&cell.robot, self.accepted(), self.slots.as_mut()) {
+            let t_robot_world = isometry_from_rows(&robot.t_robot_world);
+            for slot in slots.iter_mut().filter(|s| s.filled()) {
+                slot.t_robot_slot = Some(isometry_to_rows(&(t_robot_world * isometry_from_rows(&slot.t_world_slot))));
+            }
+        }
         self
     }
 
@@ -200,6 +317,43 @@ impl FrameRecord {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Slot states are scored against the truth: each wrong call counted on its side, unseen
+    /// slots apart; a record's slots survive its line and reach the robot's frame only when
+    /// filled and accepted.
+    #[test]
+    fn slots_are_scored_and_recorded() {
+        let reading = |state| SlotReading { state, ..SlotReading::default() };
+        let r = [
+            reading(SlotState::Filled),
+            reading(SlotState::Empty),
+            reading(SlotState::Unseen),
+            reading(SlotState::Empty),
+            reading(SlotState::Filled),
+        ];
+        let same = Isometry3::identity();
+        let s = SlotScore::of(&r, &[0, 2, 3], &same, &same);
+        assert_eq!(
+            s,
+            SlotScore { slots: 5, filled_called_empty: 1, empty_called_filled: 1, unseen: 1, ..SlotScore::default() },
+            "slot 3 is filled but called empty, slot 4 empty but called filled"
+        );
+        assert_eq!(s.wrong(), 2);
+        // A pose 3 mm off along x and turned 0.5° about z moves slot 0's frame, 40 mm from the
+        // tray's origin along y, by its translation and the turn's lever.
+        let mut r = r;
+        r[0].t_world_slot = Isometry3::translation(0.0, 40.0, 0.0);
+        let truth = Isometry3::new(nalgebra::Vector3::new(3.0, 0.0, 0.0), nalgebra::Vector3::z() * 0.5f64.to_radians());
+        let s = SlotScore::of(&r, &[0], &same, &truth);
+        let want = (truth * nalgebra::Point3::new(0.0, 40.0, 0.0) - nalgebra::Point3::new(0.0, 40.0, 0.0)).norm();
+        assert!((s.grasp_error_mm - want).abs() < 1e-9 && (s.grasp_error_deg - 0.5).abs() < 1e-9, "{s:?}");
+        let pose = PoseEstimate { found: true, ..Default::default() };
+        let record = FrameRecord::new("0001", &pose).with_slots(&r);
+        let back: FrameRecord = serde_json::from_str(&record.to_line()).unwrap();
+        assert_eq!(back, record);
+        assert!(record.to_line().contains("\"state\":\"unseen\""), "{}", record.to_line());
+        assert!(FrameRecord::new("0001", &pose).with_slots(&[]).slots.is_none());
+    }
 
     #[test]
     fn a_record_survives_its_json_line_with_and_without_a_score() {

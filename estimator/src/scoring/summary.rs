@@ -5,7 +5,7 @@ use camplace_config::Metrics;
 use serde::{Deserialize, Serialize};
 
 use super::intervals::wilson_interval;
-use super::record::{FrameRecord, Timings};
+use super::record::{FrameRecord, SlotScore, Timings};
 use super::verified::{Scored, VerifiedSummary};
 
 /// The summary of a set of frames (`summary.json`, and the end of `replay`).
@@ -39,6 +39,75 @@ pub struct Summary {
     /// no frame has a score and a truth, and from summaries written before it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub verification: Option<VerifiedSummary>,
+    /// The slots' states of the accepted poses against the truth (absent when no record
+    /// carries a slot score).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slots: Option<SlotSummary>,
+}
+
+/// The slot states of a set of frames, among the accepted poses.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct SlotSummary {
+    /// Accepted frames with a slot score.
+    pub frames: usize,
+    /// Slots judged in them.
+    pub slots: u64,
+    /// Of them, filled slots called empty and empty slots called filled.
+    pub wrong: u64,
+    /// Of them, slots judged unseen.
+    pub unseen: u64,
+    /// `1 - wrong / slots` (1 when no slot was judged).
+    pub accuracy: f64,
+    /// `unseen / slots`.
+    pub unseen_share: f64,
+    /// Median over accepted, correct poses of each frame's largest grasp-frame error, mm
+    /// and deg.
+    pub median_grasp_error_mm: Option<f64>,
+    pub median_grasp_error_deg: Option<f64>,
+}
+
+impl SlotSummary {
+    /// Sums up the slot scores of `records`' accepted poses; `None` when none has one.
+    pub fn of(records: &[FrameRecord]) -> Option<SlotSummary> {
+        let scored: Vec<(&FrameRecord, SlotScore)> =
+            records.iter().filter(|r| r.accepted()).filter_map(|r| r.slot_score.map(|s| (r, s))).collect();
+        if scored.is_empty() {
+            return None;
+        }
+        let slots: u64 = scored.iter().map(|(_, s)| u64::from(s.slots)).sum();
+        let wrong: u64 = scored.iter().map(|(_, s)| u64::from(s.wrong())).sum();
+        let unseen: u64 = scored.iter().map(|(_, s)| u64::from(s.unseen)).sum();
+        let correct = || scored.iter().filter(|(r, _)| r.score.is_some_and(|s| s.success));
+        let mm: Vec<f64> = correct().map(|(_, s)| s.grasp_error_mm).collect();
+        let deg: Vec<f64> = correct().map(|(_, s)| s.grasp_error_deg).collect();
+        let share = |n: u64| if slots == 0 { 0.0 } else { n as f64 / slots as f64 };
+        Some(SlotSummary {
+            frames: scored.len(),
+            slots,
+            wrong,
+            unseen,
+            accuracy: 1.0 - share(wrong),
+            unseen_share: share(unseen),
+            median_grasp_error_mm: median(&mm),
+            median_grasp_error_deg: median(&deg),
+        })
+    }
+
+    /// One line for a terminal and the report.
+    pub fn line(&self) -> String {
+        let opt = |v: Option<f64>, unit: &str| v.map_or("n/a".to_string(), |v| format!("{v:.2} {unit}"));
+        format!(
+            "slots of {} accepted poses: {} wrong filled/empty of {} ({:.2} %), {} unseen ({:.1} %), median grasp error {} / {}",
+            self.frames,
+            self.wrong,
+            self.slots,
+            100.0 * (1.0 - self.accuracy),
+            self.unseen,
+            100.0 * self.unseen_share,
+            opt(self.median_grasp_error_mm, "mm"),
+            opt(self.median_grasp_error_deg, "deg"),
+        )
+    }
 }
 
 impl Summary {
@@ -79,6 +148,7 @@ impl Summary {
             median_timings_ms,
             median_ms: median(&records.iter().map(|r| r.ms).collect::<Vec<_>>()).unwrap_or(0.0),
             verification: None,
+            slots: SlotSummary::of(records),
         }
     }
 
@@ -127,6 +197,7 @@ impl Summary {
             self.mean_correct_matches.unwrap_or(0.0),
             self.median_ms
         ) + &self.verification.map_or(String::new(), |v| format!("; {}", v.line()))
+            + &self.slots.map_or(String::new(), |s| format!("; {}", s.line()))
     }
 }
 

@@ -201,6 +201,12 @@ impl Simulator {
         &self.objects
     }
 
+    /// The objects, to stand something else in a slot (`Objects::odd_items`) for a test of
+    /// what the slot judge makes of it.
+    pub fn objects_mut(&mut self) -> &mut Objects {
+        &mut self.objects
+    }
+
     /// Shows `image` as the one-shot pattern from now on (prepared as the seeded one was).
     #[cfg(test)]
     pub(crate) fn set_one_shot_pattern(&mut self, image: GrayImage) {

@@ -160,6 +160,9 @@ pub struct Objects {
     pub gloss: [Gloss; 3],
     /// Albedo of the occluder.
     pub occluder_albedo: f64,
+    /// Slots that, when filled, hold this solid (slot frame) instead of the item: an item
+    /// standing askew, a foreign object. Empty in every study; tests set it.
+    pub odd_items: Vec<(usize, Solid)>,
 }
 
 impl Objects {
@@ -181,6 +184,7 @@ impl Objects {
                 [Gloss::MATTE; 3]
             },
             occluder_albedo: cell.occluder.albedo,
+            odd_items: Vec::new(),
         })
     }
 
@@ -217,7 +221,8 @@ impl Objects {
             let Some(slot) = self.tray.slot_pose(n) else { continue };
             let Some(id) = u8::try_from(n).ok().and_then(|n| n.checked_add(ID_FIRST_ITEM)) else { continue };
             let pose = spec.t_world_tray * slot;
-            for t in &self.item.triangles {
+            let solid = self.odd_items.iter().find(|(m, _)| *m == n).map_or(&self.item, |(_, s)| s);
+            for t in &solid.triangles {
                 push(out, t.map(|p| pose * p), (self.item_albedo, self.gloss[2], id));
             }
         }

@@ -4,6 +4,7 @@
 
 use camplace_config::Mesh;
 use camplace_config::{Cell, ItemsKind, TrayKind};
+use camplace_estimator::{SlotLayout, EDGE_CELL};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
 use crate::{Error, Result};
@@ -167,6 +168,87 @@ impl TrayModel {
     }
 }
 
+/// How far the slot footprint keeps inside the item's outline, mm: the item's side faces
+/// and a millimetre or two of pose error stay outside it.
+const FOOTPRINT_MARGIN_MM: f64 = 2.0;
+/// Samples per footprint cell along each axis when the item's top is traced.
+const PROFILE_SAMPLES: usize = 4;
+/// How much an item's top may vary over one cell and the cell still be compared, mm.
+const PROFILE_FLAT_MM: f64 = 1.0;
+
+/// The slots of `tray` holding `item`, as the model carries them: the slot poses, and the
+/// item's outline (less a margin) cut into cells of about `cell_mm` with the top of an
+/// upright item over each, traced down onto its triangles. `None` for a tray without slots
+/// or an item without an outline larger than the margins.
+pub fn slot_layout(tray: &TrayModel, item: &Solid, cell_mm: f64) -> Option<SlotLayout> {
+    if tray.slots.is_empty() {
+        return None;
+    }
+    let (lo, hi) = item.bounds();
+    let (x0, y0) = (lo.x + FOOTPRINT_MARGIN_MM, lo.y + FOOTPRINT_MARGIN_MM);
+    let (w, d) = (hi.x - lo.x - 2.0 * FOOTPRINT_MARGIN_MM, hi.y - lo.y - 2.0 * FOOTPRINT_MARGIN_MM);
+    if !(w > 0.0 && d > 0.0 && cell_mm > 0.0) {
+        return None;
+    }
+    let cols = (w / cell_mm).ceil().max(1.0) as usize;
+    let rows = (d / cell_mm).ceil().max(1.0) as usize;
+    let (cx, cy) = (w / cols as f64, d / rows as f64);
+    let mut top_mm = Vec::with_capacity(cols * rows);
+    for j in 0..rows {
+        for i in 0..cols {
+            let mut tops = Vec::with_capacity(PROFILE_SAMPLES * PROFILE_SAMPLES);
+            for a in 0..PROFILE_SAMPLES {
+                for b in 0..PROFILE_SAMPLES {
+                    let x = x0 + (i as f64 + (a as f64 + 0.5) / PROFILE_SAMPLES as f64) * cx;
+                    let y = y0 + (j as f64 + (b as f64 + 0.5) / PROFILE_SAMPLES as f64) * cy;
+                    tops.push(top_at(item, x, y));
+                }
+            }
+            let hits: Vec<f64> = tops.iter().flatten().copied().collect();
+            let value = if hits.is_empty() {
+                0.0
+            } else {
+                let (low, high) =
+                    hits.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &z| (l.min(z), h.max(z)));
+                if hits.len() == tops.len() && high - low <= PROFILE_FLAT_MM {
+                    high as f32
+                } else {
+                    EDGE_CELL
+                }
+            };
+            top_mm.push(value);
+        }
+    }
+    let layout = SlotLayout {
+        slots: tray.slots.clone(),
+        footprint_min_mm: [x0 as f32, y0 as f32],
+        cell_mm: [cx as f32, cy as f32],
+        cols: cols as u32,
+        rows: rows as u32,
+        top_mm,
+    };
+    layout.validate().is_ok().then_some(layout)
+}
+
+/// The highest point of `solid` straight above item-frame (x, y), if any triangle is there.
+fn top_at(solid: &Solid, x: f64, y: f64) -> Option<f64> {
+    let mut best: Option<f64> = None;
+    for [a, b, c] in &solid.triangles {
+        let det = (b.y - c.y) * (a.x - c.x) + (c.x - b.x) * (a.y - c.y);
+        if det.abs() < 1e-12 {
+            continue;
+        }
+        let l1 = ((b.y - c.y) * (x - c.x) + (c.x - b.x) * (y - c.y)) / det;
+        let l2 = ((c.y - a.y) * (x - c.x) + (a.x - c.x) * (y - c.y)) / det;
+        let l3 = 1.0 - l1 - l2;
+        if l1 >= 0.0 && l2 >= 0.0 && l3 >= 0.0 {
+            let z = l1 * a.z + l2 * b.z + l3 * c.z;
+            best = Some(best.map_or(z, |t| t.max(z)));
+        }
+    }
+    best
+}
+
 /// The number of slots of the cell's tray, known without loading a mesh.
 pub fn slot_count(cell: &Cell) -> usize {
     match cell.tray.kind {
@@ -192,6 +274,40 @@ pub fn item_for(cell: &Cell) -> Result<Solid> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The default box's profile is flat at its height over every cell, the slots are the
+    /// tray's, and a sample point's top is the highest triangle above it.
+    #[test]
+    fn a_box_items_profile_is_its_top() {
+        let tray = TrayModel::builtin(4, 2, [200.0, 120.0]);
+        let mut item = Solid::default();
+        item.push_box([-17.0, -17.0, 0.0], [17.0, 17.0, 30.0]);
+        let l = slot_layout(&tray, &item, 4.0).unwrap();
+        assert_eq!((l.cols, l.rows, l.slots.len()), (8, 8, 8));
+        assert_eq!(l.footprint_min_mm, [-15.0, -15.0]);
+        assert!(l.top_mm.iter().all(|&t| t == 30.0), "{:?}", l.top_mm);
+        assert_eq!(l.slots, tray.slots);
+        // A stepped item: a 10 mm block with a 20 mm tower over x > 0; the cells the step
+        // crosses are edges.
+        let mut step = Solid::default();
+        step.push_box([-17.0, -17.0, 0.0], [17.0, 17.0, 10.0]);
+        step.push_box([1.0, -17.0, 0.0], [17.0, 17.0, 20.0]);
+        let l = slot_layout(&tray, &step, 4.0).unwrap();
+        for j in 0..8 {
+            for i in 0..8 {
+                let x0 = -15.0 + i as f32 * 3.75;
+                let want = if x0 + 3.75 <= 1.0 {
+                    10.0
+                } else if x0 >= 1.0 {
+                    20.0
+                } else {
+                    EDGE_CELL
+                };
+                assert_eq!(l.top_mm[j * 8 + i], want, "cell {i}, {j}");
+            }
+        }
+        assert!(slot_layout(&TrayModel { slots: vec![], ..tray.clone() }, &item, 4.0).is_none());
+    }
 
     /// Signed volume by the divergence theorem: positive when every face is wound outwards.
     fn volume(s: &Solid) -> f64 {

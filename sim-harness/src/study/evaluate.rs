@@ -1,6 +1,6 @@
 //! One placement's scenes through the simulated sensor and the deployed estimator: the model
 //! built at the placement, the background captured once, then scenario after scenario
-//! rendered, estimated and scored. Each scene's result depends only on (cell, placement,
+//! rendered, estimated and scored, its slots' states against the scene's filled slots. Each scene's result depends only on (cell, placement,
 //! method, seed, scenario index), never on which worker ran it or in what order.
 
 use camplace_config::frame_name;
@@ -15,7 +15,7 @@ use crate::scene::scenario::background_scene;
 use crate::scene::scenario::draw_scenario;
 use crate::seeds::noise_key;
 use crate::Result;
-use camplace_estimator::{score, FrameRecord};
+use camplace_estimator::{score, FrameRecord, SlotScore};
 
 /// What every worker of one placement's evaluation shares: the settings, the background
 /// capture and an estimator set up for the model and the background (its model indexes
@@ -110,12 +110,16 @@ impl Worker<'_> {
         }
         self.sim.render(&scenario.scene(), *method, noise_key(*seed, index, false), &mut self.frame);
         self.pose = self.estimator.process(&self.frame.shots.left, &self.frame.shots.right)?;
-        let mut record = FrameRecord::new(frame_name(index), &self.pose);
+        let mut record = FrameRecord::new(frame_name(index), &self.pose).with_slots(self.estimator.slots());
         // The truth as a dataset's truth.json carries it (a 4x4 matrix, not a quaternion),
         // so replaying the rendered dataset scores to the last bit alike.
         let truth = isometry_from_rows(&isometry_to_rows(&scenario.t_world_tray));
         let symmetries = &self.estimator.model().symmetries_deg;
         record.score = Some(score(&self.pose, &self.estimator, &truth, symmetries, &cell.metrics));
+        if !self.estimator.slots().is_empty() {
+            record.slot_score =
+                Some(SlotScore::of(self.estimator.slots(), &scenario.filled, &self.pose.t_world_tray, &truth));
+        }
         Ok(record)
     }
 }

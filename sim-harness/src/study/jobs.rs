@@ -191,8 +191,12 @@ impl<'a> JobEvaluator<'a> {
         let origin = model_origin(self.cell, placement, self.method, seed)?;
         if let Ok(bytes) = camplace_config::read_bounded(&path, camplace_config::FileKind::Model) {
             if let Ok(model) = Model::from_bytes(&bytes) {
+                // A model cached before models carried the tray's slots is built again, so
+                // every scene's slots are judged.
+                let has_slots = model.slots.is_some() || crate::scene::tray::slot_count(self.cell) == 0;
                 match &model.origin {
-                    Some(o) if *o == origin => return Ok(model),
+                    Some(o) if *o == origin && has_slots => return Ok(model),
+                    Some(o) if *o == origin => {}
                     Some(o) => return Err(Error::Other(format!("{}: {}", path.display(), cache_mismatch(o, &origin)))),
                     None => {}
                 }
