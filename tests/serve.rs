@@ -53,6 +53,11 @@ fn replayed(root: &Path, cell: &str) -> std::collections::BTreeMap<String, Frame
 
 fn robot_cell(dir: &Path, name: &str, format: Option<RobotPoseFormat>) {
     let t = [[0.0, -1.0, 0.0, 450.0], [1.0, 0.0, 0.0, -120.0], [0.0, 0.0, 1.0, 35.0], [0.0, 0.0, 0.0, 1.0]];
+    robot_cell_at(dir, name, &t, format);
+}
+
+/// A cell file `name` in `dir` with `[robot] T_robot_world = t` (and `pose_format`).
+fn robot_cell_at(dir: &Path, name: &str, t: &[[f64; 4]; 4], format: Option<RobotPoseFormat>) {
     let rows: Vec<String> = t.iter().map(|r| format!("{r:?}")).collect();
     let mut text = format!("[robot]\nT_robot_world = [{}]\n", rows.join(", "));
     if let Some(f) = format {
@@ -122,6 +127,74 @@ fn fifty_triggers_give_replays_poses_in_every_format() {
     }
     // Not vacuous: most triggers were answered with a pose.
     assert!(oks >= 7 * 25, "{oks} poses");
+}
+
+/// `a · b` of two row-major 4 × 4 matrices, as written: no conversion to a rotation between.
+fn product(a: &[[f64; 4]; 4], b: &[[f64; 4]; 4]) -> [[f64; 4]; 4] {
+    std::array::from_fn(|r| std::array::from_fn(|c| (0..4).map(|k| a[r][k] * b[k][c]).sum()))
+}
+
+#[test]
+fn a_robot_mounted_upside_down_is_handed_the_pose_in_its_frame_in_every_convention() {
+    let f = fixture();
+    let dir = tempfile::tempdir().unwrap();
+    copy_dataset(&f.root.join("data"), &dir.path().join("data"), &[Frame::Rendered(0), Frame::Rendered(1)]);
+    std::fs::copy(f.root.join("tray.model"), dir.path().join("tray.model")).unwrap();
+    std::fs::write(dir.path().join("plain.toml"), "").unwrap();
+    let replay = replayed(dir.path(), "plain.toml");
+    // A robot hung upside down (Ry(180°)), and a half turn about the horizontal axis
+    // (0.26, -0.97, 0): an iteration started at the identity cannot leave it for either.
+    let n = (0.26f64 * 0.26 + 0.97 * 0.97).sqrt();
+    let (x, y) = (0.26 / n, -0.97 / n);
+    let half_turns = [
+        [[-1.0, 0.0, 0.0, 450.0], [0.0, 1.0, 0.0, -120.0], [0.0, 0.0, -1.0, 1800.0], [0.0, 0.0, 0.0, 1.0]],
+        // R = 2·n·nᵀ − I for the unit axis n.
+        [
+            [2.0 * x * x - 1.0, 2.0 * x * y, 0.0, -300.0],
+            [2.0 * x * y, 2.0 * y * y - 1.0, 0.0, 250.0],
+            [0.0, 0.0, -1.0, 1650.0],
+            [0.0, 0.0, 0.0, 1.0],
+        ],
+    ];
+    let mut oks = 0;
+    for (h, t_robot_world) in half_turns.iter().enumerate() {
+        for (k, convention) in PoseConvention::ALL.into_iter().enumerate() {
+            let unit = if (h + k) % 2 == 0 { LengthUnit::Mm } else { LengthUnit::M };
+            let format = RobotPoseFormat { convention, unit };
+            let name = format!("upside-down-{h}-{k}.toml");
+            robot_cell_at(dir.path(), &name, t_robot_world, Some(format));
+            let served = Served::start(
+                dir.path(),
+                &["--source", "dir:data", "--model", "tray.model", "--cell", &name],
+                &format!("upside-down-{h}-{k}.log"),
+                false,
+            );
+            let mut robot = served.connect();
+            for i in 0..4 {
+                let line = ask(&mut robot, &format!("TRIGGER u{i}"));
+                let (status, _, fields) = parse_reply(&line);
+                let want = &replay[&fields["frame"]];
+                if status != "OK" {
+                    assert!(!want.accepted(), "{format}: {line} but replay accepted the frame");
+                    continue;
+                }
+                let pose = parse_pose(&fields["pose"], format).unwrap_or_else(|e| panic!("{format}: {line}: {e}"));
+                let truth = product(t_robot_world, &want.t_world_tray);
+                for r in 0..4 {
+                    for c in 0..4 {
+                        assert!(
+                            (pose[r][c] - truth[r][c]).abs() <= 1e-9,
+                            "{format}, half turn {h} [{r}][{c}]: {line} vs T_robot_world · T_world_tray = {truth:?}"
+                        );
+                    }
+                }
+                oks += 1;
+            }
+            served.stop();
+        }
+    }
+    // Not vacuous: both half turns in every convention were checked on poses.
+    assert!(oks >= 2 * 7 * 2, "{oks} poses");
 }
 
 /// A connection answered `PONG`, tried again while the service says it has too many clients

@@ -29,5 +29,6 @@ mod slots;
 mod study;
 mod study_folder;
 mod tolerance;
+mod transforms;
 mod trial;
 mod verify;
