@@ -62,7 +62,7 @@ impl<'de> Deserialize<'de> for Vergence {
     }
 }
 
-/// Where the rig sits: see docs/architecture.md §2.
+/// Where the rig sits: see docs/design/units-and-frames.md.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Placement {

@@ -1,5 +1,5 @@
 //! `rig.json`: the calibration of the two cameras and the projector
-//! (docs/architecture.md §3), plus the optional `rectified` section that reconstruction
+//! (docs/design/interchange-formats.md), plus the optional `rectified` section that reconstruction
 //! adds.
 
 use serde::{Deserialize, Serialize};

@@ -1,4 +1,4 @@
-//! `truth.json`: what the simulator knows of one scene (docs/architecture.md §3): the
+//! `truth.json`: what the simulator knows of one scene (docs/design/interchange-formats.md): the
 //! tray's pose, the filled slots, the lighting and the seed, so any tool can score an
 //! estimate.
 

@@ -1,4 +1,4 @@
-//! The deployed pipeline (docs/architecture.md §5): every stage joined, from a stereo frame (or a world
+//! The deployed pipeline (docs/design/estimator-stages.md): every stage joined, from a stereo frame (or a world
 //! cloud) to the tray's pose, with its timings. It owns the buffers of all stages; the stages
 //! themselves live in their own modules.
 //!

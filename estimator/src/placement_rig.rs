@@ -1,4 +1,4 @@
-//! The geometry of a placement (docs/architecture.md §2): where the two cameras and the projector
+//! The geometry of a placement (docs/design/units-and-frames.md): where the two cameras and the projector
 //! sit and look for given (r, alpha, baseline, vergence, azimuth), as a calibrated rig.
 
 use crate::{Camera, Rig};

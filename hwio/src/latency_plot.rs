@@ -1,7 +1,7 @@
 //! The deployed loop's latency for people: per frame, the estimator's stages stacked with
 //! the capture-to-pose latency on top (the gap is the wait for the frame before), and a
 //! histogram of the capture-to-pose latency against the frame budget (each method's, from
-//! docs/architecture.md §8); and where a `--latency-plot` path puts the two files.
+//! docs/design/performance-budgets.md); and where a `--latency-plot` path puts the two files.
 
 use std::path::{Path, PathBuf};
 

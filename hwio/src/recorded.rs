@@ -1,4 +1,4 @@
-//! A recorded dataset folder (docs/architecture.md §3) as a frame source: config's
+//! A recorded dataset folder (docs/design/interchange-formats.md) as a frame source: config's
 //! [`RecordedDataset`] reader streamed frame by frame. Simulated and real recordings take this
 //! one path.
 

@@ -1,4 +1,4 @@
-//! Names inside a recorded dataset (docs/architecture.md §3): `frames/NNNN/` folders and
+//! Names inside a recorded dataset (docs/design/interchange-formats.md): `frames/NNNN/` folders and
 //! the camera images `left.png` (one shot) or `left_00.png` ... `left_11.png`. The
 //! simulator writes them and hwio reads them, so both take the names from here. Also the
 //! other files camplace writes into a dataset, so a folder can be told to hold only those.

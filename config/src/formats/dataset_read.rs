@@ -1,4 +1,4 @@
-//! Reading a recorded dataset folder (docs/architecture.md §3): `rig.json`, an optional
+//! Reading a recorded dataset folder (docs/design/interchange-formats.md): `rig.json`, an optional
 //! `background/`, and `frames/NNNN/` with `left.png` + `right.png` (one shot) or
 //! `left_00.png` ... `right_11.png` (N shots), each frame with an optional `truth.json`.
 //! Simulated and real recordings take this one path: hwio streams it as a frame source, the

@@ -1,4 +1,4 @@
-//! Writing a recorded dataset (docs/architecture.md §3): a frame appended whole as the next
+//! Writing a recorded dataset (docs/design/interchange-formats.md): a frame appended whole as the next
 //! `frames/NNNN/`, the empty cell's `background/`, the calibration's `table/` view, each
 //! checked against the dataset's rig and earlier frames first, and the camera images of one
 //! folder. `capture`, `serve`'s flight recorder, `project` and the simulator's

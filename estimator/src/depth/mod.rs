@@ -1,4 +1,4 @@
-//! Depth reconstruction, steps 1-3 of the pipeline (docs/architecture.md §5): raw shots are
+//! Depth reconstruction, steps 1-3 of the pipeline (docs/design/estimator-stages.md): raw shots are
 //! rectified, turned into a disparity map (one-shot stereo or 12-shot phase decoding), and
 //! back-projected into a world cloud with the background removed.
 

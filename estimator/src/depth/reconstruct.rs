@@ -1,4 +1,4 @@
-//! The reconstruction workspace (docs/architecture.md §5 steps 1-3): raw shots of both cameras in;
+//! The reconstruction workspace (docs/design/estimator-stages.md, steps 1-3): raw shots of both cameras in;
 //! rectified images, disparity, depth and the world cloud after background removal out.
 //! Everything is allocated in `Reconstructor::new`; `process` reuses it frame after frame.
 

@@ -1,4 +1,4 @@
-//! Writes rendered frames to disk in the layout of docs/architecture.md §3: a single render folder, or
+//! Writes rendered frames to disk in the layout of docs/design/interchange-formats.md: a single render folder, or
 //! a frame of a recorded dataset (its camera images through config's dataset writer, so
 //! simulated and real data take one path), with what only a simulation knows: the true
 //! depth and ids, `truth.json` and a preview.

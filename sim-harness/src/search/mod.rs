@@ -1,4 +1,4 @@
-//! The placement search (docs/architecture.md §6): a radial-basis-function surrogate optimizer in the
+//! The placement search (docs/design/placement-study.md): a radial-basis-function surrogate optimizer in the
 //! spirit of RBFopt (Costa & Nannicini 2018) and Regis & Shoemaker's stochastic RBF method.
 //! It minimises over a box through an ask/tell interface; it never calls the objective.
 //!

@@ -1,4 +1,4 @@
-//! The placement search (docs/architecture.md §6) over the study's parameters: the RBF surrogate
+//! The placement search (docs/design/placement-study.md) over the study's parameters: the RBF surrogate
 //! optimizer asks for placements, each is evaluated on the same scenarios (its success rate
 //! negated is the objective), the winner is chosen by the smoothed surrogate, and the top
 //! candidates are evaluated again on fresh scenarios (the next seed) to pick the placement
