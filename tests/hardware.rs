@@ -28,7 +28,8 @@ struct Xvfb {
 #[cfg(feature = "display")]
 impl Xvfb {
     /// Starts Xvfb (1280x800) on the first free display number in `numbers`; `None` (after
-    /// saying why) when there is none or Xvfb is not installed.
+    /// saying why) when there is none or Xvfb is not installed, a failure instead where
+    /// `CAMPLACE_XVFB` is set (CI sets it where it installs Xvfb, so a skip there is seen).
     fn start(numbers: std::ops::Range<u32>) -> Option<Xvfb> {
         use std::path::Path;
         use std::process::{Command, Stdio};
@@ -37,8 +38,7 @@ impl Xvfb {
             !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
         };
         let Some(n) = numbers.clone().find(free) else {
-            println!("skipped: no free X display number in {numbers:?}");
-            return None;
+            return Xvfb::skipped(&format!("no free X display number in {numbers:?}"));
         };
         let display = format!(":{n}");
         let Ok(child) = Command::new("Xvfb")
@@ -47,14 +47,20 @@ impl Xvfb {
             .stderr(Stdio::null())
             .spawn()
         else {
-            println!("skipped: Xvfb is not installed");
-            return None;
+            return Xvfb::skipped("Xvfb is not installed");
         };
         let start = Instant::now();
         while !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && start.elapsed() < Duration::from_secs(10) {
             std::thread::sleep(Duration::from_millis(20));
         }
         Some(Xvfb { child, display })
+    }
+
+    /// Says why the display test is skipped, or fails it where the display was promised.
+    fn skipped(why: &str) -> Option<Xvfb> {
+        assert!(std::env::var_os("CAMPLACE_XVFB").is_none(), "CAMPLACE_XVFB is set but {why}");
+        println!("skipped: {why}");
+        None
     }
 }
 
