@@ -144,3 +144,82 @@ fn a_study_folder_is_held_by_its_run_and_a_dead_runs_hold_is_taken_over() {
     assert_eq!(sorted, (0..6).collect::<Vec<_>>(), "resumed, each scenario once: {scenarios:?}");
     assert!(!d.join("held/study.lock").exists(), "released at the end");
 }
+
+/// Makes a FIFO at `path` (never at one of the machine's own device nodes).
+#[cfg(unix)]
+fn mkfifo(path: &Path) {
+    let made = Command::new("mkfifo").arg(path).status().expect("mkfifo runs");
+    assert!(made.success(), "mkfifo {}", path.display());
+}
+
+/// What `path` itself is (a symbolic link not followed).
+#[cfg(unix)]
+fn file_kind(path: &Path) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    let t = std::fs::symlink_metadata(path).expect("still there").file_type();
+    match () {
+        _ if t.is_fifo() => "fifo",
+        _ if t.is_socket() => "socket",
+        _ if t.is_symlink() => "symlink",
+        _ if t.is_dir() => "dir",
+        _ if t.is_file() => "file",
+        _ => "other",
+    }
+}
+
+#[test]
+#[cfg(unix)]
+fn a_file_output_naming_a_fifo_a_socket_or_a_folder_is_refused_and_left_as_it_was() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cell = small_cell();
+    mkfifo(&d.join("pipe"));
+    std::os::unix::fs::symlink("pipe", d.join("link")).unwrap();
+    let _socket = std::os::unix::net::UnixListener::bind(d.join("sock")).unwrap();
+    std::fs::create_dir(d.join("folder")).unwrap();
+    std::fs::write(d.join("folder/kept"), b"the user's").unwrap();
+    let cases = [
+        ("pipe", "FIFO", "fifo"),
+        ("link", "FIFO", "symlink"),
+        ("sock", "socket", "socket"),
+        ("folder", "a folder", "dir"),
+    ];
+    for (out, what, kind) in cases {
+        let model = camplace(d, &["model", "--cell", &cell, "--verify-scenes", "0", "--out", out]);
+        assert_one_line_error(model.status.code().unwrap(), &stderr(&model), &[out, what, "regular file"]);
+        let init = camplace(d, &["init", out, "--force"]);
+        assert_one_line_error(init.status.code().unwrap(), &stderr(&init), &[out, what, "regular file"]);
+        assert_eq!(file_kind(&d.join(out)), kind, "{out} left as it was");
+    }
+    assert_eq!(file_kind(&d.join("pipe")), "fifo");
+    assert_eq!(snapshot(&d.join("folder")), BTreeMap::from([(PathBuf::from("kept"), b"the user's".to_vec())]));
+    // A folder output naming a FIFO is refused too, the FIFO kept.
+    let render = camplace(d, &["render", "--cell", &cell, "--out", "pipe"]);
+    assert_eq!(render.status.code(), Some(2), "{}", stderr(&render));
+    assert!(stderr(&render).contains("pipe"), "{}", stderr(&render));
+    assert_eq!(file_kind(&d.join("pipe")), "fifo");
+    let names: Vec<String> =
+        std::fs::read_dir(d).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    assert!(names.iter().all(|n| !n.contains("camplace-tmp")), "no temporary file left: {names:?}");
+}
+
+#[test]
+fn model_writes_neither_file_when_one_of_its_outputs_cannot_be_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cell = small_cell();
+    let args = ["model", "--cell", &cell, "--verify-scenes", "0", "--ply", "no/such/dir/x.ply", "--out", "m.model"];
+    let o = camplace(d, &args);
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["no/such/dir"]);
+    assert!(!d.join("m.model").exists(), "no model written when its cloud cannot be");
+    std::fs::write(d.join("m.model"), b"an earlier model").unwrap();
+    let before = snapshot(d);
+    let o = camplace(d, &args);
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["no/such/dir"]);
+    assert_eq!(snapshot(d), before, "the earlier model left byte for byte");
+    // Both outputs written when both can be.
+    let o = camplace(d, &["model", "--cell", &cell, "--verify-scenes", "0", "--ply", "x.ply", "--out", "m.model"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_ne!(std::fs::read(d.join("m.model")).unwrap(), b"an earlier model");
+    assert!(d.join("x.ply").is_file());
+}

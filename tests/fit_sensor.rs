@@ -90,3 +90,36 @@ fn fit_sensor_refuses_a_dataset_without_background_or_rig_or_with_a_frame_of_ano
     assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["other_size/frames/0001/left.png", "320x240"]);
     assert!(!d.join("fit").exists(), "nothing written for a refused dataset");
 }
+
+#[test]
+fn fit_sensor_refuses_frames_equal_to_the_background_instead_of_fitting_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cell = small_cell();
+    let cell = cell.to_str().unwrap();
+    let fit = |data: &str| camplace(d, &["fit-sensor", "--dataset", data, "--cell", cell, "--out", "fit"]);
+    // No tray set down and no noise between them: every frame the background's own images.
+    render(d, "empty", "3");
+    let background = d.join("empty/background");
+    for frame in ["0000", "0001", "0002"] {
+        let to = d.join("empty/frames").join(frame);
+        std::fs::remove_dir_all(&to).unwrap();
+        std::fs::create_dir(&to).unwrap();
+        for e in std::fs::read_dir(&background).unwrap() {
+            let e = e.unwrap();
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
+    let o = fit("empty");
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["empty", "equal the background", "noise"]);
+    // One copied frame among real ones would pull the noise towards zero: refused, named.
+    render(d, "one_copy", "3");
+    let copy = d.join("one_copy/frames/0001");
+    for e in std::fs::read_dir(d.join("one_copy/background")).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), copy.join(e.file_name())).unwrap();
+    }
+    let o = fit("one_copy");
+    assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["one_copy/frames/0001", "equals the background"]);
+    assert!(!d.join("fit").exists(), "nothing written for a refused dataset");
+}

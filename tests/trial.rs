@@ -312,3 +312,71 @@ fn bad_trial_folders_end_with_one_line_naming_the_file_and_key() {
     let o = camplace(w.path(), &["trial", "plan", "--placements", " ; ", "--out", "p.json"]);
     assert_one_line_error(o.status.code().unwrap(), &stderr(&o), &["--placements", "at least one"]);
 }
+
+/// Each frame's pose as the review page draws it: found, T_world_tray and verdict.
+fn drawn_poses(path: &Path) -> Vec<(String, String)> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let v: Value = serde_json::from_str(l).unwrap();
+            (v["frame"].as_str().unwrap().to_string(), format!("{} {} {}", v["found"], v["T_world_tray"], v["verdict"]))
+        })
+        .collect()
+}
+
+#[test]
+fn marks_count_only_for_the_poses_they_judged_after_the_trial_is_estimated_again() {
+    let d = fixture();
+    let trial = tempfile::tempdir().unwrap();
+    let t = trial.path().join("trial");
+    copy_tree(&d.join("trial"), &t);
+    let cell = small_cell();
+    let cell = cell.to_str().unwrap();
+    let t_arg = t.to_str().unwrap();
+    let hidden = d.join("hidden");
+    run_ok(d, &["trial", "mark", "--trial", t_arg, "--hidden", hidden.to_str().unwrap(), "--cell", cell]);
+    let report = || {
+        run_ok(d, &["trial", "report", "--trial", t_arg, "--study", "sweep", "--cell", cell]);
+        json(&t.join("trial_report.json"))["placements"].as_array().unwrap().clone()
+    };
+    let rows = report();
+    assert!(rows.iter().all(|r| r["marked"].as_u64().unwrap() + r["unsure"].as_u64().unwrap() == 6), "{rows:?}");
+    let labels: Vec<Vec<u8>> = (0..4).map(|i| std::fs::read(t.join(format!("{i:03}/labels.jsonl"))).unwrap()).collect();
+    let before: Vec<_> = (0..4).map(|i| drawn_poses(&t.join(format!("{i:03}/poses.jsonl")))).collect();
+    // Another model draws other poses: a mark stands only where its frame's pose did not change.
+    run_ok(d, &["model", "--cell", cell, "--verify-scenes", "0", "--seed", "77", "--out", "other.model"]);
+    run_ok(d, &["trial", "estimate", "--trial", t_arg, "--model", "other.model", "--cell", cell]);
+    let after_rows = report();
+    let mut changed_total = 0;
+    for i in 0..4 {
+        let after = drawn_poses(&t.join(format!("{i:03}/poses.jsonl")));
+        let changed = before[i].iter().zip(&after).filter(|(a, b)| a != b).count() as u64;
+        changed_total += changed;
+        let (row, earlier) = (&after_rows[i], &rows[i]);
+        let judged = |r: &Value| r["marked"].as_u64().unwrap() + r["unsure"].as_u64().unwrap();
+        assert_eq!(judged(row), 6 - changed, "placement {i}: {changed} poses changed: {row}");
+        assert_eq!(row["not_judged"].as_u64().unwrap(), earlier["not_judged"].as_u64().unwrap() + changed, "{row}");
+        // The marks themselves are the reviewer's: kept byte for byte.
+        assert_eq!(std::fs::read(t.join(format!("{i:03}/labels.jsonl"))).unwrap(), labels[i], "placement {i}");
+    }
+    assert!(changed_total > 0, "the other model changed no pose; the test shows nothing");
+}
+
+#[test]
+#[cfg(unix)]
+fn a_plan_whose_table_cannot_be_written_writes_neither_file() {
+    let d = fixture();
+    let out = tempfile::tempdir().unwrap();
+    let o = out.path();
+    let made = Command::new("mkfifo").arg(o.join("plan.csv")).status().unwrap();
+    assert!(made.success());
+    let cell = small_cell();
+    let plan = o.join("plan.json");
+    let args = ["trial", "plan", "--cell", cell.to_str().unwrap(), "--study", "sweep", "--out", plan.to_str().unwrap()];
+    let refused = camplace(d, &args);
+    assert_one_line_error(refused.status.code().unwrap(), &stderr(&refused), &["plan.csv", "FIFO"]);
+    assert!(!plan.exists(), "no plan.json without its plan.csv");
+    use std::os::unix::fs::FileTypeExt;
+    assert!(std::fs::symlink_metadata(o.join("plan.csv")).unwrap().file_type().is_fifo(), "the FIFO left as it was");
+}

@@ -54,7 +54,9 @@ pub use formats::read::{
     MAX_MODEL_BYTES, MAX_TEXT_BYTES,
 };
 pub use formats::robot_poses::{parse_robot_poses, read_robot_poses, robot_poses_text, RobotPoses};
-pub use formats::{is_temp_file_name, remove_stale_temp_files, temp_path_for, write_atomic};
+pub use formats::{
+    check_output_file, is_temp_file_name, remove_stale_temp_files, temp_path_for, write_atomic, write_atomic_all,
+};
 pub use grid::{studied_names, Axis, Grid, MAX_AXIS_STEPS};
 pub use placement::{Placement, PlacementParam, Vergence, MAX_DISTANCE_MM};
 pub use pose::{check_rigid, ROTATION_TOLERANCE};

@@ -1,8 +1,8 @@
 //! camplace for Python (`import camplace`): the deployed estimator on numpy frames, read in
 //! place (a 2-D uint8 array's buffer becomes an `ImageView` with its row stride; nothing is
 //! copied), the simulator's rendering of one scene with its truth, and a small evaluation of
-//! a placement. Bad input raises `camplace.Error` (a `ValueError`) with the one-line message
-//! the command line prints.
+//! a placement. Bad input, an argument of the wrong type or out of range among it, raises
+//! `camplace.Error` (a `ValueError`) with the one-line message the command line prints.
 
 use std::path::{Path, PathBuf};
 
@@ -28,6 +28,38 @@ pyo3::create_exception!(
 fn fail(message: impl std::fmt::Display) -> PyErr {
     Error::new_err(message.to_string().split_whitespace().collect::<Vec<_>>().join(" "))
 }
+
+/// The error for an argument of the wrong type or out of range: names the argument, what
+/// it takes and what it was given, as a `camplace.Error` (PyO3 would raise a `TypeError`
+/// or `OverflowError` that names neither).
+fn wrong_argument(name: &str, expected: &str, value: &Bound<'_, PyAny>) -> PyErr {
+    let kind = value.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "?".to_string());
+    let shown = value.repr().map(|r| r.to_string()).unwrap_or_default();
+    let shown: String = if shown.chars().count() > 40 { shown.chars().take(40).chain("…".chars()).collect() } else { shown };
+    fail(format!("{name}: expected {expected}, got {shown} ({kind})"))
+}
+
+/// One function per argument, as `#[pyo3(from_py_with = ...)]` takes them, extracting the
+/// argument's type and raising [`wrong_argument`] when it is another.
+macro_rules! argument {
+    ($fn:ident, $name:literal, $ty:ty, $expected:literal) => {
+        #[doc = concat!("The `", $name, "` argument: ", $expected, ".")]
+        fn $fn(value: &Bound<'_, PyAny>) -> PyResult<$ty> {
+            value.extract::<$ty>().map_err(|_| wrong_argument($name, $expected, value))
+        }
+    };
+}
+
+argument!(cell_arg, "cell", Option<PathBuf>, "a path (str or os.PathLike) or None");
+argument!(model_arg, "model", PathBuf, "a path (str or os.PathLike)");
+argument!(rig_arg, "rig", Option<PathBuf>, "a path (str or os.PathLike) or None");
+argument!(image_path_arg, "path", PathBuf, "a path (str or os.PathLike)");
+argument!(placement_arg, "placement", Option<String>, "a str such as \"r=605,alpha=32\" or None");
+argument!(method_arg, "method", String, "a str, \"one-shot\" or \"phase-12\"");
+argument!(tray_arg, "tray", Option<String>, "a str naming one of the cell's trays or None");
+argument!(seed_arg, "seed", Option<u64>, "a whole number from 0 to 18446744073709551615 or None");
+argument!(scenario_arg, "scenario", Option<u64>, "a whole number from 0 to 18446744073709551615 or None");
+argument!(scenarios_arg, "scenarios", u64, "a whole number from 0 to 18446744073709551615");
 
 /// The cell file at `path` with one tray (`tray` when it lists several), or the built-in
 /// default cell.
@@ -157,16 +189,20 @@ struct Estimator {
 #[pymethods]
 impl Estimator {
     #[new]
-    #[pyo3(signature = (cell, model, *, rig=None, placement=None, method="one-shot", tray=None))]
+    #[pyo3(
+        signature = (cell, model, *, rig=None, placement=None, method=String::from("one-shot"), tray=None),
+        text_signature = "(cell, model, *, rig=None, placement=None, method='one-shot', tray=None)"
+    )]
     fn new(
-        cell: Option<PathBuf>,
-        model: PathBuf,
-        rig: Option<PathBuf>,
-        placement: Option<&str>,
-        method: &str,
-        tray: Option<&str>,
+        #[pyo3(from_py_with = cell_arg)] cell: Option<PathBuf>,
+        #[pyo3(from_py_with = model_arg)] model: PathBuf,
+        #[pyo3(from_py_with = rig_arg)] rig: Option<PathBuf>,
+        #[pyo3(from_py_with = placement_arg)] placement: Option<String>,
+        #[pyo3(from_py_with = method_arg)] method: String,
+        #[pyo3(from_py_with = tray_arg)] tray: Option<String>,
     ) -> PyResult<Self> {
-        let method = method_of(method)?;
+        let (placement, tray) = (placement.as_deref(), tray.as_deref());
+        let method = method_of(&method)?;
         let cell_value = load_cell(cell.as_deref(), tray)?;
         let model = Model::load_checked(&model, &cell_value, cell.as_deref()).map_err(fail)?;
         let rig = match &rig {
@@ -253,16 +289,17 @@ fn shots<'py>(py: Python<'py>, images: &[camplace_config::GrayImage]) -> PyResul
 /// camera's axis, inf where nothing is seen), "T_world_tray" (4 x 4, None for the
 /// background), "filled" (the slots holding an item)}.
 #[pyfunction]
-#[pyo3(signature = (cell=None, placement=None, seed=None, scenario=Some(0), method="one-shot"), text_signature = "(cell=None, placement=None, seed=None, scenario=0, method='one-shot')")]
+#[pyo3(signature = (cell=None, placement=None, seed=None, scenario=Some(0), method=String::from("one-shot")), text_signature = "(cell=None, placement=None, seed=None, scenario=0, method='one-shot')")]
 fn render<'py>(
     py: Python<'py>,
-    cell: Option<PathBuf>,
-    placement: Option<&str>,
-    seed: Option<u64>,
-    scenario: Option<u64>,
-    method: &str,
+    #[pyo3(from_py_with = cell_arg)] cell: Option<PathBuf>,
+    #[pyo3(from_py_with = placement_arg)] placement: Option<String>,
+    #[pyo3(from_py_with = seed_arg)] seed: Option<u64>,
+    #[pyo3(from_py_with = scenario_arg)] scenario: Option<u64>,
+    #[pyo3(from_py_with = method_arg)] method: String,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let method = method_of(method)?;
+    let placement = placement.as_deref();
+    let method = method_of(&method)?;
     let cell = load_cell(cell.as_deref(), None)?;
     let placement = placement_of(&cell, placement)?;
     let seed = seed.unwrap_or(cell.scenarios.seed);
@@ -303,16 +340,20 @@ fn render<'py>(
 /// (summary.json's fields: "success_rate", "success_interval", "successes", "scored",
 /// median errors and timings, and "verification" with the verified figures).
 #[pyfunction]
-#[pyo3(signature = (cell=None, placement=None, scenarios=20, seed=None, method="one-shot"))]
+#[pyo3(
+    signature = (cell=None, placement=None, scenarios=20, seed=None, method=String::from("one-shot")),
+    text_signature = "(cell=None, placement=None, scenarios=20, seed=None, method='one-shot')"
+)]
 fn evaluate<'py>(
     py: Python<'py>,
-    cell: Option<PathBuf>,
-    placement: Option<&str>,
-    scenarios: u64,
-    seed: Option<u64>,
-    method: &str,
+    #[pyo3(from_py_with = cell_arg)] cell: Option<PathBuf>,
+    #[pyo3(from_py_with = placement_arg)] placement: Option<String>,
+    #[pyo3(from_py_with = scenarios_arg)] scenarios: u64,
+    #[pyo3(from_py_with = seed_arg)] seed: Option<u64>,
+    #[pyo3(from_py_with = method_arg)] method: String,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let method = method_of(method)?;
+    let placement = placement.as_deref();
+    let method = method_of(&method)?;
     let cell = load_cell(cell.as_deref(), None)?;
     let placement = placement_of(&cell, placement)?;
     if scenarios == 0 {
@@ -329,7 +370,7 @@ fn evaluate<'py>(
 /// read_image(path) -> 2-D uint8 array: an image file (PNG, or any common format) as grey,
 /// within the pixel budget (8192 x 8192), as every camplace command reads one.
 #[pyfunction]
-fn read_image<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyAny>> {
+fn read_image<'py>(py: Python<'py>, #[pyo3(from_py_with = image_path_arg)] path: PathBuf) -> PyResult<Bound<'py, PyAny>> {
     let gray = camplace_config::read_gray(&path).map_err(fail)?;
     let a = Array2::from_shape_vec((gray.height, gray.width), gray.data).map_err(fail)?;
     Ok(a.into_pyarray(py).into_any())

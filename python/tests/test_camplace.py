@@ -122,6 +122,34 @@ def test_bad_input_raises_with_one_line(dataset, tmp_path):
     assert issubclass(camplace.Error, ValueError)
 
 
+
+def test_arguments_of_the_wrong_type_raise_camplace_error_naming_them(dataset):
+    ds, model, _ = dataset
+    est = estimator(ds, model)
+    cases = [
+        (lambda: camplace.Estimator(123, str(model)), "cell: expected a path"),
+        (lambda: camplace.Estimator(None, 5), "model: expected a path"),
+        (lambda: camplace.Estimator(None, str(model), rig=1.5), "rig: expected a path"),
+        (lambda: camplace.Estimator(None, str(model), placement=605), "placement: expected a str"),
+        (lambda: camplace.Estimator(None, str(model), method=12), "method: expected a str"),
+        (lambda: camplace.Estimator(None, str(model), tray=["a"]), "tray: expected a str"),
+        (lambda: camplace.render(seed=-1), "seed: expected a whole number from 0"),
+        (lambda: camplace.render(seed=2**64), "seed: expected a whole number from 0"),
+        (lambda: camplace.render(scenario="0"), "scenario: expected a whole number from 0"),
+        (lambda: camplace.render(method=None), "method: expected a str"),
+        (lambda: camplace.evaluate(scenarios=-2), "scenarios: expected a whole number from 0"),
+        (lambda: camplace.evaluate(scenarios=1.5), "scenarios: expected a whole number from 0"),
+        (lambda: camplace.evaluate(placement=object()), "placement: expected a str"),
+        (lambda: camplace.read_image(None), "path: expected a path"),
+        (lambda: camplace.read_image(7), "path: expected a path"),
+        (lambda: est.process(1, None), "left: expected a 2-D uint8 numpy array"),
+        (lambda: est.set_background("a", "b"), "left: expected a 2-D uint8 numpy array"),
+    ]
+    for call, words in cases:
+        with pytest.raises(camplace.Error) as e:
+            call()
+        assert words in str(e.value) and "\n" not in str(e.value), str(e.value)
+
 def test_help_documents_every_call():
     for name in ["Estimator", "render", "evaluate", "read_image"]:
         assert getattr(camplace, name).__doc__, name

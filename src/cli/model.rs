@@ -1,8 +1,7 @@
 //! `camplace model`: builds the tray model at a placement in simulation and writes it (and,
 //! on request, its ICP points as a PLY cloud).
 
-use anyhow::Context;
-use camplace_config::write_atomic;
+use camplace_config::{check_output_file, encode_cloud, write_atomic_all};
 use camplace_estimator::VerifiedSummary;
 use camplace_sim::{build_model, measure_verification, model_points};
 use std::path::PathBuf;
@@ -35,16 +34,25 @@ pub struct Args {
 
 /// Runs `camplace model`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    // Both outputs checked before the model is built, and written together after: a command
+    // whose outputs cannot all be written writes none of them.
+    check_output_file(&a.out)?;
+    if let Some(path) = &a.ply {
+        check_output_file(path)?;
+    }
     let (mut cell, mut placement) = a.cell.load()?;
     a.installed.apply(&mut cell, &mut placement)?;
     let seed = a.scene.seed(&cell);
     let mut model = build_model(&cell, &placement, a.scene.method, seed)?;
     let verified = measure_verification(&cell, &placement, a.scene.method, seed, &model, a.verify_scenes)?;
     model.verification = verified.as_ref().map(VerifiedSummary::to_model);
-    write_atomic(&a.out, &model.to_bytes())?;
-    if let Some(path) = &a.ply {
-        camplace_config::write_cloud(path, &model_points(&model), None).with_context(|| path.display().to_string())?;
+    let model_bytes = model.to_bytes();
+    let cloud = a.ply.as_ref().map(|path| (path, encode_cloud(&model_points(&model), None)));
+    let mut files = vec![(a.out.as_path(), model_bytes.as_slice())];
+    if let Some((path, bytes)) = &cloud {
+        files.push((path.as_path(), bytes.as_slice()));
     }
+    write_atomic_all(&files)?;
     let points: usize = model.views.iter().map(|v| v.points.len()).sum();
     outln!(
         "model at {placement} ({}): {} features, {} views, {points} ICP points; wrote {}",

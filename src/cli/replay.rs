@@ -39,6 +39,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         }
         None => (Cell::default(), Model::load(&a.model)?),
     };
+    // Marks made on the poses about to be replaced keep saying which poses they judged.
+    camplace_sim::tie_marks_to_poses(&a.dataset)?;
     let DatasetEstimate { records, method, summary } = estimate_dataset(&cell, model, &a.dataset)?;
     let poses = a.dataset.join("poses.jsonl");
     if summary.scored == 0 {

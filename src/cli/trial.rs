@@ -13,7 +13,7 @@ use camplace_estimator::{Method, Model};
 use camplace_hwio::{estimate_dataset, DatasetEstimate};
 use camplace_sim::{
     append_label, check_placement_rig, frame_names, make_mock_trial, make_plan, rho_text, scripted_marks, study_grid,
-    trial_report, LABELS_FILE, REPORT_HTML, REPORT_JSON,
+    tie_marks_to_poses, trial_report, LABELS_FILE, REPORT_HTML, REPORT_JSON,
 };
 
 use super::cell_args::CellArgs;
@@ -227,6 +227,7 @@ fn estimate(a: EstimateArgs) -> anyhow::Result<ExitCode> {
             continue;
         }
         check_placement_rig(&dir, &cell, &plan.placement(i))?;
+        tie_marks_to_poses(&dir)?;
         let DatasetEstimate { records, method, .. } = estimate_dataset(&cell, model.clone(), &dir)?;
         let found = records.iter().filter(|r| r.found).count();
         let accepted = records.iter().filter(|r| r.accepted()).count();
@@ -285,8 +286,12 @@ fn report(a: ReportArgs) -> anyhow::Result<ExitCode> {
                 100.0 * x.success_interval[1]
             )
         });
+        let earlier = match p.marked_on_earlier_poses {
+            0 => String::new(),
+            n => format!(", {n} of them marked on earlier poses: mark again"),
+        };
         let open = if p.unsure + p.not_judged > 0 {
-            format!(" [{} unsure, {} not judged]", p.unsure, p.not_judged)
+            format!(" [{} unsure, {} not judged{earlier}]", p.unsure, p.not_judged)
         } else {
             String::new()
         };

@@ -19,4 +19,6 @@ pub(crate) mod png;
 pub(crate) mod read;
 pub(crate) mod robot_poses;
 
-pub use atomic::{is_temp_file_name, remove_stale_temp_files, temp_path_for, write_atomic};
+pub use atomic::{
+    check_output_file, is_temp_file_name, remove_stale_temp_files, temp_path_for, write_atomic, write_atomic_all,
+};

@@ -38,6 +38,9 @@ use crate::{Error, Result};
 
 /// Frames read at most (the first ones of the dataset).
 pub const MAX_FIT_FRAMES: usize = 200;
+/// The least noise variance (grey levels², before the filter) the fit measures the filter
+/// and noise on: uniform noise on ±1 has 2/3, so below this the differences are rounding.
+const MIN_NOISE_VARIANCE: f64 = 0.25;
 /// Renders of the gain and light loop per dot size at most.
 const GAIN_ROUNDS: usize = 8;
 
@@ -118,6 +121,12 @@ impl SensorFit {
     }
 }
 
+/// Whether every shot of `frame` is `background`'s, pixel for pixel.
+fn equal_images(frame: &Frames, background: &Frames) -> bool {
+    let same = |a: &[GrayImage], b: &[GrayImage]| a.len() == b.len() && a.iter().zip(b).all(|(a, b)| a.data == b.data);
+    same(&frame.left, &background.left) && same(&frame.right, &background.right)
+}
+
 /// Fits `cell`'s sensor keys to the recorded dataset `dataset` (its `rig.json`,
 /// `background/` and at least two frames of the tray), reading at most `max_frames` frames.
 pub fn fit_sensor(dataset: &Path, cell: &Cell, max_frames: usize) -> Result<SensorFit> {
@@ -178,9 +187,14 @@ pub fn fit_sensor(dataset: &Path, cell: &Cell, max_frames: usize) -> Result<Sens
     let mut frame_means: Vec<Vec<[f64; 2]>> = Vec::with_capacity(frames);
     let mut frame = Frames::new(shots);
     let mut tiles = 0;
+    let mut copies = Vec::new();
     for i in 0..frames {
         // The background was read with the frames' shots, so both have as many.
         source.read_into(i, &mut frame)?;
+        if equal_images(&frame, &background) {
+            copies.push(i);
+            continue;
+        }
         let mut this = DifferenceStats::default();
         let mut kept: [Vec<(usize, usize)>; 2] = Default::default();
         let mut means = Vec::with_capacity(shots);
@@ -206,6 +220,24 @@ pub fn fit_sensor(dataset: &Path, cell: &Cell, max_frames: usize) -> Result<Sens
         frame_tiles.push(kept);
         frame_means.push(means);
     }
+    // Two captures of one scene always differ by the cameras' noise: a frame equal to the
+    // background pixel for pixel is a copy of it, and measures no noise, filter or light.
+    if copies.len() == frames {
+        return Err(Error::Other(format!(
+            "{}: all {frames} frames equal the background pixel for pixel (no tray set down, no camera noise between \
+             them): nothing to measure the noise, filter and light on; expected frames captured after the background, \
+             with the tray set down",
+            dataset.display()
+        )));
+    }
+    if let Some(&i) = copies.first() {
+        return Err(Error::Other(format!(
+            "{}: equals the background pixel for pixel ({} of {frames} frames do): a copy would pull the noise \
+             towards zero; expected a frame captured after the background, with the tray set down",
+            source.frame_dirs()[i].display(),
+            copies.len()
+        )));
+    }
     if pooled.counts[MAX_LAG - 1] < 1000.0 {
         return Err(Error::Other(format!(
             "{}: too little of the table is seen unsaturated and unchanged by the tray in both the background and the frames \
@@ -215,6 +247,17 @@ pub fn fit_sensor(dataset: &Path, cell: &Cell, max_frames: usize) -> Result<Sens
     }
     let structure = pooled.structure();
     let box_fit = fit_box_noise(&structure);
+    // Without noise above the rounding's the filter's side is undetermined (every side fits
+    // flat differences) and the gain's fit has no noise to hold the contrast against.
+    if box_fit.noise_variance < MIN_NOISE_VARIANCE {
+        return Err(Error::Other(format!(
+            "{}: the frames differ from the background by no noise above the rounding's (variance {:.3} grey levels², \
+             at least {MIN_NOISE_VARIANCE} measurable): the filter and noise cannot be measured; expected frames of the \
+             real sensor captured after the background",
+            dataset.display(),
+            box_fit.noise_variance
+        )));
+    }
     let blur = box_fit.blur;
     let amplitude = amplitude_of_variance(box_fit.noise_variance);
     let frame_amplitudes: Vec<f64> = per_frame

@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use camplace_config::write_atomic;
+use camplace_config::write_atomic_all;
 
 use super::{KeyFit, SensorFit};
 use crate::report::html::HtmlPage;
@@ -18,13 +18,18 @@ pub const FIT_JSON: &str = "fit-sensor.json";
 /// The fit's report page.
 pub const FIT_HTML: &str = "fit-sensor.html";
 
-/// Writes the fragment, the JSON and the page into `out` (made when missing).
+/// Writes the fragment, the JSON and the page into `out` (made when missing): all three or,
+/// when one cannot be written, none.
 pub fn write_fit(fit: &SensorFit, out: &Path) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| camplace_config::Error::io(out, &e))?;
-    write_atomic(&out.join(FIT_FRAGMENT), fragment(fit).as_bytes())?;
     let json = serde_json::to_string_pretty(fit).expect("a fit is plain data");
-    write_atomic(&out.join(FIT_JSON), format!("{json}\n").as_bytes())?;
-    page(fit).write(&out.join(FIT_HTML))
+    let (fragment, json, html) = (fragment(fit), format!("{json}\n"), page(fit).html());
+    let (fragment_path, json_path, html_path) = (out.join(FIT_FRAGMENT), out.join(FIT_JSON), out.join(FIT_HTML));
+    Ok(write_atomic_all(&[
+        (&fragment_path, fragment.as_bytes()),
+        (&json_path, json.as_bytes()),
+        (&html_path, html.as_bytes()),
+    ])?)
 }
 
 /// A number in a comment: NaN as "not measured".

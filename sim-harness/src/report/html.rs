@@ -117,7 +117,12 @@ impl HtmlPage {
 
     /// Writes the page to `path` atomically.
     pub fn write(&self, path: &Path) -> Result<()> {
-        let html = format!(
+        Ok(write_atomic(path, self.html().as_bytes())?)
+    }
+
+    /// The whole page's text.
+    pub fn html(&self) -> String {
+        format!(
             "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{0}</title>\n<style>\
 body{{font-family:sans-serif;max-width:1200px;margin:2em auto;padding:0 1em;color:#222}}\
 table{{border-collapse:collapse;margin:1em 0;font-size:0.9em}}td,th{{border:1px solid #bbb;padding:3px 8px;text-align:right}}\
@@ -125,7 +130,6 @@ th{{background:#eee}}.fig{{display:inline-block;margin:4px}}img{{max-width:100%}
 </style></head><body>\n<h1>{0}</h1>\n{1}</body></html>\n",
             escape(&self.title),
             self.body
-        );
-        Ok(write_atomic(path, html.as_bytes())?)
+        )
     }
 }

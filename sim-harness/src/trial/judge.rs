@@ -1,7 +1,10 @@
 //! Judging a placement's frames: a frame with a `truth.json` by the success tolerances (its
 //! line in `poses.jsonl` carries `success`), any other by the reviewer's mark in
-//! `labels.jsonl` — one JSON line per mark, `{"frame":"0003","mark":"correct"}` (or
-//! `wrong`, `unsure`), appended as marks are made; a frame's last mark stands. The file is
+//! `labels.jsonl` — one JSON line per mark, `{"frame":"0003","mark":"correct","pose":"…"}`
+//! (or `wrong`, `unsure`), appended as marks are made; a frame's last mark on its present
+//! pose stands. `pose` is the fingerprint of the pose the mark judged, so a mark made before
+//! the frame was estimated again (another model, another cell) judges nothing now: it is
+//! kept in the file but not counted, and the frame is open until marked again. The file is
 //! the review's whole state: nothing else is kept between sittings.
 
 use std::io::Write;
@@ -10,6 +13,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::{Error, Result};
+use camplace_config::ContentHash;
 use camplace_estimator::FrameRecord;
 
 /// The reviewer's marks beside a dataset's frames.
@@ -49,6 +53,18 @@ pub struct Label {
     pub frame: String,
     /// The judgement.
     pub mark: Mark,
+    /// The [`pose_fingerprint`] of the pose judged; [`append_label`] fills it in. Marks
+    /// written before marks carried one have none (see [`tie_marks_to_poses`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose: Option<String>,
+}
+
+/// What a reviewer sees of a frame's pose, as 12 hex digits: whether one was found, where
+/// (`T_world_tray`) and the verification's verdict. Timings and counts do not change it, so
+/// estimating again to the same poses keeps the marks.
+pub fn pose_fingerprint(r: &FrameRecord) -> String {
+    let seen = serde_json::json!([r.found, r.found.then_some(r.t_world_tray), r.verdict]);
+    ContentHash::of(seen.to_string().as_bytes()).short()
 }
 
 /// How one frame was judged.
@@ -146,7 +162,8 @@ fn span(frames: &[String]) -> String {
 }
 
 /// Appends one mark to `dir/labels.jsonl` in a single write, after checking that the frame
-/// exists; returns the file's path.
+/// exists, with the fingerprint of the frame's present pose (`dir/poses.jsonl`); returns
+/// the file's path.
 pub fn append_label(dir: &Path, frames: &[String], label: &Label) -> Result<PathBuf> {
     let path = dir.join(LABELS_FILE);
     if frames.binary_search(&label.frame).is_err() {
@@ -157,7 +174,16 @@ pub fn append_label(dir: &Path, frames: &[String], label: &Label) -> Result<Path
             label.frame
         )));
     }
-    let line = format!("{}\n", serde_json::to_string(label).expect("a label is plain data"));
+    let poses = read_poses(dir)?;
+    let Some(pose) = poses.iter().find(|p| p.frame == label.frame) else {
+        return Err(Error::Other(format!(
+            "{}: frame: expected a pose line for frame {}; estimate the dataset again",
+            dir.join(POSES_FILE).display(),
+            label.frame
+        )));
+    };
+    let label = Label { pose: Some(pose_fingerprint(pose)), ..label.clone() };
+    let line = format!("{}\n", serde_json::to_string(&label).expect("a label is plain data"));
     let mut f = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
@@ -169,11 +195,61 @@ pub fn append_label(dir: &Path, frames: &[String], label: &Label) -> Result<Path
     Ok(path)
 }
 
+/// Each frame's last mark made on its present pose in `poses`, and the frames marked only on
+/// earlier poses (their marks judge nothing now). A mark without a fingerprint, written
+/// before marks carried one, is taken to judge the present pose.
+pub fn present_marks(labels: &[Label], poses: &[FrameRecord]) -> (Vec<(String, Mark)>, Vec<String>) {
+    let mut marks: Vec<(String, Mark)> = Vec::new();
+    let mut earlier: Vec<String> = Vec::new();
+    for pose in poses {
+        let fingerprint = pose_fingerprint(pose);
+        let of_frame: Vec<&Label> = labels.iter().filter(|l| l.frame == pose.frame).collect();
+        if of_frame.is_empty() {
+            continue;
+        }
+        match of_frame.iter().rev().find(|l| l.pose.as_ref().is_none_or(|p| *p == fingerprint)) {
+            Some(l) => marks.push((l.frame.clone(), l.mark)),
+            None => earlier.push(pose.frame.clone()),
+        }
+    }
+    (marks, earlier)
+}
+
+/// Ties the marks of `dir/labels.jsonl` that carry no fingerprint (written before marks
+/// carried one) to the poses of `dir/poses.jsonl` they were made on, so that estimating the
+/// frames again cannot hand them new poses to judge. Call it before `poses.jsonl` is
+/// written again; returns how many marks it tied (the file is rewritten whole only then).
+pub fn tie_marks_to_poses(dir: &Path) -> Result<usize> {
+    let path = dir.join(LABELS_FILE);
+    if !path.exists() || !dir.join(POSES_FILE).is_file() {
+        return Ok(0);
+    }
+    let names = frame_names(dir)?;
+    let mut labels = read_labels(dir, &names)?;
+    if labels.iter().all(|l| l.pose.is_some()) {
+        return Ok(0);
+    }
+    let poses = read_poses(dir)?;
+    let mut tied = 0;
+    for label in labels.iter_mut().filter(|l| l.pose.is_none()) {
+        if let Some(pose) = poses.iter().find(|p| p.frame == label.frame) {
+            label.pose = Some(pose_fingerprint(pose));
+            tied += 1;
+        }
+    }
+    let text: String =
+        labels.iter().map(|l| format!("{}\n", serde_json::to_string(l).expect("a label is plain data"))).collect();
+    camplace_config::write_atomic(&path, text.as_bytes())?;
+    Ok(tied)
+}
+
 /// Every frame of a placement's dataset with its pose and judgement.
 #[derive(Debug, Clone)]
 pub struct JudgedDataset {
     /// The frames in order: name, pose line, judgement.
     pub frames: Vec<(String, FrameRecord, Judgement)>,
+    /// Frames whose marks all judged earlier poses (not counted; open until marked again).
+    pub marked_on_earlier_poses: Vec<String>,
 }
 
 impl JudgedDataset {
@@ -182,6 +258,7 @@ impl JudgedDataset {
         let names = frame_names(dir)?;
         let poses = read_poses(dir)?;
         let labels = read_labels(dir, &names)?;
+        let (marks, marked_on_earlier_poses) = present_marks(&labels, &poses);
         let mut frames = Vec::with_capacity(names.len());
         for name in names {
             let Some(pose) = poses.iter().find(|p| p.frame == name) else {
@@ -190,14 +267,14 @@ impl JudgedDataset {
                     dir.join(POSES_FILE).display()
                 )));
             };
-            let judgement = match (&pose.score, labels.iter().rev().find(|l| l.frame == name)) {
+            let judgement = match (&pose.score, marks.iter().find(|(frame, _)| *frame == name)) {
                 (Some(s), _) => Judgement::Truth(s.success),
-                (None, Some(l)) => Judgement::Marked(l.mark),
+                (None, Some((_, mark))) => Judgement::Marked(*mark),
                 (None, None) => Judgement::Open,
             };
             frames.push((name, pose.clone(), judgement));
         }
-        Ok(JudgedDataset { frames })
+        Ok(JudgedDataset { frames, marked_on_earlier_poses })
     }
 
     /// Each frame's outcome in frame order (see [`Judgement::outcome`]).

@@ -96,7 +96,7 @@ pub fn scripted_marks(dir: &Path, hidden: &Path, index: usize, cell: &Cell) -> R
             &cell.metrics,
         );
         let mark = if pose.found && errors.success { Mark::Correct } else { Mark::Wrong };
-        out.push(Label { frame: pose.frame, mark });
+        out.push(Label { frame: pose.frame, mark, pose: None });
     }
     Ok(out)
 }

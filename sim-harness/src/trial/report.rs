@@ -72,6 +72,9 @@ pub struct PlacementRow {
     pub marked: usize,
     pub unsure: usize,
     pub not_judged: usize,
+    /// Of the frames not judged, those whose marks judged earlier poses (the placement was
+    /// estimated again since): their marks stay in labels.jsonl but are not counted.
+    pub marked_on_earlier_poses: usize,
     /// Success over the frames judged (truth or a correct / wrong mark).
     pub real: Option<RateFigures>,
     /// The study's success at the same placement.
@@ -207,6 +210,7 @@ pub fn trial_report(dir: &Path, cell: &Cell, study: Option<&Path>, out: &Path) -
             marked: 0,
             unsure: 0,
             not_judged: 0,
+            marked_on_earlier_poses: 0,
             real: None,
             simulated,
             in_real_top_set: false,
@@ -227,6 +231,7 @@ pub fn trial_report(dir: &Path, cell: &Cell, study: Option<&Path>, out: &Path) -
         row.marked = marked;
         row.unsure = unsure;
         row.not_judged = open;
+        row.marked_on_earlier_poses = judged.marked_on_earlier_poses.len();
         row.real = (counted > 0).then(|| RateFigures::of(successes, counted));
         rows.push(row);
         outcomes.push(judged.frames.iter().map(|(n, _, j)| (n.clone(), j.outcome())).collect::<Vec<_>>());

@@ -19,7 +19,7 @@ use camplace_estimator::{isometry_from_rows, Rig};
 use nalgebra::Point3;
 use serde::Serialize;
 
-use super::judge::{frame_names, read_labels, read_poses, Mark};
+use super::judge::{frame_names, present_marks, read_labels, read_poses, Mark};
 use crate::scene::tray::TrayModel;
 use crate::{Error, Result};
 
@@ -117,7 +117,8 @@ pub fn review_page(dir: &Path, cell: &Cell, live: bool) -> Result<String> {
             truth: pose.score.map(|s| s.success),
         });
     }
-    let marks = labels.into_iter().map(|l| (l.frame, l.mark)).collect();
+    // Marks made on earlier poses judge nothing now: their frames open again.
+    let marks = present_marks(&labels, &poses).0.into_iter().collect();
     let data = PageData { width: rig_file.left.width, height: rig_file.left.height, frames, marks, live };
     // Inside a <script>, "</" would end it early.
     let json = serde_json::to_string(&data).expect("page data is plain").replace("</", "<\\/");
