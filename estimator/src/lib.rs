@@ -33,9 +33,10 @@ mod spatial;
 
 pub use as_built::{as_built, azimuth_difference, AsBuilt};
 pub use calibration::{
-    calibrate_hand_eye, calibrate_rig, calibrate_stereo, find_board_corners, table_board_pose, BoardView,
-    CalibrationBoard, ExpectedError, FoundBoardPair, HandEyeCalibration, HandEyeInput, HandEyeSetup, PoseResidual,
-    RigCalibration, RotationSpread, StereoCalibration, ViewResidual, MIN_CALIBRATION_VIEWS, MIN_HAND_EYE_POSES,
+    calibrate_hand_eye, calibrate_hand_eye_paired, calibrate_rig, calibrate_stereo, find_board_corners,
+    table_board_pose, BoardView, CalibrationBoard, ExpectedError, FoundBoardPair, HandEyeCalibration, HandEyeError,
+    HandEyeInput, HandEyeSetup, PairedHandEye, PoseReading, PoseResidual, RigCalibration, RotationSpread,
+    StereoCalibration, ViewResidual, MIN_CALIBRATION_VIEWS, MIN_HAND_EYE_POSES,
 };
 pub use camera::{isometry_from_matrix, isometry_from_rows, isometry_to_rows, Camera};
 pub use depth::{

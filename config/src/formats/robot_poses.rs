@@ -17,6 +17,9 @@ pub struct RobotPoses {
     pub poses: Vec<[[f64; 4]; 4]>,
     /// The 1-based line number of each pose, for messages.
     pub lines: Vec<usize>,
+    /// Each pose line's text without its comment: what a reading in another format starts
+    /// from (a pose read back would lose how the controller wrote its angles).
+    pub texts: Vec<String>,
 }
 
 /// Parses a `format CONVENTION UNIT` header.
@@ -46,6 +49,7 @@ pub fn parse_robot_poses(text: &str, given: Option<RobotPoseFormat>) -> Result<R
     let mut format: Option<RobotPoseFormat> = None;
     let mut poses = Vec::new();
     let mut lines = Vec::new();
+    let mut texts = Vec::new();
     for (i, raw) in text.lines().enumerate() {
         let number = i + 1;
         let line = raw.split('#').next().unwrap_or("").trim();
@@ -86,6 +90,7 @@ pub fn parse_robot_poses(text: &str, given: Option<RobotPoseFormat>) -> Result<R
         let pose = parse_pose(line, f).map_err(|m| Error::new(ErrorKind::Value, key, m))?;
         poses.push(pose);
         lines.push(number);
+        texts.push(line.to_string());
     }
     let Some(format) = format.or(given) else {
         return Err(Error::new(ErrorKind::Format, "", "no poses; expected one pose a line"));
@@ -93,7 +98,7 @@ pub fn parse_robot_poses(text: &str, given: Option<RobotPoseFormat>) -> Result<R
     if poses.is_empty() {
         return Err(Error::new(ErrorKind::Format, "", "no poses; expected one pose a line"));
     }
-    Ok(RobotPoses { format, poses, lines })
+    Ok(RobotPoses { format, poses, lines, texts })
 }
 
 /// The text of a pose file: a header naming `format`, then one line per pose.

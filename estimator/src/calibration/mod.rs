@@ -17,8 +17,8 @@ mod zhang;
 pub use board::{table_board_pose, BoardView, CalibrationBoard, MIN_CALIBRATION_VIEWS};
 pub use corners::find_board_corners;
 pub use hand_eye::{
-    calibrate_hand_eye, ExpectedError, HandEyeCalibration, HandEyeInput, HandEyeSetup, PoseResidual, RotationSpread,
-    MIN_HAND_EYE_POSES,
+    calibrate_hand_eye, calibrate_hand_eye_paired, ExpectedError, HandEyeCalibration, HandEyeError, HandEyeInput,
+    HandEyeSetup, PairedHandEye, PoseReading, PoseResidual, RotationSpread, MIN_HAND_EYE_POSES,
 };
 pub use rig_calibration::{calibrate_rig, FoundBoardPair, RigCalibration};
 pub use stereo::{calibrate_stereo, StereoCalibration, ViewResidual};

@@ -10,6 +10,7 @@
 
 mod board_poses;
 mod closed_form;
+mod readings;
 mod refine;
 #[cfg(test)]
 mod tests;
@@ -22,6 +23,7 @@ use crate::error::{Error, ErrorKind, Result};
 use board_poses::{board_pose_in_view, StereoPair};
 pub use closed_form::RotationSpread;
 use closed_form::{rotation_spread, solve_ax_zb};
+pub use readings::{calibrate_hand_eye_paired, HandEyeError, PairedHandEye, PoseReading};
 use refine::{corrected, expected_errors, refine, HandEyeProblem, Refined, Sigmas};
 
 /// Fewest robot poses a hand-eye calibration takes: three fix X and Z, and two more let a
@@ -59,9 +61,14 @@ pub const WARN_AXIS_SPREAD_DEG: f64 = 30.0;
 pub const WARN_TRANSLATION_MM: f64 = 0.5;
 /// ... this rotation, degrees, is warned of.
 pub const WARN_ROTATION_DEG: f64 = 0.05;
-/// A median pose score above this is not noise: the poses' units are then tried scaled by
-/// 1000 and by 1/1000.
-const UNIT_CHECK_SCORE: f64 = 5.0;
+/// A median pose score above this (the RMS of its residuals in units of their stated σ) is
+/// not noise: the poses do not fit the images, and other readings of them are tried. Correct
+/// poses score 0.4 to 1 (the detector's 0.04 px against the 0.1 px weighed; a robot five
+/// times worse than stated about 1); poses read in the wrong convention, inverted, paired
+/// one off or of the other setup score 50 and more.
+pub const FIT_SCORE_LIMIT: f64 = 5.0;
+/// The worst poses a refusal names.
+const WORST_NAMED: usize = 3;
 
 /// Where the rig is mounted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -157,8 +164,75 @@ pub struct HandEyeCalibration {
     pub warnings: Vec<String>,
 }
 
-/// Calibrates the hand-eye transform of `input`.
+/// Calibrates the hand-eye transform of `input`. Poses that do not fit the images (the
+/// median pose's score above [`FIT_SCORE_LIMIT`]) are refused, with the reading of them
+/// that fits when one does (another unit, inverted, paired one off, the other setup).
 pub fn calibrate_hand_eye(input: &HandEyeInput<'_>) -> Result<HandEyeCalibration> {
+    let prepared = prepare(input)?;
+    match fit(input, &prepared) {
+        Ok(cal) => Ok(cal),
+        Err(Failure::Error(e)) => Err(e),
+        Err(Failure::Misfit(misfit)) => {
+            let frames: Vec<usize> = (0..input.views.len()).collect();
+            let candidates = readings::pose_readings(input, &frames, input.t_base_flange, None);
+            let fits = readings::diagnose(input, &prepared, &candidates);
+            let worst = misfit.worst.iter().map(|i| format!("pose {i}")).collect();
+            Err(Error::new(ErrorKind::Input, HandEyeError::misfit(&misfit, fits, worst).to_string()))
+        }
+    }
+}
+
+/// Why a fit failed: an error of the input, or poses that do not fit the images.
+pub(super) enum Failure {
+    Error(Error),
+    Misfit(Misfit),
+}
+
+impl From<Error> for Failure {
+    fn from(e: Error) -> Self {
+        Failure::Error(e)
+    }
+}
+
+/// How badly the poses as read fit the images.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Misfit {
+    /// The median pose's RMS reprojection error, pixels.
+    pub rms_px: f64,
+    /// The worst poses (input indices), worst first.
+    pub worst: Vec<usize>,
+}
+
+/// What every solve of one set of views shares: the board's pose in each view, once.
+pub(super) struct Prepared {
+    pub t_right_left: Isometry3<f64>,
+    pub object: Vec<Point3<f64>>,
+    /// The board in the left camera's frame, per view.
+    pub t_left_board: Vec<Isometry3<f64>>,
+}
+
+impl Prepared {
+    /// The B_i of `setup`: the board's pose as the rig saw it, or the rig's in the board's
+    /// frame.
+    pub fn b(&self, setup: HandEyeSetup) -> Vec<Isometry3<f64>> {
+        match setup {
+            HandEyeSetup::EyeToHand => self.t_left_board.clone(),
+            HandEyeSetup::EyeInHand => self.t_left_board.iter().map(|t| t.inverse()).collect(),
+        }
+    }
+
+    /// The views `kept` alone.
+    pub fn subset(&self, kept: &[usize]) -> Prepared {
+        Prepared {
+            t_right_left: self.t_right_left,
+            object: self.object.clone(),
+            t_left_board: kept.iter().map(|&i| self.t_left_board[i]).collect(),
+        }
+    }
+}
+
+/// The checks that do not depend on the poses' reading, and the board's pose in each view.
+fn prepare(input: &HandEyeInput<'_>) -> Result<Prepared> {
     let n = input.views.len();
     if input.t_base_flange.len() != n {
         return Err(Error::new(
@@ -189,10 +263,16 @@ pub fn calibrate_hand_eye(input: &HandEyeInput<'_>) -> Result<HandEyeCalibration
     let object = input.board.object_points();
     let t_left_board: Vec<Isometry3<f64>> =
         input.views.iter().enumerate().map(|(i, v)| board_pose_in_view(&pair, &object, v, i)).collect::<Result<_>>()?;
-    let b: Vec<Isometry3<f64>> = match input.setup {
-        HandEyeSetup::EyeToHand => t_left_board.clone(),
-        HandEyeSetup::EyeInHand => t_left_board.iter().map(|t| t.inverse()).collect(),
-    };
+    Ok(Prepared { t_right_left, object, t_left_board })
+}
+
+/// The calibration of `input` whose board poses are `prepared`'s; a misfit when the poses
+/// as given do not fit the images.
+pub(super) fn fit(input: &HandEyeInput<'_>, prepared: &Prepared) -> std::result::Result<HandEyeCalibration, Failure> {
+    let n = input.views.len();
+    let pair = StereoPair { left: input.left, right: input.right, t_right_left: prepared.t_right_left };
+    let object = &prepared.object[..];
+    let b = prepared.b(input.setup);
     let spread = rotation_spread(input.t_base_flange);
     if spread.informative_pairs == 0 {
         return Err(Error::new(
@@ -202,7 +282,8 @@ pub fn calibrate_hand_eye(input: &HandEyeInput<'_>) -> Result<HandEyeCalibration
                  more about at least two axes",
                 spread.max_rotation_deg
             ),
-        ));
+        )
+        .into());
     }
     if spread.max_axis_angle_deg < MIN_AXIS_SPREAD_DEG {
         return Err(Error::new(
@@ -213,32 +294,32 @@ pub fn calibrate_hand_eye(input: &HandEyeInput<'_>) -> Result<HandEyeCalibration
                  to each other",
                 spread.max_axis_angle_deg
             ),
-        ));
+        )
+        .into());
     }
 
     let all: Vec<usize> = (0..n).collect();
-    let first = solve(input, &pair, &object, &b, input.t_base_flange, &all)?;
-    let median_score = median(&first.scores);
-    if median_score > UNIT_CHECK_SCORE {
-        for (factor, written, read) in [(1000.0, "m", "mm"), (0.001, "mm", "m")] {
-            let scaled: Vec<Isometry3<f64>> = input
-                .t_base_flange
-                .iter()
-                .map(|t| Isometry3::from_parts((t.translation.vector * factor).into(), t.rotation))
-                .collect();
-            let Ok(other) = solve(input, &pair, &object, &b, &scaled, &all) else { continue };
-            let other_score = median(&other.scores);
-            if other_score < UNIT_CHECK_SCORE && other_score < median_score / 10.0 {
-                return Err(Error::new(
-                    ErrorKind::Input,
-                    format!(
-                        "hand-eye: the robot poses' translations are in {written} but were read as {read}: scaled by \
-                         {factor} they fit (median pose score {other_score:.1} against {median_score:.0} as read, 1 \
-                         is a good fit); expected the unit the file was written in"
-                    ),
-                ));
-            }
+    // Poses that do not belong to the images can send the refinement anywhere, even to
+    // values that are not finite: that is a misfit too, measured on the closed form.
+    let first = match solve(input, &pair, object, &b, input.t_base_flange, &all) {
+        Ok(first) => first,
+        Err(_) => {
+            let rms_px = readings::closed_form_px(input, prepared, input.setup, &all, input.t_base_flange);
+            return Err(Failure::Misfit(Misfit { rms_px, worst: Vec::new() }));
         }
+    };
+    let median_score = median(&first.scores);
+    if median_score.is_nan() || median_score > FIT_SCORE_LIMIT {
+        let px: Vec<f64> = all
+            .iter()
+            .map(|&i| {
+                pose_fit(&problem_of(input, &pair, object, input.t_base_flange, &[i]), &first, &first.deltas[i]).0
+            })
+            .collect();
+        let mut worst: Vec<usize> = all.clone();
+        worst.sort_by(|&p, &q| first.scores[q].total_cmp(&first.scores[p]));
+        worst.truncate(WORST_NAMED);
+        return Err(Failure::Misfit(Misfit { rms_px: median(&px), worst }));
     }
 
     // Drop the worst pose while it stands out, and solve again without it.
@@ -253,10 +334,10 @@ pub fn calibrate_hand_eye(input: &HandEyeInput<'_>) -> Result<HandEyeCalibration
             break;
         }
         dropped.push(kept.remove(worst));
-        current = solve(input, &pair, &object, &b, input.t_base_flange, &kept)?;
+        current = solve(input, &pair, object, &b, input.t_base_flange, &kept)?;
     }
 
-    let problem = problem_of(input, &pair, &object, input.t_base_flange, &kept);
+    let problem = problem_of(input, &pair, object, input.t_base_flange, &kept);
     let [x_t, x_r, z_t, z_r] = expected_errors(&problem, &current);
     let expected = match input.setup {
         HandEyeSetup::EyeToHand => ExpectedError {
@@ -298,11 +379,11 @@ pub fn calibrate_hand_eye(input: &HandEyeInput<'_>) -> Result<HandEyeCalibration
             let delta = match kept.iter().position(|&k| k == i) {
                 Some(p) => current.deltas[p],
                 None => {
-                    let one = problem_of(input, &pair, &object, input.t_base_flange, &[i]);
+                    let one = problem_of(input, &pair, object, input.t_base_flange, &[i]);
                     refine_delta(&one, &current).unwrap_or([0.0; 6])
                 }
             };
-            let one = problem_of(input, &pair, &object, input.t_base_flange, &[i]);
+            let one = problem_of(input, &pair, object, input.t_base_flange, &[i]);
             let (rms_px, score) = pose_fit(&one, &current, &delta);
             PoseResidual {
                 index: i,

@@ -142,35 +142,137 @@ pub(super) fn refine(problem: &HandEyeProblem<'_>, start: (Isometry3<f64>, Isome
     })
 }
 
-/// The 1-σ errors to expect of X and Z at the solution `x_z`: the parameters' covariance
-/// σ²·(JᵀJ)⁻¹ with σ² the residuals' variance, as (X's translation mm, X's rotation deg,
-/// Z's translation mm, Z's rotation deg), each the root of its block's trace. Infinite where
-/// JᵀJ is singular (a direction the poses do not determine).
+/// The 1-σ errors to expect of X and Z at the solution `refined`, as (X's translation mm,
+/// X's rotation deg, Z's translation mm, Z's rotation deg), each the root of its block's
+/// trace (the RMS length of the error). The solution weighs corners and the robot's
+/// corrections by their stated σ, which need not be the true ones (the detector may be
+/// better than 0.1 px, the robot worse than stated); scaling the covariance by one variance
+/// per degree of freedom let the many corners' small residuals shrink the robot's share of
+/// the error, which dominates it, by two or three times. So each group's true variance
+/// factor is estimated from its own residuals, unbiased under the linearised model
+/// (E[rᵀ_g r_g] = Σ_k s²_k ‖P_g (I − H) P_k‖², H the hat matrix), and the covariance of the
+/// estimate actually made is the sandwich A⁻¹ (Σ_g s²_g J_gᵀJ_g) A⁻¹ with A = JᵀJ. Rotation
+/// blocks are taken in the frame the error is measured in (truth⁻¹ · found), not in the
+/// rotation-vector parameters. Infinite where A is singular (a direction the poses do not
+/// determine).
 pub(super) fn expected_errors(problem: &HandEyeProblem<'_>, refined: &Refined) -> [f64; 4] {
+    let variance = covariance(problem, refined);
+    let Some(variance) = variance else { return [f64::INFINITY; 4] };
+    let tangent = |start: usize, pose: &Isometry3<f64>| -> DMatrix<f64> {
+        let j = rotation_tangent(pose);
+        let block = variance.view((start, start), (3, 3)).into_owned();
+        let local = j * block * j.transpose();
+        DMatrix::from_fn(3, 3, |r, c| local[(r, c)])
+    };
+    let trace = |m: &DMatrix<f64>| m.trace().max(0.0).sqrt();
+    let translation = |start: usize| (start..start + 3).map(|i| variance[(i, i)]).sum::<f64>().max(0.0).sqrt();
+    [
+        translation(3),
+        trace(&tangent(0, &refined.x)).to_degrees(),
+        translation(9),
+        trace(&tangent(6, &refined.z)).to_degrees(),
+    ]
+}
+
+/// d(truth⁻¹ · found)'s rotation vector / d(found's rotation vector) at `pose`: how a step
+/// of the parameters turns the pose as seen from the pose itself.
+fn rotation_tangent(pose: &Isometry3<f64>) -> nalgebra::Matrix3<f64> {
+    let r = pose.rotation.scaled_axis();
+    let h = 1e-7;
+    let mut j = nalgebra::Matrix3::zeros();
+    for k in 0..3 {
+        let mut step = nalgebra::Vector3::zeros();
+        step[k] = h;
+        let plus = nalgebra::UnitQuaternion::from_scaled_axis(r + step);
+        let minus = nalgebra::UnitQuaternion::from_scaled_axis(r - step);
+        let d = (pose.rotation.inverse() * plus).scaled_axis() - (pose.rotation.inverse() * minus).scaled_axis();
+        j.set_column(k, &(d / (2.0 * h)));
+    }
+    j
+}
+
+/// The covariance of every parameter (X, Z, the corrections) of the solution `refined`,
+/// with each residual group's variance factor (corners, robot corrections) estimated from
+/// its residuals; `None` where JᵀJ is singular.
+pub(super) fn covariance(problem: &HandEyeProblem<'_>, refined: &Refined) -> Option<DMatrix<f64>> {
     let mut params = Vec::with_capacity(2 * POSE_LEN + POSE_LEN * refined.deltas.len());
     params.extend(pose_params(&refined.x));
     params.extend(pose_params(&refined.z));
     refined.deltas.iter().for_each(|d| params.extend(d));
     let params = DVector::from_vec(params);
-    let mut residuals = DVector::zeros(problem.residual_len() * problem.view_count());
-    let cost = lm::evaluate(problem, &params, &mut residuals);
+    let n = params.len();
+    let m = problem.residual_len();
+    let corner_rows = 4 * problem.object.len();
+    let mut residuals = DVector::zeros(m * problem.view_count());
+    lm::evaluate(problem, &params, &mut residuals);
     let typical = problem.typical_magnitudes(&params);
-    let (jtj, _) = lm::normal_equations(problem, &params, &residuals, &typical);
-    let observed = residuals.iter().filter(|r| **r != 0.0).count();
-    let sigma2 = cost / observed.saturating_sub(params.len()).max(1) as f64;
-    // Scaled to a unit diagonal so the inverse is judged by its condition, not its units.
-    let scale = jtj.diagonal().map(|d| d.max(f64::MIN_POSITIVE).sqrt());
-    let scaled = DMatrix::from_fn(jtj.nrows(), jtj.ncols(), |i, j| jtj[(i, j)] / (scale[i] * scale[j]));
+    // Each group's JᵀJ over all parameters, its squared residuals and its rows.
+    let (mut c_corner, mut c_robot) = (DMatrix::zeros(n, n), DMatrix::zeros(n, n));
+    let (mut r_corner, mut r_robot) = (0.0, 0.0);
+    let (mut n_corner, mut n_robot) = (0usize, 0usize);
+    let shared = 2 * POSE_LEN;
+    let mut jacobian = DMatrix::zeros(m, shared + POSE_LEN);
+    let mut columns = vec![0; shared + POSE_LEN];
+    for view in 0..problem.view_count() {
+        lm::view_jacobian(problem, &params, &typical, view, lm::CENTRAL_DIFFERENCE_STEP, &mut jacobian);
+        for (c, column) in columns.iter_mut().enumerate() {
+            *column = if c < shared { c } else { shared + view * POSE_LEN + (c - shared) };
+        }
+        let v = problem.views[view];
+        n_corner += 2 * problem.object.len() * (v.left.is_some() as usize + v.right.is_some() as usize);
+        n_robot += POSE_LEN;
+        let r = residuals.rows(view * m, m);
+        r_corner += r.rows(0, corner_rows).norm_squared();
+        r_robot += r.rows(corner_rows, POSE_LEN).norm_squared();
+        let corners = jacobian.rows(0, corner_rows);
+        let robot = jacobian.rows(corner_rows, POSE_LEN);
+        let (bc, br) = (corners.tr_mul(&corners), robot.tr_mul(&robot));
+        for (a, &i) in columns.iter().enumerate() {
+            for (b, &j) in columns.iter().enumerate() {
+                c_corner[(i, j)] += bc[(a, b)];
+                c_robot[(i, j)] += br[(a, b)];
+            }
+        }
+    }
+    let a: DMatrix<f64> = &c_corner + &c_robot;
+    // Inverted scaled to a unit diagonal so it is judged by its condition, not its units.
+    let scale = a.diagonal().map(|d: f64| d.max(f64::MIN_POSITIVE).sqrt());
+    let scaled = DMatrix::from_fn(n, n, |i, j| a[(i, j)] / (scale[i] * scale[j]));
     let svd = scaled.clone().svd(false, false);
     let (largest, smallest) = (svd.singular_values.max(), svd.singular_values.min());
     if smallest.is_nan() || smallest <= largest * 1e-12 {
-        return [f64::INFINITY; 4];
+        return None;
     }
-    let Some(inverse) = scaled.try_inverse() else { return [f64::INFINITY; 4] };
-    let block = |start: usize| -> f64 {
-        (start..start + 3).map(|i| sigma2 * inverse[(i, i)] / (scale[i] * scale[i])).sum::<f64>().sqrt()
+    let inverse = scaled.try_inverse()?;
+    let q = DMatrix::from_fn(n, n, |i, j| inverse[(i, j)] / (scale[i] * scale[j]));
+    // T_gg = n_g − 2 tr(Q C_g) + tr(Q C_g Q C_g), T_gk = tr(Q C_g) − tr(Q C_g Q C_g).
+    let terms = |c: &DMatrix<f64>, rows: usize| {
+        let qc = &q * c;
+        let t = qc.trace();
+        let f = (&qc * &qc).trace();
+        (rows as f64 - 2.0 * t + f, t - f)
     };
-    [block(3), block(0).to_degrees(), block(9), block(6).to_degrees()]
+    let (t_cc, t_cr) = terms(&c_corner, n_corner);
+    let (t_rr, t_rc) = terms(&c_robot, n_robot);
+    let det = t_cc * t_rr - t_cr * t_rc;
+    let (mut s_corner, mut s_robot) = if det.abs() > 1e-12 {
+        ((r_corner * t_rr - t_cr * r_robot) / det, (t_cc * r_robot - t_rc * r_corner) / det)
+    } else {
+        let s = (r_corner + r_robot) / (t_cc + t_cr + t_rr + t_rc).max(1.0);
+        (s, s)
+    };
+    // A group whose estimate is not positive (its residuals explained by the other's) is
+    // given its share alone, the other group taking the rest.
+    if s_robot <= 0.0 {
+        s_robot = 0.0;
+        s_corner = r_corner / t_cc.max(1.0);
+    }
+    if s_corner <= 0.0 {
+        s_corner = 0.0;
+        s_robot = r_robot / t_rr.max(1.0);
+    }
+    let middle = c_corner * s_corner + c_robot * s_robot;
+    Some(&q * middle * &q)
 }
 
 /// One view's correction of the robot's pose alone, X and Z held: how far a dropped pose's
