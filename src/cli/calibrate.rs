@@ -137,6 +137,7 @@ fn calibrate_rig(
         outln!("not in view: {line}");
     }
     print_views(&cal, &names);
+    warn_of_folds_past_the_corners(&file);
     let b = rig.baseline();
     outln!(
         "calibrated from {} views in {seconds:.3} s: reprojection RMS {:.3} px, baseline {b:.2} mm; wrote {}",
@@ -168,6 +169,26 @@ fn calibrate_rig(
         );
     }
     Ok(rig)
+}
+
+/// How far past the image's farthest corner a fold is still worth a warning, in corner radii:
+/// farther out no pixel comes near it.
+const FOLD_WARNING_HORIZON: f64 = 1.5;
+
+/// A warning for each camera whose distortion folds back outside the image but near it: the
+/// check holds the lens one-to-one over the image only, and a real lens's polynomial, fitted
+/// to corners inside the image, may turn over just past them; whoever extrapolates the model
+/// beyond the corners (a wider canvas, another crop) should know where it stops holding.
+fn warn_of_folds_past_the_corners(file: &camplace_config::RigFile) {
+    for (side, c) in [("left", &file.left), ("right", &file.right)] {
+        if let Some(fold) = camplace_config::distortion_fold(&c.dist, c.width, c.height, &c.k, FOLD_WARNING_HORIZON) {
+            outln!(
+                "warning: {side}.dist folds back at {:.0} % of the way from the principal point to the farthest image corner, beyond the {} corner: one-to-one over the image, but the lens model does not hold past the fold",
+                100.0 * fold.fraction_of_corner,
+                fold.corner
+            );
+        }
+    }
 }
 
 /// Each view's reprojection error, the dropped ones marked.
