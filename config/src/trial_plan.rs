@@ -76,7 +76,7 @@ impl TrialPlan {
         }
         if let Some(g) = &plan.grid {
             for (key, a) in [("grid.x", &g.x), ("grid.y", &g.y)] {
-                if !(a.lo.is_finite() && a.hi.is_finite()) || !(1..=MAX_AXIS_STEPS).contains(&a.steps) {
+                if !(a.lo.is_finite() && a.hi.is_finite() && (1..=MAX_AXIS_STEPS).contains(&a.steps)) {
                     let what =
                         format!("expected an axis from a finite lo to a finite hi in 1 to {MAX_AXIS_STEPS} steps");
                     return Err(at(key, what));
