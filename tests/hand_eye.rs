@@ -2,7 +2,8 @@
 //! images), `calibrate --hand-eye` against it, its `[robot]` table in a cell, and `replay`
 //! giving the tray's pose in the robot's frame; mis-paired images, a pose file in metres
 //! read as millimetres, too few poses, turns about one axis and a pose that is not rigid,
-//! each one line.
+//! each one line; pose files that cannot belong to the images (another convention, unit or
+//! angle unit, inverted, one line off, the other setup) refused with the reading that fits.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -333,4 +334,99 @@ fn eye_in_hand_finds_the_rig_on_the_flange() {
     eprintln!("eye-in-hand from {POSES} poses: T_flange_rig {t:.3} mm {a:.4}°, T_robot_world {wt:.3} mm {wa:.4}°");
     assert!(t < 0.5 && a < 0.05, "T_flange_rig {t} mm {a}°\n{out}");
     assert!(wt < 1.0 && wa < 0.05, "T_robot_world {wt} mm {wa}°\n{out}");
+    // The same images calibrated as eye-to-hand are refused, the setup named.
+    let o = calibrate(root, "eih", "eih/robot_poses.txt", &[]);
+    let err = stderr(&o);
+    eprintln!("as eye-to-hand: {}", err.trim_end());
+    assert_one_line_error(
+        o.status.code().unwrap(),
+        &err,
+        &["robot_poses.txt", "inverted", "--eye-in-hand", "fit alike"],
+    );
+}
+
+/// The rendered poses as rows, and their file's pose lines.
+fn rendered_poses(root: &Path) -> Vec<[[f64; 4]; 4]> {
+    let text = read(&root.join("he/robot_poses.txt"));
+    camplace_config::parse_robot_poses(&text, None).unwrap().poses
+}
+
+fn format(
+    convention: camplace_config::PoseConvention,
+    unit: camplace_config::LengthUnit,
+) -> camplace_config::RobotPoseFormat {
+    camplace_config::RobotPoseFormat { convention, unit }
+}
+
+/// `calibrate --hand-eye` of the rendered images with the pose file `text` (written as
+/// `name`) refuses with one line naming `must_name`.
+fn refused(root: &Path, name: &str, text: &str, extra: &[&str], must_name: &[&str]) {
+    std::fs::write(root.join(name), text).unwrap();
+    let o = calibrate(root, "he", name, extra);
+    let err = stderr(&o);
+    eprintln!("{name}: {}", err.trim_end());
+    assert_one_line_error(o.status.code().unwrap(), &err, &[&[name][..], must_name].concat());
+}
+
+#[test]
+fn pose_files_that_cannot_belong_to_the_images_are_refused_with_the_reading_that_fits() {
+    use camplace_config::{robot_poses_text, LengthUnit, PoseConvention};
+    let r = rendered();
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    copy_dir(&r.root.join("he"), &root.join("he"));
+    let poses = rendered_poses(root);
+
+    // A quaternion written w first, labelled w last.
+    let wxyz = robot_poses_text(&poses, format(PoseConvention::QuatWxyz, LengthUnit::Mm), "w first");
+    let labelled = wxyz.replace("format quat-wxyz mm", "format quat-xyzw mm");
+    refused(root, "xyzw.txt", &labelled, &[], &["do not fit", "read as quat-wxyz instead of quat-xyzw"]);
+    // KUKA's A B C labelled FANUC's W P R.
+    let kuka = robot_poses_text(&poses, format(PoseConvention::Kuka, LengthUnit::Mm), "kuka");
+    refused(
+        root,
+        "fanuc.txt",
+        &kuka.replace("format kuka mm", "format fanuc mm"),
+        &[],
+        &["read as kuka instead of fanuc"],
+    );
+    // The base in the flange's frame.
+    let inverted: Vec<[[f64; 4]; 4]> =
+        poses.iter().map(|p| camplace_estimator::isometry_to_rows(&isometry_from_rows(p).inverse())).collect();
+    let text = robot_poses_text(&inverted, format(PoseConvention::Kuka, LengthUnit::Mm), "inverted");
+    refused(root, "inverted.txt", &text, &[], &["inverted", "--eye-in-hand", "fit alike"]);
+    // One pose line too many at the start, the last one missing.
+    let mut shifted = vec![poses[poses.len() - 1]];
+    shifted.extend_from_slice(&poses[..poses.len() - 1]);
+    let text = robot_poses_text(&shifted, format(PoseConvention::Kuka, LengthUnit::Mm), "shifted");
+    refused(root, "shifted.txt", &text, &[], &["paired one frame off", "first pose line"]);
+    // Eye-to-hand images calibrated as eye-in-hand.
+    refused(root, "mode.txt", &kuka, &["--eye-in-hand"], &["inverted", "--eye-in-hand", "fit alike"]);
+    // Millimetres labelled metres, and metres labelled millimetres.
+    refused(root, "mm_as_m.txt", &kuka.replace("format kuka mm", "format kuka m"), &[], &["in mm but were read as m"]);
+    let ur_m = robot_poses_text(&poses, format(PoseConvention::Ur, LengthUnit::M), "ur");
+    refused(root, "m_as_mm.txt", &ur_m.replace("format ur m", "format ur mm"), &[], &["in m but were read as mm"]);
+    // UR's rotation vectors written in degrees.
+    let degrees: String = ur_m
+        .lines()
+        .map(|l| {
+            if l.starts_with('#') || l.starts_with("format") {
+                return format!("{l}\n");
+            }
+            let v: Vec<f64> = l.split_whitespace().map(|t| t.parse().unwrap()).collect();
+            let deg: Vec<String> = v[3..].iter().map(|x| format!("{}", x.to_degrees())).collect();
+            format!("{} {} {} {}\n", v[0], v[1], v[2], deg.join(" "))
+        })
+        .collect();
+    refused(root, "ur_deg.txt", &degrees, &[], &["rotation's numbers in degrees instead of radians"]);
+    // One line 1e15 mm away, named before any solve.
+    let lines: Vec<&str> = kuka.lines().collect();
+    let header = lines.iter().position(|l| l.starts_with("format")).unwrap();
+    let mut far = lines.clone();
+    let mut numbers: Vec<&str> = lines[header + 4].split_whitespace().collect();
+    numbers[0] = "1e15";
+    let far_line = numbers.join(" ");
+    far[header + 4] = &far_line;
+    let line = format!("line {}", header + 5);
+    refused(root, "far.txt", &far.join("\n"), &[], &[&line, "reach"]);
 }

@@ -1,7 +1,8 @@
 //! `camplace calibrate --hand-eye`: where the rig sits in the robot's frame, from board
 //! images paired by index with the robot's flange poses. Reads the pose file, has hwio
-//! list the views and find their corners, calls the estimator's hand-eye calibration,
-//! prints each pose's fit and writes the `[robot]` table the cell reads. Also the
+//! list the views and find their corners, hands the frames and the pose lines to the
+//! estimator's paired hand-eye calibration (which refuses poses that do not fit, naming the
+//! likely cause), prints each pose's fit and writes the `[robot]` table the cell reads. Also the
 //! pose-format flags `render` shares.
 
 use std::path::{Path, PathBuf};
@@ -10,8 +11,8 @@ use std::process::ExitCode;
 use anyhow::{bail, Context};
 use camplace_config::{read_robot_poses, LengthUnit, PoseConvention, RigFile, RobotPoseFormat, RobotPoses};
 use camplace_estimator::{
-    calibrate_hand_eye, isometry_from_rows, isometry_to_rows, BoardView, CalibrationBoard, FoundBoardPair,
-    HandEyeCalibration, HandEyeInput, HandEyeSetup, Rig,
+    calibrate_hand_eye_paired, isometry_to_rows, BoardView, CalibrationBoard, FoundBoardPair, HandEyeCalibration,
+    HandEyeSetup, PairedHandEye, Rig,
 };
 use camplace_hwio::{board_view_folders, find_board_views};
 use nalgebra::Isometry3;
@@ -93,38 +94,36 @@ pub fn run(a: HandEyeArgs<'_>, board: &CalibrationBoard) -> anyhow::Result<ExitC
         );
     }
     let found = find_board_views(a.images, &folders, board, (a.rig.left.width, a.rig.left.height))?;
-    let mut views = Vec::new();
-    let mut robot = Vec::new();
-    // Input index of each view passed on -> its pose's index and frame name.
-    let mut used = Vec::new();
+    let names: Vec<String> =
+        folders.iter().map(|f| f.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()).collect();
+    let mut views = Vec::with_capacity(found.len());
     for (i, FoundBoardPair { left, right, .. }) in found.into_iter().enumerate() {
-        let name = folders[i].file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         if left.is_err() && right.is_err() {
             outln!(
-                "left out: pose {i} ({}:{}), frames/{name}: the whole board is in neither image",
+                "left out: pose {i} ({}:{}), frames/{}: the whole board is in neither image",
                 a.robot_poses.display(),
-                poses.lines[i]
+                poses.lines[i],
+                names[i]
             );
-            continue;
+            views.push(None);
+        } else {
+            views.push(Some(BoardView { left: left.ok(), right: right.ok() }));
         }
-        views.push(BoardView { left: left.ok(), right: right.ok() });
-        robot.push(isometry_from_rows(&poses.poses[i]));
-        used.push((i, name));
     }
-    let input = HandEyeInput {
+    let job = PairedHandEye {
         setup: a.setup,
         board,
         left: &a.rig.left,
         right: &a.rig.right,
-        views: &views,
-        t_base_flange: &robot,
+        frames: &views,
+        poses: &poses,
         robot_sigma_mm: a.robot_accuracy_mm,
         robot_sigma_deg: a.robot_accuracy_deg,
     };
     let started = std::time::Instant::now();
-    let cal = calibrate_hand_eye(&input).with_context(|| a.robot_poses.display().to_string())?;
+    let cal = calibrate_hand_eye_paired(&job).with_context(|| a.robot_poses.display().to_string())?;
     let seconds = started.elapsed().as_secs_f64();
-    print_poses(&cal, &used, &poses, a.robot_poses);
+    print_poses(&cal, &names, &poses, a.robot_poses);
     let s = &cal.spread;
     let kept = cal.poses.iter().filter(|p| !p.dropped).count();
     outln!(
@@ -166,7 +165,7 @@ pub fn run(a: HandEyeArgs<'_>, board: &CalibrationBoard) -> anyhow::Result<ExitC
 }
 
 /// Each pose's fit; a dropped pose named on a line of its own.
-fn print_poses(cal: &HandEyeCalibration, used: &[(usize, String)], poses: &RobotPoses, file: &Path) {
+fn print_poses(cal: &HandEyeCalibration, names: &[String], poses: &RobotPoses, file: &Path) {
     outln!(
         "{:<6} {:<8} {:>5} {:>9} {:>7} {:>9} {:>9}   (mm, deg: the correction of the robot's pose the fit took)",
         "pose",
@@ -182,8 +181,8 @@ fn print_poses(cal: &HandEyeCalibration, used: &[(usize, String)], poses: &Robot
     sorted.sort_by(f64::total_cmp);
     let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
     for p in &cal.poses {
-        let (index, name) = &used[p.index];
-        let line = poses.lines[*index];
+        let (index, name) = (p.index, &names[p.index]);
+        let line = poses.lines[index];
         let mark = if p.dropped { "  dropped" } else { "" };
         outln!(
             "{index:<6} {name:<8} {line:>5} {:>9.3} {:>7.2} {:>9.3} {:>9.4}{mark}",
@@ -194,13 +193,13 @@ fn print_poses(cal: &HandEyeCalibration, used: &[(usize, String)], poses: &Robot
         );
     }
     for p in cal.poses.iter().filter(|p| p.dropped) {
-        let (index, name) = &used[p.index];
+        let (index, name) = (p.index, &names[p.index]);
         outln!(
             "dropped pose {index} (frames/{name}, {}:{}): score {:.1} against a median of {median:.1} (the robot's \
              pose {:.1} mm, {:.2}° off to fit); its image and robot pose do not match (mis-paired, or the robot moved \
              while the images were taken)",
             file.display(),
-            poses.lines[*index],
+            poses.lines[index],
             p.score,
             p.translation_mm,
             p.rotation_deg

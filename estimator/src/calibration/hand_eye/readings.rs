@@ -67,18 +67,26 @@ impl PoseReading {
                 "with the rotation's numbers in radians instead of degrees".into(),
                 "the controller wrote radians; convert them to degrees".into(),
             ),
+            // A_i·X = Z·B_i inverted is A_i⁻¹·Z = X·B_i⁻¹: inverted poses and the other
+            // setup fit alike, so both are named.
             PoseReading::Inverted => (
-                "inverted (the base in the flange's frame instead of the flange in the base's)".into(),
-                "expected each line to be the flange's pose in the base frame".into(),
+                "inverted (the base in the flange's frame), or with the other setup (the two fit alike)".into(),
+                "expected each line to be the flange's pose in the base frame, and --eye-in-hand only for a rig on \
+                 the flange"
+                    .into(),
             ),
             PoseReading::Shifted(s) => (
                 format!("paired one frame off (frame k with pose k {} 1)", if s > 0 { "+" } else { "−" }),
                 "check that the first pose line belongs to the first frame".into(),
             ),
             PoseReading::Setup(setup) => (
-                format!("as {} instead of {}", setup.name(), other_setup(setup).name()),
                 format!(
-                    "the images are {}'s; {} --eye-in-hand",
+                    "as {} instead of {}, or inverted (the two fit alike)",
+                    setup.name(),
+                    other_setup(setup).name()
+                ),
+                format!(
+                    "the images are {}'s ({} --eye-in-hand), or each line is the base in the flange's frame",
                     setup.name(),
                     if setup == HandEyeSetup::EyeInHand { "give" } else { "leave out" }
                 ),
