@@ -35,7 +35,8 @@ fn fail(message: impl std::fmt::Display) -> PyErr {
 fn wrong_argument(name: &str, expected: &str, value: &Bound<'_, PyAny>) -> PyErr {
     let kind = value.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "?".to_string());
     let shown = value.repr().map(|r| r.to_string()).unwrap_or_default();
-    let shown: String = if shown.chars().count() > 40 { shown.chars().take(40).chain("…".chars()).collect() } else { shown };
+    let shown: String =
+        if shown.chars().count() > 40 { shown.chars().take(40).chain("…".chars()).collect() } else { shown };
     fail(format!("{name}: expected {expected}, got {shown} ({kind})"))
 }
 
@@ -370,7 +371,10 @@ fn evaluate<'py>(
 /// read_image(path) -> 2-D uint8 array: an image file (PNG, or any common format) as grey,
 /// within the pixel budget (8192 x 8192), as every camplace command reads one.
 #[pyfunction]
-fn read_image<'py>(py: Python<'py>, #[pyo3(from_py_with = image_path_arg)] path: PathBuf) -> PyResult<Bound<'py, PyAny>> {
+fn read_image<'py>(
+    py: Python<'py>,
+    #[pyo3(from_py_with = image_path_arg)] path: PathBuf,
+) -> PyResult<Bound<'py, PyAny>> {
     let gray = camplace_config::read_gray(&path).map_err(fail)?;
     let a = Array2::from_shape_vec((gray.height, gray.width), gray.data).map_err(fail)?;
     Ok(a.into_pyarray(py).into_any())

@@ -53,7 +53,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
 }
 
 fn dataset(cell: &camplace_config::Cell, model: Model, dir: &Path) -> anyhow::Result<ExitCode> {
-    // Marks made on the poses about to be replaced keep saying which poses they judged.
+    // Marks made on the poses about to be replaced keep saying which poses they judged. Marks
+    // carry their pose's fingerprint since they are made; this ties older ones, and only the
+    // default build (with the review page, the simulator's) reads marks at all.
+    #[cfg(feature = "sim")]
     camplace_sim::tie_marks_to_poses(dir)?;
     let d = estimate_dataset(cell, model, dir)?;
     outln!(

@@ -39,7 +39,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         }
         None => (Cell::default(), Model::load(&a.model)?),
     };
-    // Marks made on the poses about to be replaced keep saying which poses they judged.
+    // Marks made on the poses about to be replaced keep saying which poses they judged. Marks
+    // carry their pose's fingerprint since they are made; this ties older ones, and only the
+    // default build (with the review page, the simulator's) reads marks at all.
+    #[cfg(feature = "sim")]
     camplace_sim::tie_marks_to_poses(&a.dataset)?;
     let DatasetEstimate { records, method, summary } = estimate_dataset(&cell, model, &a.dataset)?;
     let poses = a.dataset.join("poses.jsonl");
