@@ -58,8 +58,8 @@ pub use study::tolerance::{
 };
 pub use study::Evaluator;
 pub use trial::judge::{
-    append_label, frame_names, pose_fingerprint, present_marks, read_labels, read_poses, tie_marks_to_poses,
-    JudgedDataset, Judgement, Label, Mark, LABELS_FILE,
+    append_label, frame_names, parse_labels, pose_fingerprint, present_marks, read_labels, read_poses,
+    tie_marks_to_poses, JudgedDataset, Judgement, Label, Mark, LABELS_FILE,
 };
 pub use trial::layout::check_placement_rig;
 pub use trial::mock::{hidden_truth_path, make_mock_trial, scripted_marks};

@@ -135,6 +135,12 @@ pub fn read_labels(dir: &Path, frames: &[String]) -> Result<Vec<Label>> {
         return Ok(Vec::new());
     }
     let text = camplace_config::read_text(&path)?;
+    parse_labels(&text, frames, &path)
+}
+
+/// The marks of a `labels.jsonl`'s text, each checked to name one of `frames` (sorted);
+/// errors name `path` and the line.
+pub fn parse_labels(text: &str, frames: &[String], path: &Path) -> Result<Vec<Label>> {
     let mut out = Vec::new();
     for (i, line) in text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty()) {
         let at = |key: &str, what: String| Error::Other(format!("{}: line {}: {key}: {what}", path.display(), i + 1));
