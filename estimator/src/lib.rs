@@ -59,8 +59,8 @@ pub use pose::{
     RESTING_HEIGHT_MM, RESTING_TILT_DEG,
 };
 pub use pose::{
-    slot_letters, SlotJudge, SlotLayout, SlotReading, SlotState, EDGE_CELL, FLOOR_TOLERANCE_MM, MAX_MISMATCH_SHARE,
-    MIN_SEEN_SHARE,
+    slot_letters, SlotJudge, SlotLayout, SlotReading, SlotState, EDGE_CELL, FLOOR_TOLERANCE_MM, MAX_FOOTPRINT_CELLS,
+    MAX_MISMATCH_SHARE, MIN_SEEN_SHARE,
 };
 pub use rig::Rig;
 pub use scoring::{

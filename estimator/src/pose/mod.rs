@@ -20,7 +20,7 @@ pub use model::{Model, ModelOrigin, ModelVerification, ModelView};
 pub use model_file::MODEL_FORMAT_VERSION;
 pub use ransac::{Ransac, RansacCheck, RansacResult};
 pub use slots::{
-    slot_letters, SlotJudge, SlotLayout, SlotReading, SlotState, EDGE_CELL, FLOOR_TOLERANCE_MM, MAX_MISMATCH_SHARE,
-    MIN_SEEN_SHARE,
+    slot_letters, SlotJudge, SlotLayout, SlotReading, SlotState, EDGE_CELL, FLOOR_TOLERANCE_MM, MAX_FOOTPRINT_CELLS,
+    MAX_MISMATCH_SHARE, MIN_SEEN_SHARE,
 };
 pub use verify::{Verdict, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS, RESTING_HEIGHT_MM, RESTING_TILT_DEG};

@@ -6,7 +6,7 @@
 use nalgebra::{Point3, Vector3};
 
 use super::model::{Model, ModelOrigin, ModelVerification, ModelView};
-use super::slots::SlotLayout;
+use super::slots::{SlotLayout, MAX_FOOTPRINT_CELLS, MAX_SLOTS};
 use crate::error::{Error, ErrorKind, Result};
 use crate::features::{quantise, ECSAD_DIM, QUANTISATION_STEPS};
 use camplace_config::ContentHash;
@@ -31,11 +31,6 @@ const TAG_SYMM: [u8; 4] = *b"SYMM";
 const TAG_ORIG: [u8; 4] = *b"ORIG";
 const TAG_VRFY: [u8; 4] = *b"VRFY";
 const TAG_SLOT: [u8; 4] = *b"SLOT";
-/// The most slots a `SLOT` section may hold (a tray's slots are named by one byte in the
-/// simulator's object ids and by `SLOT n` in the robot protocol).
-const MAX_SLOTS: usize = 1 << 12;
-/// The most footprint cells a `SLOT` section may hold.
-const MAX_FOOTPRINT_CELLS: usize = 1 << 16;
 /// The `VRFY` payload of a measured threshold: threshold, max wrong, upper bound (f32) and
 /// scenes, accepted, wrong accepted (u32).
 const VERIFICATION_BYTES: usize = 6 * 4;

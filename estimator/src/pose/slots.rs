@@ -31,6 +31,14 @@ pub const MAX_MISMATCH_SHARE: f32 = 0.4;
 /// depth noise at the study's distances, and a tray resting a little tilted).
 pub const FLOOR_TOLERANCE_MM: f32 = 4.0;
 
+/// The most slots a tray's layout may hold (`SLOT n` names them in the robot protocol).
+pub const MAX_SLOTS: usize = 1 << 12;
+/// The most cells one slot's footprint may hold.
+pub const MAX_FOOTPRINT_CELLS: usize = 1 << 16;
+/// The most footprint cells over all slots: each frame fills and reads every one, so a
+/// model file cannot ask for more than about 4 MB of them whatever its counts say.
+pub const MAX_SLOT_CELLS: usize = 1 << 20;
+
 /// The slots of a tray and the item they hold, as the model file carries them.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SlotLayout {
@@ -83,7 +91,25 @@ impl SlotLayout {
         if let Some(i) = self.slots.iter().position(|s| !s.iter().all(|v| v.is_finite())) {
             return bad(format!("expected finite slot poses, slot {i} is not"));
         }
+        if self.slots.len() > MAX_SLOTS {
+            return bad(format!("expected at most {MAX_SLOTS} slots, found {}", self.slots.len()));
+        }
         let cells = (self.cols as usize).checked_mul(self.rows as usize);
+        if cells.is_none_or(|c| c > MAX_FOOTPRINT_CELLS) {
+            return bad(format!(
+                "expected at most {MAX_FOOTPRINT_CELLS} footprint cells, found {} x {}",
+                self.cols, self.rows
+            ));
+        }
+        // Every frame fills and reads a cell of each slot's footprint: bounded as a whole.
+        if cells.and_then(|c| c.checked_mul(self.slots.len())).is_none_or(|n| n > MAX_SLOT_CELLS) {
+            return bad(format!(
+                "expected at most {MAX_SLOT_CELLS} cells over all slots, found {} slots of {} x {}",
+                self.slots.len(),
+                self.cols,
+                self.rows
+            ));
+        }
         if self.cols == 0 || self.rows == 0 || cells != Some(self.top_mm.len()) {
             return bad(format!(
                 "expected cols x rows ({} x {}) footprint cells, found {} profile values",
@@ -345,6 +371,20 @@ mod tests {
             rows: 8,
             top_mm: vec![30.0; 64],
         }
+    }
+
+    #[test]
+    fn layouts_past_the_bounds_are_refused_before_their_cells_are_made() {
+        assert!(layout().validate().is_ok());
+        // 4096 slots of 256 x 256 cells: a 400 KB file that would ask for 1 GiB of cells.
+        let many = SlotLayout { slots: vec![[0.0, 0.0, 5.0, 0.0]; MAX_SLOTS], cols: 256, rows: 256, ..layout() };
+        assert!(many.validate().unwrap_err().to_string().contains("over all slots"), "{:?}", many.validate());
+        let wide = SlotLayout { cols: 1 << 9, rows: 1 << 8, ..layout() };
+        assert!(wide.validate().unwrap_err().to_string().contains("footprint cells"));
+        let crowded = SlotLayout { slots: vec![[0.0, 0.0, 5.0, 0.0]; MAX_SLOTS + 1], ..layout() };
+        assert!(crowded.validate().unwrap_err().to_string().contains("slots"));
+        let overflow = SlotLayout { cols: u32::MAX, rows: u32::MAX, ..layout() };
+        assert!(overflow.validate().is_err());
     }
 
     /// A surface's height above a slot's floor at slot-frame (x, y); `None` where unseen.

@@ -4,7 +4,7 @@
 
 use camplace_config::Mesh;
 use camplace_config::{Cell, ItemsKind, TrayKind};
-use camplace_estimator::{SlotLayout, EDGE_CELL};
+use camplace_estimator::{SlotLayout, EDGE_CELL, MAX_FOOTPRINT_CELLS};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
 use crate::{Error, Result};
@@ -192,6 +192,11 @@ pub fn slot_layout(tray: &TrayModel, item: &Solid, cell_mm: f64) -> Option<SlotL
     }
     let cols = (w / cell_mm).ceil().max(1.0) as usize;
     let rows = (d / cell_mm).ceil().max(1.0) as usize;
+    // A footprint past what a model may hold gives no slot layout (the model says so), not
+    // a layout its own loader would refuse.
+    if cols.saturating_mul(rows) > MAX_FOOTPRINT_CELLS {
+        return None;
+    }
     let (cx, cy) = (w / cols as f64, d / rows as f64);
     let mut top_mm = Vec::with_capacity(cols * rows);
     for j in 0..rows {
