@@ -68,7 +68,8 @@ impl FlightRecorder {
         if let (Some(first), Some(last)) = (foreign.first(), foreign.last()) {
             let span = if first == last { format!("frames/{first}") } else { format!("frames/{first} … {last}") };
             return Err(refused(format!(
-                "holds frames the flight recorder did not write ({span}, {} in all; it counts and deletes only the ones                  {RECORDED_FRAMES_FILE} names): expected a folder of its own, new or recorded into before",
+                "holds frames the flight recorder did not write ({span}, {} in all; it counts and deletes only the ones \
+                 {RECORDED_FRAMES_FILE} names): expected a folder of its own, new or recorded into before",
                 foreign.len()
             )));
         }
@@ -101,10 +102,21 @@ impl FlightRecorder {
         let next = self.own.iter().filter_map(|n| n.parse::<u64>().ok()).max().map_or(0, |n| n + 1);
         self.own.push(frame_name(next));
         self.save_list().map_err(|e| failed(&e))?;
-        let written = append_frame(&dir, frames, Some(&self.rig)).map_err(|e| failed(&e))?;
+        let written = match append_frame(&dir, frames, Some(&self.rig)) {
+            Ok(written) => written,
+            Err(e) => {
+                // Not written (a full disk, most likely): the name is no frame of its own, and
+                // the next frame takes it. A list that cannot be saved now lists a name whose
+                // folder is missing, which the quota and the next start pass over.
+                self.own.pop();
+                let _ = self.save_list();
+                return Err(failed(&e));
+            }
+        };
         let written_name = written.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         if self.own.last() != Some(&written_name) {
             self.own.pop();
+            self.own.retain(|n| n != &written_name);
             self.own.push(written_name);
             self.save_list().map_err(|e| failed(&e))?;
         }
@@ -117,22 +129,24 @@ impl FlightRecorder {
         let dir = self.settings.dir.clone();
         let frames = dir.join("frames");
         let mut sizes = Vec::with_capacity(self.own.len());
+        // A folder already gone (removed by hand while serving) weighs nothing and is dropped.
+        let gone_is_nothing = |r: std::io::Result<u64>| match r {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(0),
+            other => other,
+        };
         for name in &self.own {
-            sizes.push(size_of(&frames.join(name))?);
+            sizes.push(gone_is_nothing(size_of(&frames.join(name)))?);
         }
         let mut total: u64 = sizes.iter().sum();
         for kept in ["rig.json", "background", RECORDED_FRAMES_FILE] {
-            total += size_of(&dir.join(kept)).or_else(|e| {
-                if e.kind() == std::io::ErrorKind::NotFound {
-                    Ok(0)
-                } else {
-                    Err(e)
-                }
-            })?;
+            total += gone_is_nothing(size_of(&dir.join(kept)))?;
         }
         let mut removed = 0;
         while total > self.settings.quota_bytes && removed < self.own.len() {
-            std::fs::remove_dir_all(frames.join(&self.own[removed]))?;
+            match std::fs::remove_dir_all(frames.join(&self.own[removed])) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(e),
+                _ => {}
+            }
             total = total.saturating_sub(sizes[removed]);
             removed += 1;
         }
@@ -211,6 +225,31 @@ mod tests {
             GrayImage { width: 64, height: 48, data }
         };
         Frames { left: vec![image(0)], right: vec![image(1)] }
+    }
+
+    #[test]
+    fn a_frame_removed_by_hand_while_recording_leaves_the_quota_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let rig = rig(dir.path());
+        let kept = dir.path().join("kept");
+        let mut probe =
+            FlightRecorder::new(RecorderSettings { dir: kept.clone(), quota_bytes: u64::MAX }, &rig, Some(frames(200)))
+                .unwrap();
+        probe.keep(&frames(0)).unwrap().unwrap();
+        let one_frame = size_of(&kept.join("frames/0000")).unwrap();
+        let quota = size_of(&kept).unwrap() + one_frame + one_frame / 2;
+        let mut recorder =
+            FlightRecorder::new(RecorderSettings { dir: kept.clone(), quota_bytes: quota }, &rig, Some(frames(200)))
+                .unwrap();
+        recorder.keep(&frames(1)).unwrap().unwrap();
+        std::fs::remove_dir_all(kept.join("frames/0000")).unwrap();
+        for k in 2..6 {
+            recorder.keep(&frames(k)).unwrap_or_else(|e| panic!("frame {k}: {e}")).unwrap();
+        }
+        let mut left: Vec<String> = numbered_frames(&kept).unwrap();
+        left.sort();
+        assert_eq!(left, ["0004", "0005"], "the newest two fit the quota");
+        assert_eq!(recorder.own, left, "the list names the frames on disk");
     }
 
     #[test]
