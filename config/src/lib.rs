@@ -1,5 +1,5 @@
 //! camplace's files: the cell file (with the paper's defaults), `rig.json`, the recorded
-//! dataset (read and written), and the interchange formats of docs/architecture.md §3. This crate is the leaf: it knows
+//! dataset (read and written), and the interchange formats of docs/design/interchange-formats.md. This crate is the leaf: it knows
 //! nothing of the estimator or the simulator, only what the user writes and reads.
 
 mod camera_checks;

@@ -1,4 +1,4 @@
-//! The interchange formats of docs/architecture.md §3: PNG (8-bit grey), PFM (float32),
+//! The interchange formats of docs/design/interchange-formats.md: PNG (8-bit grey), PFM (float32),
 //! PLY (point clouds, meshes), STL and OBJ (meshes). Readers check what they read and say
 //! which file and which field is wrong; writers write atomically where results could be
 //! lost.
