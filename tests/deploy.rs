@@ -195,7 +195,9 @@ fn the_deployed_loop_in_process_gives_the_evaluations_poses() {
     let mut got = Vec::new();
     let stats = Deployment::new(opened.source, opened.when_behind, estimator)
         .run(
-            |_, pose, info| Ok::<_, camplace_hwio::Error>(FrameRecord::new(info.name.as_str(), pose)),
+            |estimator, pose, info| {
+                Ok::<_, camplace_hwio::Error>(FrameRecord::new(info.name.as_str(), pose).with_slots(estimator.slots()))
+            },
             |e| {
                 got.push(e);
                 Ok(())
@@ -217,7 +219,12 @@ fn the_deployed_loop_in_process_gives_the_evaluations_poses() {
         assert!(t.stages.total_ms > 0.0 && t.stages.total_ms <= t.latency_ms, "{t:?}");
         assert!(t.cpu_ms > 0.0 && t.cpu_ms <= t.latency_ms * cores() + 1.0, "{t:?}");
         assert!(t.stages.by_stage().iter().sum::<f64>() <= t.stages.total_ms, "{t:?}");
-        assert_eq!(untimed(&g.record), FrameRecord { score: None, ..untimed(e) }, "frame {}", e.frame);
+        assert_eq!(
+            untimed(&g.record),
+            FrameRecord { score: None, slot_score: None, ..untimed(e) },
+            "frame {}",
+            e.frame
+        );
     }
 }
 
@@ -326,6 +333,6 @@ fn replay_without_truth_leaves_no_earlier_summary() {
     let evaluated = evaluated(f);
     assert_eq!(replayed.len(), evaluated.len());
     for (r, e) in replayed.iter().zip(&evaluated) {
-        assert_eq!(untimed(r), FrameRecord { score: None, ..untimed(e) }, "frame {}", r.frame);
+        assert_eq!(untimed(r), FrameRecord { score: None, slot_score: None, ..untimed(e) }, "frame {}", r.frame);
     }
 }
