@@ -225,21 +225,24 @@ fn turns_about_one_axis_and_too_few_poses_are_refused() {
 }
 
 /// Seeds per configuration of the coverage test.
-const COVERAGE_SEEDS: u64 = 100;
+const COVERAGE_SEEDS: u64 = 300;
 
 #[test]
 fn the_expected_error_covers_the_true_one_about_as_often_as_one_sigma_should() {
     // The printed 1 σ is the RMS length of the error; a 3-D error stays within it 61 % of
-    // the time when its axes are alike, 68 % when one axis dominates.
-    // Measured at 100 seeds: 52 % to 63 % per configuration, 59 % over all (the true error
-    // over the expected 0.85 to 0.94 at the median); with one variance for all residuals
-    // the median was 2 to 2.8.
+    // the time when its axes are alike, 68 % when one axis dominates. At 100 seeds a
+    // configuration's share wandered by ±4 % (one fell to 52 % while its mean squared error
+    // matched the expected to 5 %), so 300 seeds: measured 57 % to 67 % per configuration,
+    // 61 % over all, the mean squared true error 0.94 to 1.07 times the expected; with one
+    // variance for all residuals the median true / expected was 2 to 2.8.
     let mut failures = Vec::new();
     let (mut all_covered, mut all_total) = (0, 0);
     for setup in [HandEyeSetup::EyeToHand, HandEyeSetup::EyeInHand] {
         for n in [8, 15] {
             for robot in [(0.1, 0.02), (0.5, 0.1)] {
                 let (mut covered, mut total, mut ratios) = (0, 0, Vec::new());
+                // Sums of the squared true and expected errors: translation, rotation.
+                let (mut true_sq, mut expected_sq) = ([0.0; 2], [0.0; 2]);
                 for seed in 0..COVERAGE_SEEDS {
                     let s = scene_with_robot(setup, n, 1000 + seed, 0.05, 35.0, robot);
                     let cal = calibrate_stated(setup, &s, robot).unwrap();
@@ -249,22 +252,32 @@ fn the_expected_error_covers_the_true_one_about_as_often_as_one_sigma_should() {
                     covered += (t <= e.rig_translation_mm) as usize + (r <= e.rig_rotation_deg) as usize;
                     total += 2;
                     ratios.push(t / e.rig_translation_mm);
+                    true_sq[0] += t * t;
+                    true_sq[1] += r * r;
+                    expected_sq[0] += e.rig_translation_mm * e.rig_translation_mm;
+                    expected_sq[1] += e.rig_rotation_deg * e.rig_rotation_deg;
                     ratios.push(r / e.rig_rotation_deg);
                 }
                 ratios.sort_by(f64::total_cmp);
                 let share = covered as f64 / total as f64;
+                let rms_ratio = [0, 1].map(|k| (true_sq[k] / expected_sq[k]).sqrt());
                 eprintln!(
                     "{setup:?}, {n} poses, robot {} mm / {}°: the 1 σ covers {covered} of {total} ({:.0} %), true / \
-                     expected median {:.2}, largest {:.2}",
+                     expected median {:.2}, largest {:.2}, RMS {:.2} (translation) {:.2} (rotation)",
                     robot.0,
                     robot.1,
                     100.0 * share,
                     ratios[ratios.len() / 2],
-                    ratios[ratios.len() - 1]
+                    ratios[ratios.len() - 1],
+                    rms_ratio[0],
+                    rms_ratio[1]
                 );
+                if rms_ratio.iter().any(|r| !(0.85..=1.15).contains(r)) {
+                    failures.push(format!("{setup:?} {n} {robot:?}: RMS true / expected {rms_ratio:?}"));
+                }
                 all_covered += covered;
                 all_total += total;
-                if !(0.50..=0.80).contains(&share) {
+                if !(0.55..=0.80).contains(&share) {
                     failures.push(format!("{setup:?} {n} {robot:?}: {covered} of {total}"));
                 }
             }
