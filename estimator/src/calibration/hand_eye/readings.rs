@@ -196,8 +196,9 @@ pub(super) fn pose_readings(
     };
     // Another reading of each line's numbers: every convention that parses them, the other
     // unit, the angles in the other unit.
+    // Poses without their texts (made by hand) are read again from their numbers only.
     let mut formats: Vec<(PoseReading, RobotPoseFormat, Option<f64>)> = Vec::new();
-    match file {
+    match file.filter(|f| !f.texts.is_empty()) {
         Some(file) => {
             let f = file.format;
             for c in PoseConvention::ALL.into_iter().filter(|&c| c != f.convention) {
@@ -400,6 +401,19 @@ pub fn calibrate_hand_eye_paired(job: &PairedHandEye<'_>) -> Result<HandEyeCalib
         return Err(HandEyeError::Input(Error::new(
             crate::error::ErrorKind::Input,
             format!("{} poses, but {n} frames; expected one pose a frame, in the frames' order", poses.poses.len()),
+        )));
+    }
+    // A `RobotPoses` made by hand rather than parsed: each pose needs its line number, and
+    // its text where the other readings are tried.
+    if poses.lines.len() != n || !(poses.texts.is_empty() || poses.texts.len() == n) {
+        return Err(HandEyeError::Input(Error::new(
+            crate::error::ErrorKind::Input,
+            format!(
+                "{n} poses with {} line numbers and {} texts; expected a line number for each pose and a text for \
+                 each or none",
+                poses.lines.len(),
+                poses.texts.len()
+            ),
         )));
     }
     let all: Vec<Isometry3<f64>> = poses.poses.iter().map(isometry_from_rows).collect();

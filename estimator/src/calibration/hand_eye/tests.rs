@@ -340,4 +340,19 @@ fn poses_that_cannot_belong_to_the_views_are_refused_with_the_reading_that_fits(
     let poses = parse_robot_poses(&robot_poses_text(&rows, wxyz, "right"), None).unwrap();
     let cal = calibrate_hand_eye_paired(&PairedHandEye { poses: &poses, ..job }).unwrap();
     assert_eq!(cal.poses.iter().map(|p| p.index).collect::<Vec<_>>(), (0..10).collect::<Vec<_>>());
+
+    // Made by hand, not parsed: without texts the numbers are read again; line numbers or
+    // texts that do not match the poses are refused, not indexed past.
+    let mut bare = parse_robot_poses(&robot_poses_text(&rows, wxyz, "bare"), None).unwrap();
+    bare.texts.clear();
+    let cal = calibrate_hand_eye_paired(&PairedHandEye { poses: &bare, ..job }).unwrap();
+    assert_eq!(cal.poses.len(), 10);
+    let mut short = bare.clone();
+    short.texts = vec![String::new(); 3];
+    let e = calibrate_hand_eye_paired(&PairedHandEye { poses: &short, ..job }).unwrap_err();
+    assert!(e.to_string().contains("10 poses with 10 line numbers and 3 texts"), "{e}");
+    let mut lines = bare.clone();
+    lines.lines.truncate(2);
+    let e = calibrate_hand_eye_paired(&PairedHandEye { poses: &lines, ..job }).unwrap_err();
+    assert!(e.to_string().contains("2 line numbers"), "{e}");
 }
