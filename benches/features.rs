@@ -5,8 +5,9 @@ use std::hint::black_box;
 use std::num::NonZero;
 
 use camplace_estimator::{
-    quantise, Descriptor, Downsampler, Ecsad, FeatureMatcher, KeypointSelector, Neighbours, NormalEstimator, ECSAD_DIM,
-    QUANTISATION_STEPS,
+    features::quantise, features::Descriptor, features::Downsampler, features::Ecsad, features::FeatureMatcher,
+    features::KeypointSelector, features::NormalEstimator, features::ECSAD_DIM, features::QUANTISATION_STEPS,
+    geometry::Neighbours,
 };
 use criterion::Criterion;
 use kiddo::immutable::float::kdtree::ImmutableKdTree;

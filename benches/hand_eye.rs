@@ -2,7 +2,10 @@
 //! on the flange at 15 robot poses spread in tilt and spin, the corners projected exactly
 //! (the solver's work does not depend on the noise).
 
-use camplace_estimator::{calibrate_hand_eye, BoardView, CalibrationBoard, Camera, HandEyeInput, HandEyeSetup};
+use camplace_estimator::{
+    calibration::calibrate_hand_eye, calibration::BoardView, calibration::CalibrationBoard, calibration::HandEyeInput,
+    calibration::HandEyeSetup, geometry::Camera,
+};
 use criterion::{criterion_group, Criterion};
 use nalgebra::{Isometry3, Matrix3, Point2, Translation3, UnitQuaternion, Vector3};
 

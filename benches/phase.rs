@@ -3,7 +3,9 @@
 
 use camplace_config::{FloatImage, GrayImage};
 use camplace_config::{PhaseParams, ReconstructionParams, WorkVolume};
-use camplace_estimator::{Background, Cloud, CloudBuilder, PhaseDecoder, RectifiedCamera};
+use camplace_estimator::{
+    depth::Background, depth::Cloud, depth::CloudBuilder, depth::PhaseDecoder, depth::RectifiedCamera,
+};
 use criterion::Criterion;
 use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion};
 use std::hint::black_box;

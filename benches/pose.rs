@@ -4,7 +4,7 @@
 
 use camplace_config::Cell;
 use camplace_estimator::testing::{self, Scene, SceneSpec};
-use camplace_estimator::{Icp, IcpResult, Ransac};
+use camplace_estimator::{pose::Icp, pose::IcpResult, pose::Ransac};
 use criterion::{criterion_group, Criterion};
 use std::sync::Arc;
 

@@ -3,7 +3,7 @@
 //! pose, with the judge's buffers reused as the estimator reuses them.
 
 use camplace_estimator::testing::{self, Scene, SceneSpec};
-use camplace_estimator::{SlotJudge, SlotLayout, SlotState};
+use camplace_estimator::{pose::SlotJudge, pose::SlotLayout, pose::SlotState};
 use criterion::{criterion_group, Criterion};
 use nalgebra::Point3;
 

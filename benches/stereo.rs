@@ -5,8 +5,8 @@
 
 use camplace_config::Cell;
 use camplace_config::{FloatImage, GrayImage};
-use camplace_estimator::rig_for;
-use camplace_estimator::{Camera, DisparityMatcher, Elas, Rectification};
+use camplace_estimator::geometry::rig_for;
+use camplace_estimator::{depth::DisparityMatcher, depth::Elas, depth::Rectification, geometry::Camera};
 use criterion::{criterion_group, Criterion};
 use nalgebra::{Point3, Vector3};
 use std::hint::black_box;

@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use camplace_config::RigFile;
-use camplace_estimator::{find_board_corners, CalibrationBoard, Camera, Rig};
+use camplace_estimator::{calibration::find_board_corners, calibration::CalibrationBoard, geometry::Camera, Rig};
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Point2, Point3, Rotation3, Translation3, Vector3, Vector6};
 
 use crate::camplace_cmd::{assert_one_line_error, camplace, stderr};

@@ -4,7 +4,7 @@
 //! and every pose `run` writes meets the success rule against the render's truth.
 
 use camplace_config::{Cell, TruthFile};
-use camplace_estimator::{isometry_from_rows, pose_errors};
+use camplace_estimator::{geometry::isometry_from_rows, pose::pose_errors};
 
 use crate::camplace_cmd::{camplace, stderr};
 

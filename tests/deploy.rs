@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use camplace_config::Cell;
-use camplace_estimator::{FrameRecord, Method, Summary};
+use camplace_estimator::{depth::Method, scoring::FrameRecord, scoring::Summary};
 use camplace_hwio::{parse_source, DeploySource, Deployment, WhenBehind};
 use camplace_sim::Evaluator;
 

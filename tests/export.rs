@@ -122,7 +122,7 @@ fn a_placement_and_a_rig_export_with_their_cameras_where_the_rig_has_them() {
     // The placement's rig as planned (a render's rig.json carries the simulated calibration
     // error in its projector, which the plan has not).
     let placement: Placement = Cell::default().placement.with_overrides(p).unwrap();
-    let planned = camplace_estimator::rig_for(&placement, &Cell::default().sensor);
+    let planned = camplace_estimator::geometry::rig_for(&placement, &Cell::default().sensor);
     check_against_rig(&at_placement, &serde_json::to_value(planned.to_file()).unwrap());
 
     // A calibrated rig moved off the plan: its own cameras and projector are drawn.

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use camplace_config::{Cell, TruthFile};
-use camplace_estimator::isometry_from_rows;
+use camplace_estimator::geometry::isometry_from_rows;
 use camplace_sim::HandEyeTruth;
 use nalgebra::Isometry3;
 
@@ -265,7 +265,7 @@ fn turns_about_one_axis_are_refused() {
                 &nalgebra::Vector3::z_axis(),
                 (4.0 * k as f64 - 10.0).to_radians(),
             );
-            camplace_estimator::isometry_to_rows(
+            camplace_estimator::geometry::isometry_to_rows(
                 &(first * Isometry3::from_parts(nalgebra::Translation3::identity(), spin)),
             )
         })
@@ -391,8 +391,10 @@ fn pose_files_that_cannot_belong_to_the_images_are_refused_with_the_reading_that
         &["read as kuka instead of fanuc"],
     );
     // The base in the flange's frame.
-    let inverted: Vec<[[f64; 4]; 4]> =
-        poses.iter().map(|p| camplace_estimator::isometry_to_rows(&isometry_from_rows(p).inverse())).collect();
+    let inverted: Vec<[[f64; 4]; 4]> = poses
+        .iter()
+        .map(|p| camplace_estimator::geometry::isometry_to_rows(&isometry_from_rows(p).inverse()))
+        .collect();
     let text = robot_poses_text(&inverted, format(PoseConvention::Kuka, LengthUnit::Mm), "inverted");
     refused(root, "inverted.txt", &text, &[], &["inverted", "--eye-in-hand", "fit alike"]);
     // One pose line too many at the start, the last one missing.

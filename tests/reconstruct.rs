@@ -3,7 +3,7 @@
 //! one-shot and 12-shot captures.
 
 use camplace_config::{Cell, Placement};
-use camplace_estimator::{EstimatorConfig, Method, Reconstruction, Reconstructor};
+use camplace_estimator::{depth::Method, depth::Reconstruction, depth::Reconstructor, EstimatorConfig};
 use camplace_sim::{background_scene, draw_scenario, noise_key, Frame, Simulator};
 use nalgebra::Point3;
 
@@ -76,12 +76,12 @@ fn score(text: &str, method: Method, n: u64) -> Score {
 }
 
 /// Depth of a world point along a camera's z axis.
-fn world_depth(cam: &camplace_estimator::Camera, p: &Point3<f64>) -> f64 {
+fn world_depth(cam: &camplace_estimator::geometry::Camera, p: &Point3<f64>) -> f64 {
     cam.t_world_camera.inverse_transform_point(p).z
 }
 
 /// Whether the right camera sees `p` (in its image, not occluded: its true depth there agrees).
-fn seen_by_right(right: &camplace_estimator::Camera, frame: &Frame, p: &Point3<f64>) -> bool {
+fn seen_by_right(right: &camplace_estimator::geometry::Camera, frame: &Frame, p: &Point3<f64>) -> bool {
     let Some(px) = right.project(p) else { return false };
     let (u, v) = (px.x.round(), px.y.round());
     if u < 0.0 || v < 0.0 || u >= right.width as f64 || v >= right.height as f64 {

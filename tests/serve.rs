@@ -10,7 +10,7 @@ use std::process::Command;
 use std::time::Duration;
 
 use camplace_config::{parse_pose, LengthUnit, PoseConvention, RobotPoseFormat};
-use camplace_estimator::FrameRecord;
+use camplace_estimator::scoring::FrameRecord;
 
 use crate::camplace_cmd::{camplace, stderr};
 use crate::deploy::fixture;

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
-use camplace_estimator::FrameRecord;
+use camplace_estimator::scoring::FrameRecord;
 
 use crate::camplace_cmd::{camplace, stderr};
 

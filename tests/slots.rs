@@ -6,7 +6,9 @@
 use std::path::Path;
 
 use camplace_config::{parse_pose, Cell, LengthUnit, PoseConvention, RobotPoseFormat, TruthFile};
-use camplace_estimator::{isometry_from_rows, Estimator, EstimatorConfig, Model, SlotState, Verdict};
+use camplace_estimator::{
+    geometry::isometry_from_rows, pose::SlotState, pose::Verdict, Estimator, EstimatorConfig, Model,
+};
 use camplace_sim::{background_scene, draw_scenario, noise_key, Frame, Method, Simulator};
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 

@@ -9,7 +9,9 @@ use camplace_config::{
     format_pose_exact, parse_pose, CameraFile, Cell, LengthUnit, LightingTruth, PoseConvention, RobotPoseFormat,
     TruthFile,
 };
-use camplace_estimator::{isometry_from_rows, isometry_to_rows, Camera, FrameRecord, Timings};
+use camplace_estimator::{
+    geometry::isometry_from_rows, geometry::isometry_to_rows, geometry::Camera, scoring::FrameRecord, scoring::Timings,
+};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 /// Random rotations drawn uniformly (Shoemake's unit quaternions) and every one's matching

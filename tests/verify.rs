@@ -4,7 +4,7 @@
 //! tray of the test's own.
 
 use camplace_config::{Cell, TrayKind};
-use camplace_estimator::{Estimator, EstimatorConfig, PoseEstimate, Verdict};
+use camplace_estimator::{pose::Verdict, Estimator, EstimatorConfig, PoseEstimate};
 use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 

@@ -171,6 +171,16 @@ pub fn isometry_to_rows(t: &Isometry3<f64>) -> [[f64; 4]; 4] {
 }
 
 /// A rigid transform from a 4x4 row-major array.
+///
+/// ```
+/// use camplace_estimator::geometry::{isometry_from_rows, isometry_to_rows};
+/// // A robot mounted upside down: its base turned half a turn about the world's y axis.
+/// let rows = [[-1.0, 0.0, 0.0, 400.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, -1.0, 1800.0], [0.0, 0.0, 0.0, 1.0]];
+/// let t = isometry_from_rows(&rows);
+/// assert!((t.rotation.angle() - std::f64::consts::PI).abs() < 1e-12);
+/// assert!((t.rotation.axis().unwrap().y.abs() - 1.0).abs() < 1e-12);
+/// assert_eq!(isometry_to_rows(&t), rows);
+/// ```
 pub fn isometry_from_rows(rows: &[[f64; 4]; 4]) -> Isometry3<f64> {
     isometry_from_matrix(&Matrix4::from_fn(|r, c| rows[r][c]))
 }

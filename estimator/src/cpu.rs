@@ -115,6 +115,7 @@ cpu_proof!(
 /// or the baseline, whichever this machine runs best. The copies are local to the function
 /// and only called after the check that vouches for their features.
 #[macro_export]
+#[doc(hidden)]
 macro_rules! multiversion {
     ($(#[$meta:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) => $body:path) => {
         $(#[$meta])*

@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-use camplace_estimator::{find_board_corners, CalibrationBoard, FoundBoardPair};
+use camplace_estimator::{calibration::find_board_corners, calibration::CalibrationBoard, calibration::FoundBoardPair};
 use rayon::prelude::*;
 
 use crate::{Error, Result};

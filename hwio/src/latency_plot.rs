@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use camplace_config::{save_plot, Plot, SavedPlot, PLOT_FONT_FAMILY as FAMILY};
-use camplace_estimator::{Method, StageTimings};
+use camplace_estimator::{depth::Method, StageTimings};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 

@@ -5,8 +5,10 @@
 use std::path::{Path, PathBuf};
 
 use camplace_config::{Cell, FloatImage, GrayImage, RectifiedFile, RigFile};
-use camplace_estimator::{isometry_to_rows, method_for, DisparityMatcher, Elas, Method};
-use camplace_estimator::{EstimatorConfig, Reconstruction, Reconstructor, RectifiedCamera, Rig};
+use camplace_estimator::{
+    depth::method_for, depth::DisparityMatcher, depth::Elas, depth::Method, geometry::isometry_to_rows,
+};
+use camplace_estimator::{depth::Reconstruction, depth::Reconstructor, depth::RectifiedCamera, EstimatorConfig, Rig};
 use rayon::prelude::*;
 
 use crate::{Error, ErrorKind, FrameSource, Frames, RecordedSource, Result};

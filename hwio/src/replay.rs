@@ -7,8 +7,11 @@ use std::path::Path;
 
 use camplace_config::{remove_stale_temp_files, write_atomic, DATASET_SUMMARY};
 use camplace_config::{Cell, TruthFile};
-use camplace_estimator::{isometry_from_rows, score, FrameRecord, SlotScore, Summary, Verifier};
-use camplace_estimator::{method_for, Estimator, EstimatorConfig, Method, Model, PoseEstimate, Rig};
+use camplace_estimator::{depth::method_for, depth::Method, Estimator, EstimatorConfig, Model, PoseEstimate, Rig};
+use camplace_estimator::{
+    geometry::isometry_from_rows, pose::Verifier, scoring::score, scoring::FrameRecord, scoring::SlotScore,
+    scoring::Summary,
+};
 
 use crate::{Error, ErrorKind, FrameSource, Frames, RecordedSource, Result};
 

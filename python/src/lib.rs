@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use camplace_config::{Cell, ImageView, Placement, RigFile};
 use camplace_estimator::{
-    sensor_rig, Estimator as Pipeline, EstimatorConfig, Method, Model, PoseEstimate, Rig, StageTimings,
+    depth::Method, geometry::sensor_rig, Estimator as Pipeline, EstimatorConfig, Model, PoseEstimate, Rig, StageTimings,
 };
 use camplace_sim::{acceptance_summary, background_scene, draw_scenario, noise_key, Frame, Scenario, Simulator};
 use nalgebra::Isometry3;
@@ -153,14 +153,14 @@ fn pose_dict<'py>(py: Python<'py>, pose: &PoseEstimate) -> PyResult<Bound<'py, P
     d.set_item("pose", matrix(py, &pose.t_world_tray))?;
     d.set_item("score", f64::from(pose.verification.score))?;
     d.set_item("verdict", pose.verification.verdict.as_str())?;
-    d.set_item("accepted", pose.found && pose.verification.verdict == camplace_estimator::Verdict::Accepted)?;
+    d.set_item("accepted", pose.found && pose.verification.verdict == camplace_estimator::pose::Verdict::Accepted)?;
     d.set_item("inliers", pose.inliers)?;
     d.set_item("timings_ms", timings(py, &pose.timings)?)?;
     Ok(d)
 }
 
 /// Each slot's state and frame as a list of dicts.
-fn slot_list<'py>(py: Python<'py>, readings: &[camplace_estimator::SlotReading]) -> PyResult<Bound<'py, PyList>> {
+fn slot_list<'py>(py: Python<'py>, readings: &[camplace_estimator::pose::SlotReading]) -> PyResult<Bound<'py, PyList>> {
     let list = PyList::empty(py);
     for r in readings {
         let d = PyDict::new(py);

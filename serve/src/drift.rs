@@ -12,7 +12,7 @@ use std::collections::VecDeque;
 use std::path::Path;
 
 use camplace_config::{FloatImage, PlacementParam, ToleranceReport};
-use camplace_estimator::RectifiedCamera;
+use camplace_estimator::depth::RectifiedCamera;
 use nalgebra::{Matrix3, Point3, Vector3};
 use serde::Serialize;
 

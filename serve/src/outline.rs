@@ -2,7 +2,7 @@
 //! projected through the left camera (with its distortion), and the convex hull of what lands
 //! in the image, the polygon the status page draws over the frame.
 
-use camplace_estimator::{Camera, Model};
+use camplace_estimator::{geometry::Camera, Model};
 use nalgebra::{Isometry3, Point3};
 
 /// Most model points projected for one outline.

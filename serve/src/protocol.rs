@@ -164,7 +164,7 @@ pub struct TriggerReply {
     /// The estimator on that frame, ms.
     pub compute_ms: f64,
     /// Each slot's state under the pose, one letter per slot (only with `Ok`, and a model
-    /// that carries slots): see [`slot_letters`](camplace_estimator::slot_letters).
+    /// that carries slots): see [`slot_letters`](camplace_estimator::pose::slot_letters).
     pub slots: Option<String>,
 }
 
@@ -228,8 +228,8 @@ pub fn busy_line(why: &str, id: Option<&str>) -> String {
 }
 
 /// The reason word of a verdict that refused a found pose.
-pub fn rejected_reason(verdict: camplace_estimator::Verdict) -> &'static str {
-    use camplace_estimator::Verdict;
+pub fn rejected_reason(verdict: camplace_estimator::pose::Verdict) -> &'static str {
+    use camplace_estimator::pose::Verdict;
     match verdict {
         Verdict::Accepted => "accepted",
         Verdict::NoTray => "no-tray",

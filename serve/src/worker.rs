@@ -10,7 +10,8 @@ use std::time::{Duration, Instant};
 
 use camplace_config::{format_pose_exact, RobotPoseFormat};
 use camplace_estimator::{
-    isometry_from_rows, isometry_to_rows, slot_letters, Camera as LensCamera, Estimator, SlotState, Verdict,
+    geometry::isometry_from_rows, geometry::isometry_to_rows, geometry::Camera as LensCamera, pose::slot_letters,
+    pose::SlotState, pose::Verdict, Estimator,
 };
 use camplace_hwio::Frames;
 use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};

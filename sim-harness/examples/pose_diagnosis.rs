@@ -14,8 +14,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use camplace_config::Cell;
-use camplace_estimator::{correct_matches, pose_errors};
-use camplace_estimator::{Estimator, EstimatorConfig, Model, Neighbours};
+use camplace_estimator::{geometry::Neighbours, Estimator, EstimatorConfig, Model};
+use camplace_estimator::{pose::correct_matches, pose::pose_errors};
 use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
 use nalgebra::{Isometry3, Point3};
 

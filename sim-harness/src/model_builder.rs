@@ -9,10 +9,11 @@
 //! estimator's.
 
 use camplace_config::{Cell, Placement};
-use camplace_estimator::MIN_NORMAL_NEIGHBOURS;
+use camplace_estimator::features::MIN_NORMAL_NEIGHBOURS;
 use camplace_estimator::{
-    Descriptor, Downsampler, EstimatorConfig, FeatureExtractor, Method, Model, ModelOrigin, ModelView, Neighbours,
-    NormalEstimator, Reconstruction, Reconstructor, Rectification,
+    depth::Method, depth::Reconstruction, depth::Reconstructor, depth::Rectification, features::Descriptor,
+    features::Downsampler, features::FeatureExtractor, features::NormalEstimator, geometry::Neighbours,
+    pose::ModelOrigin, pose::ModelView, EstimatorConfig, Model,
 };
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
@@ -155,8 +156,11 @@ pub fn build_model(cell: &Cell, placement: &Placement, method: Method, seed: u64
             let mut normals = Vec::new();
             normal_estimator.compute(&points, &grid, &eye, &mut normals);
             // ICP planes need a normal: points where none could be fitted are left out.
-            let (points, normals): (Vec<_>, Vec<_>) =
-                points.into_iter().zip(normals).filter(|(_, n)| camplace_estimator::is_valid_normal(n)).unzip();
+            let (points, normals): (Vec<_>, Vec<_>) = points
+                .into_iter()
+                .zip(normals)
+                .filter(|(_, n)| camplace_estimator::features::is_valid_normal(n))
+                .unzip();
             Ok(ModelView { view_direction: eye.coords.normalize(), points, normals })
         })
         .collect::<Result<_>>()?;

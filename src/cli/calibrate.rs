@@ -9,7 +9,10 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context};
-use camplace_estimator::{CalibrationBoard, HandEyeSetup, Rig, RigCalibration, StereoCalibration};
+use camplace_estimator::{
+    calibration::CalibrationBoard, calibration::HandEyeSetup, calibration::RigCalibration,
+    calibration::StereoCalibration, Rig,
+};
 use camplace_hwio::find_board_pairs;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
@@ -80,7 +83,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let board = parse_board(&a.board)?;
     let t_world_table_board = match &a.board_in_world {
         Some(text) => parse_board_in_world(text)?,
-        None => camplace_estimator::table_board_pose(&board),
+        None => camplace_estimator::calibration::table_board_pose(&board),
     };
     if !a.hand_eye {
         let out = a.out.clone().unwrap_or_else(|| PathBuf::from("rig.json"));
@@ -127,8 +130,14 @@ fn calibrate_rig(
 ) -> anyhow::Result<Rig> {
     let found = find_board_pairs(&a.images, board)?;
     let RigCalibration { rig, stereo: cal, names, not_in_view, seconds } =
-        camplace_estimator::calibrate_rig(found.pairs, board, found.width, found.height, t_world_table_board)
-            .with_context(|| a.images.display().to_string())?;
+        camplace_estimator::calibration::calibrate_rig(
+            found.pairs,
+            board,
+            found.width,
+            found.height,
+            t_world_table_board,
+        )
+        .with_context(|| a.images.display().to_string())?;
     let file = rig.to_file();
     file.check().map_err(|e| anyhow::anyhow!("the calibrated rig: {e}"))?;
     file.save(out)?;

@@ -6,7 +6,7 @@ use camplace_config::{Cell, Placement};
 #[cfg(feature = "sim")]
 use camplace_config::{RigFile, Vergence};
 #[cfg(feature = "sim")]
-use camplace_estimator::{as_built, Rig};
+use camplace_estimator::{geometry::as_built, Rig};
 use std::path::PathBuf;
 
 /// `--cell FILE` and `--placement r=..,alpha=..,baseline=..,vergence=..`.

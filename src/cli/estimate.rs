@@ -3,7 +3,7 @@
 
 use anyhow::Context;
 use camplace_config::RigFile;
-use camplace_estimator::{Estimator, EstimatorConfig, FrameRecord, Method, Model, Rig};
+use camplace_estimator::{depth::Method, scoring::FrameRecord, Estimator, EstimatorConfig, Model, Rig};
 use camplace_hwio::estimate_dataset;
 use nalgebra::Point3;
 use std::path::{Path, PathBuf};
@@ -41,7 +41,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let path = a.cloud.as_ref().context("give --dataset DIR or --cloud FILE")?;
     let rig = match &a.rig {
         Some(p) => Rig::from_file(&RigFile::load(p)?),
-        None => camplace_estimator::rig_for(&placement, &cell.sensor),
+        None => camplace_estimator::geometry::rig_for(&placement, &cell.sensor),
     };
     let cloud = camplace_config::read_cloud(path)?;
     let points: Vec<Point3<f32>> = cloud.points.iter().map(|p| Point3::from(*p)).collect();

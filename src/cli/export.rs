@@ -7,7 +7,7 @@ use std::process::ExitCode;
 
 use anyhow::bail;
 use camplace_config::{RecordedDataset, RigFile};
-use camplace_estimator::{as_built, rig_for, sensor_rig, Rig};
+use camplace_estimator::{geometry::as_built, geometry::rig_for, geometry::sensor_rig, Rig};
 use camplace_sim::{cell_parts, draw_scenario, write_cell_glb};
 
 use super::cell_args::CellArgs;

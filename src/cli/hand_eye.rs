@@ -11,8 +11,9 @@ use std::process::ExitCode;
 use anyhow::{bail, Context};
 use camplace_config::{read_robot_poses, LengthUnit, PoseConvention, RigFile, RobotPoseFormat, RobotPoses};
 use camplace_estimator::{
-    calibrate_hand_eye_paired, isometry_to_rows, BoardView, CalibrationBoard, FoundBoardPair, HandEyeCalibration,
-    HandEyeSetup, PairedHandEye, Rig,
+    calibration::calibrate_hand_eye_paired, calibration::BoardView, calibration::CalibrationBoard,
+    calibration::FoundBoardPair, calibration::HandEyeCalibration, calibration::HandEyeSetup,
+    calibration::PairedHandEye, geometry::isometry_to_rows, Rig,
 };
 use camplace_hwio::{board_view_folders, find_board_views};
 use nalgebra::Isometry3;

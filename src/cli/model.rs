@@ -2,7 +2,7 @@
 //! on request, its ICP points as a PLY cloud).
 
 use camplace_config::{check_output_file, encode_cloud, write_atomic_all};
-use camplace_estimator::VerifiedSummary;
+use camplace_estimator::scoring::VerifiedSummary;
 use camplace_sim::{build_model, measure_verification, model_points};
 use std::path::PathBuf;
 use std::process::ExitCode;

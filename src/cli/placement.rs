@@ -9,7 +9,7 @@ use std::process::ExitCode;
 use anyhow::{bail, Context};
 use camplace_config::{RigFile, ToleranceReport};
 use camplace_estimator::Rig;
-use camplace_estimator::{as_built, mounting_check, MountingVerdict};
+use camplace_estimator::{geometry::as_built, geometry::mounting_check, geometry::MountingVerdict};
 use camplace_sim::tolerance_dir;
 
 use super::cell_args::CellArgs;

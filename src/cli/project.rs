@@ -4,7 +4,7 @@
 //! step, and the shots are written as the next frame of a recorded dataset; without them the
 //! patterns stay on (phase-12 cycles) until Ctrl-C.
 
-use camplace_estimator::Method;
+use camplace_estimator::depth::Method;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -67,8 +67,8 @@ pub(crate) fn patterns(
     seed: Option<u64>,
 ) -> Vec<camplace_config::GrayImage> {
     match method {
-        Method::OneShot => vec![camplace_estimator::one_shot(&cell.sensor, seed.unwrap_or(cell.scenarios.seed))],
-        Method::Phase12 => camplace_estimator::fringe_set(&cell.sensor),
+        Method::OneShot => vec![camplace_estimator::depth::one_shot(&cell.sensor, seed.unwrap_or(cell.scenarios.seed))],
+        Method::Phase12 => camplace_estimator::depth::fringe_set(&cell.sensor),
     }
 }
 

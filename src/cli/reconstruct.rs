@@ -2,7 +2,7 @@
 //! dataset, one raw pair with its `rig.json`, or one already rectified pair.
 
 use anyhow::{bail, Context};
-use camplace_estimator::{method_for, Method};
+use camplace_estimator::{depth::method_for, depth::Method};
 use camplace_hwio::{match_rectified, reconstruct_dataset, reconstruct_pair, RectifiedPair};
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -118,12 +118,12 @@ fn render_hand_eye(
     a: &Args,
     cell: &camplace_config::Cell,
     placement: &camplace_config::Placement,
-    board: &camplace_estimator::CalibrationBoard,
+    board: &camplace_estimator::calibration::CalibrationBoard,
     text: &str,
     seed: u64,
 ) -> anyhow::Result<ExitCode> {
     use camplace_config::{LengthUnit, PoseConvention, RobotPoseFormat};
-    use camplace_estimator::HandEyeSetup;
+    use camplace_estimator::calibration::HandEyeSetup;
     use camplace_sim::{render_hand_eye_views, HandEyeOptions, HandEyePoses};
     if !(a.robot_noise_mm.is_finite() && (0.0..=10.0).contains(&a.robot_noise_mm)) {
         anyhow::bail!("--robot-noise-mm {}: expected a robot error from 0 to 10 mm", a.robot_noise_mm);

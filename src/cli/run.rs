@@ -7,7 +7,7 @@
 
 use anyhow::{bail, Context};
 use camplace_config::truth_path;
-use camplace_estimator::{method_for, FrameRecord, Summary};
+use camplace_estimator::{depth::method_for, scoring::FrameRecord, scoring::Summary};
 use camplace_estimator::{Model, Rig};
 use camplace_hwio::{
     estimator_for, frame_budget_ms, frame_record, latency_plot_target, parse_source, write_latency_plot, DeploySource,
@@ -67,7 +67,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let rig = Rig::from_file(&opened.rig);
     let model = Model::load_checked(&a.deploy.model, &cell, a.deploy.cell.as_deref())?;
     let method = method_for(opened.source.shots());
-    let threshold = camplace_estimator::Verifier::for_model(&cell.estimator, &model).threshold_in_force();
+    let threshold = camplace_estimator::pose::Verifier::for_model(&cell.estimator, &model).threshold_in_force();
     let (max_wrong, metrics) = (cell.estimator.verify_max_wrong, cell.metrics.clone());
     let estimator = estimator_for(&cell, model, &rig, &opened.rig_path, method, opened.background.as_ref())?;
     if opened.background.is_none() {

@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use anyhow::{bail, Context};
 use camplace_config::{Cell, LengthUnit, PoseConvention, RobotPoseFormat, ToleranceReport};
-use camplace_estimator::{method_for, Method};
+use camplace_estimator::{depth::method_for, depth::Method};
 use camplace_estimator::{Model, Rig};
 use camplace_hwio::{
     estimator_for, open_source, parse_source, read_background, DeploySource, FrameSource, InStepSource, PatternScreen,

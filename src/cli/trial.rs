@@ -9,7 +9,7 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Context};
 use camplace_config::{placement_dir, Axis, Cell, Grid, TrialPlan, PLAN_FILE};
-use camplace_estimator::{Method, Model};
+use camplace_estimator::{depth::Method, Model};
 use camplace_hwio::{estimate_dataset, DatasetEstimate};
 use camplace_sim::{
     append_label, check_placement_rig, frame_names, make_mock_trial, make_plan, rho_text, scripted_marks, study_grid,

@@ -19,3 +19,6 @@ pub use phase::PhaseDecoder;
 pub use reconstruct::{ReconstructTimings, Reconstruction, Reconstructor};
 pub use rectify::{Rectification, RectifiedCamera};
 pub use stereo::{DisparityMatcher, Elas};
+// How a frame's shots are decoded, and the frames' pixels.
+pub use crate::method::{method_for, Method};
+pub use camplace_config::AsImageView;

@@ -122,7 +122,7 @@ pub struct Icp {
     /// The bounding box of `whole_points`, tray frame.
     whole_bounds: (Point3<f32>, Point3<f32>),
     /// Per whole-tray point, bit `q - 1` set when the tray turned by `q` quarter turns about
-    /// its z axis has no point within [`DISTINCT_MARGIN`] inlier distances of it: the
+    /// its z axis has no point within `DISTINCT_MARGIN` inlier distances of it: the
     /// parts (a tab, a chamfer) where the tray and that turn of it differ.
     distinct: Vec<u8>,
 }
@@ -345,13 +345,13 @@ impl Icp {
     /// `t_world_tray` explains each point, and from it (1) among the points inside the whole
     /// tray's bounding box at the pose grown by `reach`, how many the tray explains, and
     /// (2) for each of the turns `quarters` about the tray's z axis (each 1 to 3 quarter
-    /// turns, at most [`MAX_OTHER_POSES`]), the points the pose's distinct parts explain
+    /// turns, at most `MAX_OTHER_POSES`), the points the pose's distinct parts explain
     /// against those the turned pose's distinct parts explain.
     ///
     /// Scene points beside the tray are no evidence either way; inside its box, each is
     /// either the tray's surface or something where the model says there is free space.
     /// A nearly symmetric tray and its turn differ only in small parts (a tab): only scene
-    /// points on the parts one of them has and the other lacks ([`DISTINCT_MARGIN`] away from
+    /// points on the parts one of them has and the other lacks (`DISTINCT_MARGIN` away from
     /// anything of the other) tell them apart. The body the two share counts for neither, so
     /// a turn left a millimetre off (it was not refined) gains or loses nothing by it, and a
     /// scene that does not show the parts gives no evidence for either.

@@ -34,7 +34,7 @@ pub struct Scored {
     pub eligible: bool,
     /// The pose is within the success limits.
     pub correct: bool,
-    /// The pose is wrong by more than [`GROSS_FACTOR`] times a success limit.
+    /// The pose is wrong by more than `GROSS_FACTOR` times a success limit.
     pub gross: bool,
 }
 
@@ -156,7 +156,7 @@ impl VerifiedSummary {
 /// poses (turns, a slot away: what the score is for) are at most `max_wrong` of the accepted
 /// ones. Then, when every wrong pose's share needs a higher one, that higher one only if the
 /// poses it would reject in addition are wrong more often than those it keeps, beyond chance
-/// (one-sided Fisher exact test at [`SEPARATION_ALPHA`]). A near miss the score cannot tell
+/// (one-sided Fisher exact test at `SEPARATION_ALPHA`). A near miss the score cannot tell
 /// from a correct pose (the rig's calibration error moving the whole cloud, which no frame
 /// shows) would otherwise lift the threshold to just above its own score and reject every
 /// correct pose below it by the luck of where it fell; it stays accepted and counted in the
@@ -196,7 +196,7 @@ fn lowest_within(frames: &[Scored], max_wrong: f64, wrong: impl Fn(&Scored) -> b
 
 /// Whether, among the eligible frames scored at or above `low`, those below `high` are wrong
 /// more often than those at or above it, beyond chance: the one-sided Fisher exact test's
-/// p below [`SEPARATION_ALPHA`].
+/// p below `SEPARATION_ALPHA`.
 fn wrong_more_often_below(frames: &[Scored], low: f32, high: f32) -> bool {
     let (mut below, mut wrong_below, mut kept, mut wrong_kept) = (0usize, 0usize, 0usize, 0usize);
     for f in frames.iter().filter(|f| f.eligible && f.score >= low) {

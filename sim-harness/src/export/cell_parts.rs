@@ -3,7 +3,7 @@
 //! from its centre to where its image corners meet the table. Encodings are elsewhere.
 
 use camplace_config::Cell;
-use camplace_estimator::{Camera, Rig};
+use camplace_estimator::{geometry::Camera, Rig};
 use nalgebra::{Point3, Vector3};
 
 use crate::scene::scenario::Scenario;
@@ -134,7 +134,7 @@ pub fn table_footprint(c: &Camera, far: f64) -> Option<[[f64; 2]; 4]> {
 mod tests {
     use super::*;
     use crate::scene::scenario::draw_scenario;
-    use camplace_estimator::rig_for;
+    use camplace_estimator::geometry::rig_for;
 
     #[test]
     fn frustums_start_at_the_centres_and_end_on_the_table_inside_the_image() {

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use camplace_config::write_atomic;
-use camplace_estimator::Camera;
+use camplace_estimator::geometry::Camera;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use serde_json::{json, Value};
 

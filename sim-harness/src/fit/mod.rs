@@ -21,7 +21,7 @@ mod synth;
 use std::path::{Path, PathBuf};
 
 use camplace_config::{Cell, Frames, GrayImage, RecordedDataset};
-use camplace_estimator::as_built;
+use camplace_estimator::geometry::as_built;
 use serde::Serialize;
 
 pub use report::{write_fit, FIT_FRAGMENT, FIT_HTML, FIT_JSON};

@@ -12,7 +12,10 @@
 use std::path::Path;
 
 use camplace_config::{frame_name, Cell, GrayImage, Placement};
-use camplace_estimator::{isometry_to_rows, rig_for, table_board_pose, CalibrationBoard, Camera, Rig};
+use camplace_estimator::{
+    calibration::table_board_pose, calibration::CalibrationBoard, geometry::isometry_to_rows, geometry::rig_for,
+    geometry::Camera, Rig,
+};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -363,13 +366,13 @@ mod tests {
             .map(|(i, t)| (dir.path().join("frames").join(frame_name(i as u64)), *t));
         let mut errors = Vec::new();
         for (folder, t) in views.chain(std::iter::once((dir.path().join("table"), truth.t_world_table_board))) {
-            let pose = camplace_estimator::isometry_from_rows(&t);
+            let pose = camplace_estimator::geometry::isometry_from_rows(&t);
             for (name, cam) in [("left.png", &rig.left), ("right.png", &rig.right)] {
                 if !fits_camera(cam, &board, &pose) {
                     continue;
                 }
                 let image = camplace_config::read_gray(&folder.join(name)).unwrap();
-                let found = camplace_estimator::find_board_corners(&image, &board).unwrap();
+                let found = camplace_estimator::calibration::find_board_corners(&image, &board).unwrap();
                 for (p, q) in board.object_points().iter().zip(&found) {
                     let want = cam.project(&(pose * p)).unwrap();
                     errors.push((want - q).norm());

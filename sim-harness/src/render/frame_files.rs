@@ -8,7 +8,7 @@ use std::path::Path;
 use camplace_config::write_shots;
 use camplace_config::{FloatImage, GrayImage};
 use camplace_config::{LightingTruth, Placement, TruthFile};
-use camplace_estimator::isometry_to_rows;
+use camplace_estimator::geometry::isometry_to_rows;
 use camplace_estimator::Rig;
 
 use crate::render::{Frame, Method};

@@ -13,7 +13,10 @@
 use std::path::Path;
 
 use camplace_config::{frame_name, robot_poses_text, Cell, Placement, RobotPoseFormat};
-use camplace_estimator::{isometry_from_rows, isometry_to_rows, CalibrationBoard, HandEyeSetup, Rig};
+use camplace_estimator::{
+    calibration::CalibrationBoard, calibration::HandEyeSetup, geometry::isometry_from_rows, geometry::isometry_to_rows,
+    Rig,
+};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -22,7 +25,7 @@ use serde::{Deserialize, Serialize};
 use super::board::{board_extent, fits, render_board_pairs};
 use super::frame_files::write_rig;
 use crate::{Error, Result};
-use camplace_estimator::{rig_for, table_board_pose};
+use camplace_estimator::{calibration::table_board_pose, geometry::rig_for};
 
 /// Candidate poses drawn per pose kept, of which the best spread are chosen.
 const CANDIDATES_PER_POSE: usize = 30;

@@ -6,7 +6,7 @@
 //! object ids take the nearest canvas pixel, since averaging them would invent surfaces.
 //! The map from image pixels to canvas positions is built once per camera.
 
-use camplace_estimator::Camera;
+use camplace_estimator::geometry::Camera;
 use rayon::prelude::*;
 
 /// Pixels the canvas reaches beyond the outermost ray, so bilinear samples stay inside.

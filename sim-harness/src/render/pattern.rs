@@ -394,7 +394,7 @@ impl Taps {
 mod tests {
     use super::*;
     use crate::render::defocus::LEVELS;
-    use camplace_estimator::{fringe, random_dots};
+    use camplace_estimator::{depth::fringe, depth::random_dots};
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 

@@ -11,7 +11,7 @@
 //! parallel; every band visits the triangles in scene order and a nearer triangle must be
 //! strictly nearer to win, so the result does not depend on the thread count.
 
-use camplace_estimator::{Camera, Error as EstimatorError, ErrorKind};
+use camplace_estimator::{geometry::Camera, Error as EstimatorError, ErrorKind};
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 use rayon::prelude::*;
 
@@ -452,7 +452,7 @@ mod tests {
     use crate::scene::scenario::draw_scenario;
     use crate::scene::Objects;
     use camplace_config::{Cell, Vergence};
-    use camplace_estimator::rig_for;
+    use camplace_estimator::geometry::rig_for;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
@@ -556,7 +556,7 @@ mod tests {
             64,
             48,
             50.0,
-            camplace_estimator::look_at(Point3::new(0.0, 0.0, 10.0), Point3::new(100.0, 0.0, 0.0), 0.0),
+            camplace_estimator::geometry::look_at(Point3::new(0.0, 0.0, 10.0), Point3::new(100.0, 0.0, 0.0), 0.0),
         );
         let view = View::new(&cam).unwrap();
         let tri = crate::scene::SceneTriangle {

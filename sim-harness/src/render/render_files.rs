@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use camplace_config::FloatImage;
 use camplace_config::{is_image_name, is_temp_file_name, DATASET_FILES, FRAME_FILES};
 use camplace_config::{Cell, Placement};
-use camplace_estimator::{Rectification, Rig};
+use camplace_estimator::{depth::Rectification, Rig};
 use rayon::prelude::*;
 
 use super::frame_files::{write_frame, write_images, write_rig};

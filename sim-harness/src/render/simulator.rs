@@ -11,8 +11,11 @@
 
 use camplace_config::{Cell, Effect, Focus, Placement};
 use camplace_config::{FloatImage, Frames, GrayImage};
-pub use camplace_estimator::Method;
-use camplace_estimator::{fringe_set, look_at, one_shot, sensor_rig, Camera, Rig, PHASE_STEPS};
+pub use camplace_estimator::depth::Method;
+use camplace_estimator::{
+    depth::fringe_set, depth::one_shot, depth::PHASE_STEPS, geometry::look_at, geometry::sensor_rig, geometry::Camera,
+    Rig,
+};
 use nalgebra::Point3;
 
 use crate::render::defocus::{blur_levels, defocus_image, top_level, BlurStack, ThinLens, LEVELS};

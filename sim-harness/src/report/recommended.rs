@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use camplace_config::{write_atomic, Placement, Vergence};
-use camplace_estimator::{rig_for, Camera, Method, VerifiedSummary};
+use camplace_estimator::{depth::Method, geometry::rig_for, geometry::Camera, scoring::VerifiedSummary};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use crate::study::optimize::recheck_seed;

@@ -3,7 +3,7 @@
 //! down to the table.
 
 use camplace_config::Placement;
-use camplace_estimator::{Camera, Rig};
+use camplace_estimator::{geometry::Camera, Rig};
 use nalgebra::{Point3, Vector3};
 use plotters::coord::Shift;
 use plotters::prelude::*;

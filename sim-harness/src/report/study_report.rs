@@ -22,10 +22,10 @@ use crate::study::placement_study::{tolerance_dir, Combination, Preset, Recommen
 use crate::{Error, Result};
 use camplace_config::Axis;
 use camplace_config::{end_text, offset_text, WalkEnd};
-use camplace_estimator::pct;
-use camplace_estimator::rig_for;
-use camplace_estimator::Camera;
-use camplace_estimator::Summary;
+use camplace_estimator::geometry::rig_for;
+use camplace_estimator::geometry::Camera;
+use camplace_estimator::scoring::pct;
+use camplace_estimator::scoring::Summary;
 
 /// A rate as a percentage with one decimal.
 /// Writes `report.html` (and its plots, and `recommended.json`) into the study folder.
@@ -233,7 +233,8 @@ pub fn write_report(req: &StudyRequest, outcome: &StudyOutcome, started: Instant
     page.heading(2, "Settings");
     let all: Vec<&Summary> =
         combos.iter().flat_map(|c| c.sweeps.iter().flat_map(|s| s.rows.iter().map(|r| &r.summary))).collect();
-    let median_ms = camplace_estimator::median(&all.iter().map(|s| s.median_ms).collect::<Vec<_>>()).unwrap_or(0.0);
+    let median_ms =
+        camplace_estimator::scoring::median(&all.iter().map(|s| s.median_ms).collect::<Vec<_>>()).unwrap_or(0.0);
     let search =
         if preset.budget > 0 {
             format!(

@@ -14,7 +14,7 @@ use crate::study::results::ResultsStore;
 use crate::Result;
 use camplace_config::save_plot;
 use camplace_config::Grid;
-use camplace_estimator::Summary;
+use camplace_estimator::scoring::Summary;
 
 /// What a sweep measured.
 #[derive(Debug, Clone, PartialEq)]

@@ -8,7 +8,7 @@ use camplace_config::write_atomic;
 use serde::{Deserialize, Serialize};
 
 use crate::Result;
-use camplace_estimator::Summary;
+use camplace_estimator::scoring::Summary;
 
 /// One row: a placement, the method and seed, and its summary (a `summary.json` entry).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -15,8 +15,8 @@ use crate::study::placement_study::Combination;
 use crate::Result;
 use camplace_config::PLOT_FONT_FAMILY as FAMILY;
 use camplace_config::{save_plot, Plot};
-use camplace_estimator::pct;
-use camplace_estimator::{precision_recall, Scored, VerifiedSummary};
+use camplace_estimator::scoring::pct;
+use camplace_estimator::{scoring::precision_recall, scoring::Scored, scoring::VerifiedSummary};
 
 /// The precision–recall curve of one method's best placement.
 #[derive(Debug, Clone, PartialEq)]

@@ -6,7 +6,7 @@
 //! leaves the page.
 
 use camplace_config::{Cell, Placement, ToleranceReport};
-use camplace_estimator::{rig_pose, Rig};
+use camplace_estimator::{geometry::rig_pose, Rig};
 use serde_json::{json, Value};
 
 use super::heatmap::viridis;

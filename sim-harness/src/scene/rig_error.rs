@@ -71,7 +71,7 @@ impl RigError {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use camplace_estimator::sensor_rig;
+    use camplace_estimator::geometry::sensor_rig;
     use nalgebra::Point3;
 
     /// The RMS displacement, pixels, of `point`'s projection in the left (or right) camera

@@ -3,7 +3,7 @@
 //! scenes (common random numbers) and differences between placements are not noise.
 
 use camplace_config::{Cell, Effect};
-use camplace_estimator::{isometry_from_rows, isometry_to_rows};
+use camplace_estimator::{geometry::isometry_from_rows, geometry::isometry_to_rows};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -4,7 +4,7 @@
 
 use camplace_config::Mesh;
 use camplace_config::{Cell, ItemsKind, TrayKind};
-use camplace_estimator::{SlotLayout, EDGE_CELL, MAX_FOOTPRINT_CELLS};
+use camplace_estimator::{pose::SlotLayout, pose::EDGE_CELL, pose::MAX_FOOTPRINT_CELLS};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
 use crate::{Error, Result};

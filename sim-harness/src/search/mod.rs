@@ -411,13 +411,13 @@ impl RbfOptimizer {
         let mut log_from = None;
         // Log scaling when the spread above the median dwarfs the spread below it: a few
         // huge values (Goldstein–Price's corners) would otherwise bend the whole surface.
-        if ymax - ymin > 50.0 * (camplace_estimator::median(&y).unwrap_or(0.0) - ymin).max(1e-300) {
+        if ymax - ymin > 50.0 * (camplace_estimator::scoring::median(&y).unwrap_or(0.0) - ymin).max(1e-300) {
             for v in &mut y {
                 *v = (1.0 + *v - ymin).ln();
             }
             log_from = Some(ymin);
         }
-        let med = camplace_estimator::median(&y).unwrap_or(0.0);
+        let med = camplace_estimator::scoring::median(&y).unwrap_or(0.0);
         if self.settings.clip_at_median {
             for v in &mut y {
                 *v = v.min(med);

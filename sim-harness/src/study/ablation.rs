@@ -12,7 +12,7 @@ use super::one_placement::evaluate_placement;
 use super::shard::Shard;
 use crate::render::Method;
 use crate::Result;
-use camplace_estimator::Summary;
+use camplace_estimator::scoring::Summary;
 
 /// One variant at one placement.
 #[derive(Debug, Clone)]

@@ -5,7 +5,7 @@
 
 use camplace_config::frame_name;
 use camplace_config::{Cell, Placement};
-use camplace_estimator::{isometry_from_rows, isometry_to_rows};
+use camplace_estimator::{geometry::isometry_from_rows, geometry::isometry_to_rows};
 use camplace_estimator::{Estimator, EstimatorConfig, Model, PoseEstimate};
 
 use crate::model_builder::build_model;
@@ -15,7 +15,7 @@ use crate::scene::scenario::background_scene;
 use crate::scene::scenario::draw_scenario;
 use crate::seeds::noise_key;
 use crate::Result;
-use camplace_estimator::{score, FrameRecord, SlotScore};
+use camplace_estimator::{scoring::score, scoring::FrameRecord, scoring::SlotScore};
 
 /// What every worker of one placement's evaluation shares: the settings, the background
 /// capture and an estimator set up for the model and the background (its model indexes

@@ -10,7 +10,7 @@
 //! tolerances use the same test one-sided (is this point lower than the nominal?) and its
 //! power against a given drop, from which their scene count is chosen.
 
-use camplace_estimator::wilson_interval;
+use camplace_estimator::scoring::wilson_interval;
 
 /// A success count out of a number of scenes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use camplace_config::write_atomic;
 use camplace_config::{Cell, Placement};
-use camplace_estimator::{Model, ModelOrigin};
+use camplace_estimator::{pose::ModelOrigin, Model};
 
 use super::evaluate::Evaluator;
 use super::results::{ResultLine, ResultsStore, SceneKey};

@@ -14,7 +14,7 @@ use super::sweep::load_sweep;
 use crate::report::sweep_panels::write_sweep_outputs;
 use crate::report::table::{write_summary_csv, write_summary_json, SummaryRow};
 use crate::{Error, Result};
-use camplace_estimator::Summary;
+use camplace_estimator::scoring::Summary;
 
 /// Merges `dirs` into `out`; returns the scenes joined. Each of `dirs` is a study folder, or
 /// a tree of them (a study's `TRAY/METHOD/` folders) merged folder by folder.

@@ -15,9 +15,9 @@ use crate::render::Method;
 use crate::report::table::{write_summary_csv, write_summary_json, SummaryRow};
 use crate::workers::each_index;
 use crate::Result;
+use camplace_estimator::scoring::Summary;
 use camplace_estimator::Model;
-use camplace_estimator::Summary;
-use camplace_estimator::{Scored, VerifiedSummary};
+use camplace_estimator::{scoring::Scored, scoring::VerifiedSummary};
 
 /// Runs shard `shard` of the scenes into the study folder `dir` (models cached in
 /// `dir/models`), writes `summary.json` and `summary.csv`, and returns the summary of the

@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::search::{RbfOptimizer, RbfSettings};
 use crate::Result;
-use camplace_estimator::Summary;
+use camplace_estimator::scoring::Summary;
 
 /// One parameter searched, with its box.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -30,8 +30,8 @@ use crate::seeds::noise_key;
 use crate::{Error, Result};
 use camplace_config::ToleranceReport;
 use camplace_config::{Axis, Grid};
-use camplace_estimator::pct;
-use camplace_estimator::Summary;
+use camplace_estimator::scoring::pct;
+use camplace_estimator::scoring::Summary;
 
 /// The scale of a study.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]

@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::render::Method;
 use crate::{Error, Result};
-use camplace_estimator::FrameRecord;
+use camplace_estimator::scoring::FrameRecord;
 
 /// One line of `results.jsonl`: which scene it was, then the frame's record.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -391,7 +391,7 @@ mod tests {
     fn result_lines_survive_truncation_and_flips() {
         use rand::{RngExt, SeedableRng};
         let mut good = line(4);
-        good.record.score = Some(camplace_estimator::Score {
+        good.record.score = Some(camplace_estimator::scoring::Score {
             position_error_mm: 1.25,
             rotation_error_deg: 0.5,
             correct_matches: 17,

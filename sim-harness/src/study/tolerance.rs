@@ -25,7 +25,7 @@ use super::tray_set::{lowest, TraySet};
 use crate::render::Method;
 use crate::{Error, Result};
 use camplace_config::{AxisTolerance, ToleranceCorner, TolerancePoint, ToleranceReport};
-use camplace_estimator::Summary;
+use camplace_estimator::scoring::Summary;
 
 /// A parameter a bracket can get wrong, and how its tolerance is walked.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -181,7 +181,7 @@ impl Judge<'_> {
                     let failed: Vec<Option<bool>> = nominal.iter().map(|o| o.map(|_| false)).collect();
                     let mut summary = Summary::from_records(&[]);
                     summary.scored = failed.iter().flatten().count();
-                    summary.success_interval = camplace_estimator::wilson_interval(0, summary.scored);
+                    summary.success_interval = camplace_estimator::scoring::wilson_interval(0, summary.scored);
                     (Paired::from_outcomes(&failed, nominal), summary)
                 }
                 Err(e) => return Err(e),

@@ -14,8 +14,8 @@ use super::results::ResultsStore;
 use super::shard::Shard;
 use crate::render::Method;
 use crate::Result;
-use camplace_estimator::FrameRecord;
-use camplace_estimator::Summary;
+use camplace_estimator::scoring::FrameRecord;
+use camplace_estimator::scoring::Summary;
 
 /// One tray of the set and its open study folder.
 pub struct TrayFolder {

@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::{Error, Result};
 use camplace_config::ContentHash;
-use camplace_estimator::FrameRecord;
+use camplace_estimator::scoring::FrameRecord;
 
 /// The reviewer's marks beside a dataset's frames.
 pub const LABELS_FILE: &str = "labels.jsonl";

@@ -9,7 +9,7 @@ use camplace_config::{Cell, Placement, RigFile};
 use camplace_estimator::Rig;
 
 use crate::{Error, Result};
-use camplace_estimator::as_built;
+use camplace_estimator::geometry::as_built;
 
 /// How far an installed rig's distance r may lie from the plan's, as a share of it: a robot
 /// carrying the rig reaches its pose to a millimetre, a rig clamped by hand to a few

@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use camplace_config::{Cell, TruthFile};
-use camplace_estimator::{isometry_from_rows, pose_errors};
+use camplace_estimator::{geometry::isometry_from_rows, pose::pose_errors};
 
 use super::judge::{frame_names, read_poses, Label, Mark};
 use crate::render::render_files::render_dataset;

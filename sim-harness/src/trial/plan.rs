@@ -2,7 +2,7 @@
 //! robot's flange, the flange pose that carries the rig to each.
 
 use camplace_config::{Cell, Grid, Placement, PlannedPlacement, TrialPlan, MAX_PLACEMENTS};
-use camplace_estimator::{isometry_from_rows, isometry_to_rows, sensor_rig};
+use camplace_estimator::{geometry::isometry_from_rows, geometry::isometry_to_rows, geometry::sensor_rig};
 
 use crate::{Error, Result};
 
@@ -41,7 +41,7 @@ pub fn make_plan(cell: &Cell, grid: Option<Grid>, placements: &[Placement]) -> R
 mod tests {
     use super::*;
     use camplace_config::{Robot, PLAN_CSV, PLAN_FILE};
-    use camplace_estimator::isometry_from_rows;
+    use camplace_estimator::geometry::isometry_from_rows;
 
     #[test]
     fn each_flange_pose_carries_the_rig_to_its_placement_and_reads_back() {

@@ -15,7 +15,7 @@
 use std::path::Path;
 
 use camplace_config::{image_name, Cell};
-use camplace_estimator::{isometry_from_rows, Rig};
+use camplace_estimator::{geometry::isometry_from_rows, Rig};
 use nalgebra::Point3;
 use serde::Serialize;
 

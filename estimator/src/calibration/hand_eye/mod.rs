@@ -165,7 +165,7 @@ pub struct HandEyeCalibration {
 }
 
 /// Calibrates the hand-eye transform of `input`. Poses that do not fit the images (the
-/// median pose's score above [`FIT_SCORE_LIMIT`]) are refused, with the reading of them
+/// median pose's score above `FIT_SCORE_LIMIT`) are refused, with the reading of them
 /// that fits when one does (another unit, inverted, paired one off, the other setup).
 pub fn calibrate_hand_eye(input: &HandEyeInput<'_>) -> Result<HandEyeCalibration> {
     let prepared = prepare(input)?;
