@@ -46,7 +46,6 @@ pub use formats::dataset_write::{
 pub use formats::frames::{FrameInfo, Frames};
 pub use formats::mesh::{decode_obj, decode_stl, load_mesh, Mesh};
 pub use formats::pfm::{decode_pfm, encode_pfm, read_pfm, write_pfm};
-pub use formats::plot::{ensure_plot_font, save_plot, Plot, SavedPlot, PLOT_FONT_FAMILY};
 pub use formats::ply::{decode_ply, encode_cloud, read_cloud, read_ply, write_cloud, PlyCloud, PlyData};
 pub use formats::png::{decode_gray, read_gray, read_image_size, write_gray, write_rgb};
 pub use formats::read::{

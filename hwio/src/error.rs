@@ -110,6 +110,12 @@ impl From<camplace_config::Error> for Error {
     }
 }
 
+impl From<camplace_plot::Error> for Error {
+    fn from(e: camplace_plot::Error) -> Self {
+        Self::new(ErrorKind::Io, e.to_string())
+    }
+}
+
 /// The hardware crate's result type.
 impl From<camplace_estimator::Error> for Error {
     fn from(e: camplace_estimator::Error) -> Self {

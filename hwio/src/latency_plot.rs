@@ -5,8 +5,8 @@
 
 use std::path::{Path, PathBuf};
 
-use camplace_config::{save_plot, Plot, SavedPlot, PLOT_FONT_FAMILY as FAMILY};
 use camplace_estimator::{depth::Method, StageTimings};
+use camplace_plot::{save_plot, Plot, SavedPlot, PLOT_FONT_FAMILY as FAMILY};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -242,7 +242,7 @@ mod tests {
                 assert!(svg.contains("capture to pose") && svg.contains("ransac"), "legend missing");
                 assert!(std::fs::metadata(&saved.png).unwrap().len() > 1000);
             }
-            None => assert!(camplace_config::ensure_plot_font().is_err(), "a font was found but nothing was drawn"),
+            None => assert!(camplace_plot::ensure_plot_font().is_err(), "a font was found but nothing was drawn"),
         }
     }
 }

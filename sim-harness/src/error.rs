@@ -48,6 +48,12 @@ impl From<camplace_config::Error> for Error {
     }
 }
 
+impl From<camplace_plot::Error> for Error {
+    fn from(e: camplace_plot::Error) -> Self {
+        Error::Other(e.to_string())
+    }
+}
+
 impl From<camplace_estimator::Error> for Error {
     fn from(e: camplace_estimator::Error) -> Self {
         Error::Estimator(e)

@@ -13,7 +13,6 @@ pub(crate) mod frames;
 pub(crate) mod json;
 pub(crate) mod mesh;
 pub(crate) mod pfm;
-pub(crate) mod plot;
 pub(crate) mod ply;
 pub(crate) mod png;
 pub(crate) mod read;

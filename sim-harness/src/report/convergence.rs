@@ -5,7 +5,7 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use camplace_config::{Plot, PLOT_FONT_FAMILY as FAMILY};
+use camplace_plot::{Plot, PLOT_FONT_FAMILY as FAMILY};
 
 /// One search's curve.
 #[derive(Debug, Clone, PartialEq)]

@@ -8,7 +8,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use camplace_config::{Plot, PLOT_FONT_FAMILY as FAMILY};
+use camplace_plot::{Plot, PLOT_FONT_FAMILY as FAMILY};
 
 /// One panel of a sweep.
 #[derive(Debug, Clone, PartialEq)]
@@ -252,7 +252,7 @@ mod tests {
 
     /// Draws `map` into an RGB buffer (`None` without a font).
     fn drawn(map: &HeatMap) -> Option<Drawn> {
-        camplace_config::ensure_plot_font().ok()?;
+        camplace_plot::ensure_plot_font().ok()?;
         let (w, h) = map.size();
         let mut buf = vec![0u8; (w * h * 3) as usize];
         {

@@ -8,7 +8,7 @@ use nalgebra::{Point3, Vector3};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use camplace_config::{Plot, PLOT_FONT_FAMILY as FAMILY};
+use camplace_plot::{Plot, PLOT_FONT_FAMILY as FAMILY};
 
 /// The sketch's contents.
 #[derive(Debug, Clone)]

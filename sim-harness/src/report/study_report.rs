@@ -6,7 +6,8 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use camplace_config::{save_plot, studied_names, Cell, Effect, EstimatorPreset, PlacementParam};
+use camplace_config::{studied_names, Cell, Effect, EstimatorPreset, PlacementParam};
+use camplace_plot::save_plot;
 
 use super::convergence::{Convergence, Curve};
 use super::html::HtmlPage;

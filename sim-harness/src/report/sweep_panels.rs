@@ -12,9 +12,9 @@ use super::table::{write_summary_csv, write_summary_json, SummaryRow};
 use crate::render::Method;
 use crate::study::results::ResultsStore;
 use crate::Result;
-use camplace_config::save_plot;
 use camplace_config::Grid;
 use camplace_estimator::scoring::Summary;
+use camplace_plot::save_plot;
 
 /// What a sweep measured.
 #[derive(Debug, Clone, PartialEq)]

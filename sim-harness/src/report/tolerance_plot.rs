@@ -8,8 +8,8 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use crate::Result;
-use camplace_config::{save_plot, Plot, SavedPlot, PLOT_FONT_FAMILY as FAMILY};
 use camplace_config::{AxisTolerance, TolerancePoint, ToleranceReport, WalkEnd};
+use camplace_plot::{save_plot, Plot, SavedPlot, PLOT_FONT_FAMILY as FAMILY};
 
 /// The plot of one parameter's walk.
 #[derive(Debug, Clone, PartialEq)]

@@ -13,10 +13,10 @@ use super::html::HtmlPage;
 use crate::study::optimize::recheck_seed;
 use crate::study::placement_study::Combination;
 use crate::Result;
-use camplace_config::PLOT_FONT_FAMILY as FAMILY;
-use camplace_config::{save_plot, Plot};
 use camplace_estimator::scoring::pct;
 use camplace_estimator::{scoring::precision_recall, scoring::Scored, scoring::VerifiedSummary};
+use camplace_plot::PLOT_FONT_FAMILY as FAMILY;
+use camplace_plot::{save_plot, Plot};
 
 /// The precision–recall curve of one method's best placement.
 #[derive(Debug, Clone, PartialEq)]

@@ -14,7 +14,7 @@ use crate::render::Method;
 use crate::report::convergence::{Convergence, Curve};
 use crate::report::table::{write_summary_csv, SummaryRow};
 use crate::{Error, Result};
-use camplace_config::save_plot;
+use camplace_plot::save_plot;
 
 /// Runs the search into `dir`: optimize.json, optimize.csv and the convergence plot.
 pub fn optimize(

@@ -25,9 +25,9 @@ use crate::report::table::SummaryRow;
 use crate::study::findings::{Paired, Rate};
 use crate::study::sweep::load_sweep;
 use crate::{Error, Result};
-use camplace_config::save_plot;
 use camplace_config::Grid;
 use camplace_config::{parse_placement, placement_dir, TrialPlan, PLAN_FILE};
+use camplace_plot::save_plot;
 
 /// The report's JSON file.
 pub const REPORT_JSON: &str = "trial_report.json";

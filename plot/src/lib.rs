@@ -1,4 +1,4 @@
-//! Plots as files: one drawing routine written as `NAME.svg` and `NAME.png`, and the
+//! camplace's plots as files: one drawing routine written as `NAME.svg` and `NAME.png`, and the
 //! TrueType font their text is drawn with. plotters' pure-Rust text needs one, and camplace
 //! ships none: it is looked for once in `CAMPLACE_FONT` and the usual system places
 //! (Debian's fonts-dejavu-core, macOS, Windows); without one, plots are skipped and the
@@ -10,7 +10,22 @@ use std::sync::OnceLock;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::Error;
+/// A plot that could not be drawn into its file: `PATH: cannot draw the plot: why`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Error {
+    /// The file being drawn.
+    pub path: PathBuf,
+    /// What the drawing backend said.
+    pub message: String,
+}
+
+impl std::fmt::Display for Error {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: cannot draw the plot: {}", self.path.display(), self.message)
+    }
+}
+
+impl std::error::Error for Error {}
 
 /// The family name plots ask for.
 pub const PLOT_FONT_FAMILY: &str = "sans-serif";
@@ -76,7 +91,7 @@ pub fn save_plot(plot: &impl Plot, dir: &Path, name: &str) -> Result<Option<Save
     let (w, h) = plot.size();
     let svg = dir.join(format!("{name}.svg"));
     let png = dir.join(format!("{name}.png"));
-    let fail = |path: &Path, e: String| Error::format(format!("cannot draw the plot: {e}")).in_file(path);
+    let fail = |path: &Path, message: String| Error { path: path.to_path_buf(), message };
     {
         let root = SVGBackend::new(&svg, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| fail(&svg, e.to_string()))?;
