@@ -194,7 +194,7 @@ impl DeployStats {
 fn p_value(values: &[f64], q: f64) -> f64 {
     let mut sorted = values.to_vec();
     sorted.sort_by(f64::total_cmp);
-    percentile(&sorted, q).unwrap_or(0.0)
+    camplace_estimator::scoring::percentile(&sorted, q).unwrap_or(0.0)
 }
 
 /// [`p_value`] as text with its unit, "n/a" when empty.
@@ -300,37 +300,9 @@ impl Deployment {
     }
 }
 
-/// The nearest-rank `q`-th percentile of ascending `sorted` values; `None` when empty.
-fn percentile(sorted: &[f64], q: f64) -> Option<f64> {
-    if sorted.is_empty() {
-        return None;
-    }
-    let rank = ((q / 100.0) * sorted.len() as f64).ceil() as usize;
-    Some(sorted[rank.clamp(1, sorted.len()) - 1])
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn nearest_rank_percentiles_match_counting() {
-        let values: Vec<f64> = (1..=200).rev().map(f64::from).collect();
-        let mut sorted = values.clone();
-        sorted.sort_by(f64::total_cmp);
-        for q in [1.0, 50.0, 90.0, 99.0, 100.0] {
-            let got = percentile(&sorted, q).unwrap();
-            // The smallest value with at least q % of all values at or below it.
-            let slow = values
-                .iter()
-                .copied()
-                .filter(|&v| values.iter().filter(|&&w| w <= v).count() as f64 >= q / 100.0 * values.len() as f64)
-                .fold(f64::INFINITY, f64::min);
-            assert_eq!(got, slow, "q {q}");
-        }
-        assert_eq!(percentile(&[7.0], 99.0), Some(7.0));
-        assert_eq!(percentile(&[], 50.0), None);
-    }
 
     /// The report's row for `name`: its p50 and p99 as printed.
     fn row(report: &str, name: &str) -> Option<(f64, f64)> {

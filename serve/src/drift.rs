@@ -221,18 +221,9 @@ fn fit_plane(points: &[Point3<f64>], keep: &[bool]) -> Option<Plane> {
     Some(Plane { a: s.x, b: s.y, c: mean.z + s.z - s.x * mean.x - s.y * mean.y })
 }
 
+/// The median of `values` (the mean of the middle two for an even count); 0 when empty.
 fn median(values: impl Iterator<Item = f64>) -> f64 {
-    let mut v: Vec<f64> = values.collect();
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(f64::total_cmp);
-    let m = v.len() / 2;
-    if v.len() % 2 == 1 {
-        v[m]
-    } else {
-        (v[m - 1] + v[m]) / 2.0
-    }
+    camplace_estimator::scoring::median(&values.collect::<Vec<_>>()).unwrap_or(0.0)
 }
 
 #[cfg(test)]

@@ -109,12 +109,8 @@ impl State {
     /// The nearest-rank `q`-th percentile of the recent latencies.
     pub(crate) fn percentile(&self, q: f64) -> Option<f64> {
         let mut v: Vec<f64> = self.recent.iter().copied().collect();
-        if v.is_empty() {
-            return None;
-        }
         v.sort_by(f64::total_cmp);
-        let rank = ((q / 100.0) * v.len() as f64).ceil() as usize;
-        Some(v[rank.clamp(1, v.len()) - 1])
+        camplace_estimator::scoring::percentile(&v, q)
     }
 
     /// The `STATUS` reply line.

@@ -27,7 +27,7 @@ impl CellArgs {
     /// The cell (file or built-in) with its one tray (`--tray` picks one of a listed cell),
     /// and the placement with overrides applied.
     pub fn load(&self) -> anyhow::Result<(Cell, Placement)> {
-        let cell = self.one_tray(self.read()?)?;
+        let cell = Cell::load_one(self.cell.as_deref(), self.tray.as_deref())?;
         let placement = self.placement(&cell)?;
         Ok((cell, placement))
     }
@@ -36,27 +36,12 @@ impl CellArgs {
     /// given), and the placement: for the commands that judge a placement over all trays.
     #[cfg(feature = "sim")]
     pub fn load_trays(&self) -> anyhow::Result<(Vec<(String, Cell)>, Placement)> {
-        let cell = self.read()?;
         let trays = match &self.tray {
-            Some(name) => vec![(name.clone(), self.one_tray(cell)?)],
-            None => cell.tray_cells(),
+            Some(name) => vec![(name.clone(), Cell::load_one(self.cell.as_deref(), Some(name))?)],
+            None => Cell::load_or_default(self.cell.as_deref())?.tray_cells(),
         };
         let placement = self.placement(&trays[0].1)?;
         Ok((trays, placement))
-    }
-
-    fn read(&self) -> anyhow::Result<Cell> {
-        Ok(match &self.cell {
-            Some(path) => Cell::load(path)?,
-            None => Cell::default(),
-        })
-    }
-
-    fn one_tray(&self, cell: Cell) -> anyhow::Result<Cell> {
-        cell.one_tray(self.tray.as_deref()).map_err(|e| match &self.cell {
-            Some(path) => anyhow::Error::new(e.in_file(path)),
-            None => anyhow::Error::new(e),
-        })
     }
 
     fn placement(&self, cell: &Cell) -> anyhow::Result<Placement> {

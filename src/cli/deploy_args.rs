@@ -37,9 +37,6 @@ impl DeployArgs {
     /// The cell (the file, or the built-in one) with its one tray (`--tray` picks one of a
     /// listed cell).
     pub fn cell(&self) -> anyhow::Result<Cell> {
-        Ok(match &self.cell {
-            Some(path) => Cell::load(path)?.one_tray(self.tray.as_deref()).map_err(|e| e.in_file(path))?,
-            None => Cell::default().one_tray(self.tray.as_deref())?,
-        })
+        Ok(Cell::load_one(self.cell.as_deref(), self.tray.as_deref())?)
     }
 }

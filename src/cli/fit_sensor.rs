@@ -29,10 +29,7 @@ pub struct Args {
 
 /// Runs `camplace fit-sensor`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    let cell = match &a.cell {
-        Some(p) => Cell::load(p)?.one_tray(None).map_err(|e| e.in_file(p))?,
-        None => Cell::default(),
-    };
+    let cell = Cell::load_one(a.cell.as_deref(), None)?;
     let fit = fit_sensor(&a.dataset, &cell, a.frames as usize)?;
     write_fit(&fit, &a.out)?;
     outln!("{} frames ({}) against the background, {} table tiles", fit.frames, fit.method, fit.tiles);

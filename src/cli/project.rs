@@ -98,10 +98,7 @@ mod shown {
     use std::sync::Arc;
 
     pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-        let cell = match &a.cell {
-            Some(path) => Cell::load(path)?,
-            None => Cell::default(),
-        };
+        let cell = Cell::load_or_default(a.cell.as_deref())?;
         let patterns = super::patterns(&cell, a.method, a.seed);
         // The source first: a missing camera is reported before a window opens.
         let source = a.source.as_deref().map(|s| open_source(&parse_source(s)?)).transpose()?;

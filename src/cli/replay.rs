@@ -31,13 +31,10 @@ pub struct Args {
 
 /// Runs `camplace replay`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    let (cell, model) = match &a.cell {
-        Some(path) => {
-            let cell = Cell::load(path)?.one_tray(a.tray.as_deref()).map_err(|e| e.in_file(path))?;
-            let model = Model::load_for(&a.model, &cell, path)?;
-            (cell, model)
-        }
-        None => (Cell::default(), Model::load(&a.model)?),
+    let cell = Cell::load_one(a.cell.as_deref(), a.tray.as_deref())?;
+    let model = match &a.cell {
+        Some(path) => Model::load_for(&a.model, &cell, path)?,
+        None => Model::load(&a.model)?,
     };
     // Marks made on the poses about to be replaced keep saying which poses they judged. Marks
     // carry their pose's fingerprint since they are made; this ties older ones, and only the

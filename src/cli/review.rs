@@ -34,10 +34,7 @@ pub struct Args {
 
 /// Runs `camplace review`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    let cell = match &a.cell {
-        Some(p) => Cell::load(p)?.one_tray(a.tray.as_deref()).map_err(|e| e.in_file(p))?,
-        None => Cell::default(),
-    };
+    let cell = Cell::load_one(a.cell.as_deref(), a.tray.as_deref())?;
     let Some(listen) = &a.listen else {
         let page = review_page(&a.dataset, &cell, false)?;
         let path = a.dataset.join("review.html");

@@ -40,10 +40,7 @@ pub struct Args {
 /// Runs `camplace study`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let started = Instant::now();
-    let cell = match &a.cell {
-        Some(p) => Cell::load(p)?,
-        None => Cell::default(),
-    };
+    let cell = Cell::load_or_default(a.cell.as_deref())?;
     super::cell_args::refuse_installed_rig(&cell, "study")?;
     let seed = a.seed.unwrap_or(cell.scenarios.seed);
     let shard = match &a.shard {

@@ -144,10 +144,7 @@ struct ReportArgs {
 }
 
 fn cell_of(path: &Option<PathBuf>) -> anyhow::Result<Cell> {
-    Ok(match path {
-        Some(p) => Cell::load(p)?.one_tray(None).map_err(|e| e.in_file(p))?,
-        None => Cell::default(),
-    })
+    Ok(Cell::load_one(path.as_deref(), None)?)
 }
 
 /// Runs `camplace trial`.

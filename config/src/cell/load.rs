@@ -70,6 +70,22 @@ impl Cell {
         Cell::from_toml_str(&text, base).map_err(|e| e.in_file(path))
     }
 
+    /// The cell of the file `path`, or the built-in cell without one: what every command's
+    /// `--cell` reads.
+    pub fn load_or_default(path: Option<&Path>) -> Result<Cell, Error> {
+        path.map_or_else(|| Ok(Cell::default()), Cell::load)
+    }
+
+    /// [`Cell::load_or_default`] narrowed to one tray ([`Cell::one_tray`]): `tray` by name,
+    /// or the cell's only one; an error names the file.
+    pub fn load_one(path: Option<&Path>, tray: Option<&str>) -> Result<Cell, Error> {
+        let cell = Cell::load_or_default(path)?;
+        cell.one_tray(tray).map_err(|e| match path {
+            Some(p) => e.in_file(p),
+            None => e,
+        })
+    }
+
     /// Parses cell text laid over the default; mesh paths are resolved against `base`.
     pub fn from_toml_str(text: &str, base: &Path) -> Result<Cell, Error> {
         let mut user: toml::Table = text.parse().map_err(|e: toml::de::Error| {

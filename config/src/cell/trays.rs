@@ -378,5 +378,16 @@ mod tests {
         assert!(cell.one_tray(Some("c")).unwrap_err().message().contains("a, b"));
         assert_eq!(Cell::default().one_tray(None).unwrap(), Cell::default());
         assert!(Cell::default().one_tray(Some("a")).is_err());
+        // Through a file: the file is named, and the built-in cell stands in for none.
+        let dir = std::env::temp_dir().join(format!("camplace-one-tray-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("cell.toml");
+        std::fs::write(&file, "[[trays]]\nname = \"a\"\n[[trays]]\nname = \"b\"\n").unwrap();
+        let e = Cell::load_one(Some(&file), None).unwrap_err();
+        assert!(e.to_string().contains("cell.toml") && e.message().contains("a, b"), "{e}");
+        assert_eq!(Cell::load_one(Some(&file), Some("b")).unwrap(), cell.one_tray(Some("b")).unwrap());
+        assert_eq!(Cell::load_one(None, None).unwrap(), Cell::default());
+        assert_eq!(Cell::load_or_default(Some(&file)).unwrap().trays.len(), 2);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

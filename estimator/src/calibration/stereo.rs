@@ -257,14 +257,7 @@ fn check_cameras(fit: &StereoFit) -> Result<()> {
     Ok(())
 }
 
-/// The median of `values` (the mean of the middle two for an even count).
+/// The median of `values` (the mean of the middle two for an even count); NaN when empty.
 fn median(values: &[f64]) -> f64 {
-    let mut sorted = values.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    let n = sorted.len();
-    if n % 2 == 1 {
-        sorted[n / 2]
-    } else {
-        0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
-    }
+    crate::scoring::median(values).unwrap_or(f64::NAN)
 }

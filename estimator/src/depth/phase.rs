@@ -469,9 +469,8 @@ mod tests {
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
-    fn median(mut v: Vec<f64>) -> f64 {
-        v.sort_by(|a, b| a.partial_cmp(b).unwrap());
-        v[v.len() / 2]
+    fn median(v: Vec<f64>) -> f64 {
+        crate::scoring::median(&v).expect("decoded pixels")
     }
 
     /// Decodes a frame; returns (median error over bright, clean pixels, share of those

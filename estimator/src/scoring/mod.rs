@@ -12,5 +12,5 @@ mod verified;
 
 pub use intervals::wilson_interval;
 pub use record::{score, FrameRecord, Score, SlotRecord, SlotScore, Timings};
-pub use summary::{median, pct, SlotSummary, Summary};
+pub use summary::{median, pct, percentile, SlotSummary, Summary};
 pub use verified::{choose_threshold, clopper_pearson_upper, precision_recall, Scored, VerifiedSummary};

@@ -215,6 +215,16 @@ pub fn median(values: &[f64]) -> Option<f64> {
     Some(if v.len() % 2 == 1 { v[m] } else { 0.5 * (v[m - 1] + v[m]) })
 }
 
+/// The nearest-rank `q`-th percentile (0 < q ≤ 100) of ascending `sorted` values: the
+/// smallest value with at least q % of all at or below it; `None` when empty.
+pub fn percentile(sorted: &[f64], q: f64) -> Option<f64> {
+    if sorted.is_empty() {
+        return None;
+    }
+    let rank = ((q / 100.0) * sorted.len() as f64).ceil() as usize;
+    Some(sorted[rank.clamp(1, sorted.len()) - 1])
+}
+
 fn mean(values: &[f64]) -> Option<f64> {
     (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
 }
@@ -223,6 +233,32 @@ fn mean(values: &[f64]) -> Option<f64> {
 mod tests {
     use super::super::record::Score;
     use super::*;
+
+    #[test]
+    fn nearest_rank_percentiles_match_counting() {
+        let values: Vec<f64> = (1..=200).rev().map(f64::from).collect();
+        let mut sorted = values.clone();
+        sorted.sort_by(f64::total_cmp);
+        for q in [1.0, 50.0, 90.0, 99.0, 100.0] {
+            let got = percentile(&sorted, q).unwrap();
+            // The smallest value with at least q % of all values at or below it.
+            let slow = values
+                .iter()
+                .copied()
+                .filter(|&v| values.iter().filter(|&&w| w <= v).count() as f64 >= q / 100.0 * values.len() as f64)
+                .fold(f64::INFINITY, f64::min);
+            assert_eq!(got, slow, "q {q}");
+        }
+        assert_eq!(percentile(&[7.0], 99.0), Some(7.0));
+        assert_eq!(percentile(&[], 50.0), None);
+    }
+
+    #[test]
+    fn the_median_is_the_middle_value_or_the_mean_of_the_middle_two() {
+        assert_eq!(median(&[3.0, 1.0, 2.0]), Some(2.0));
+        assert_eq!(median(&[4.0, 1.0, 3.0, 2.0]), Some(2.5));
+        assert_eq!(median(&[]), None);
+    }
     use crate::PoseEstimate;
 
     #[test]

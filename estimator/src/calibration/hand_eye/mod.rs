@@ -572,17 +572,7 @@ fn outlier_threshold(values: &[f64], floor: f64) -> f64 {
     (m + OUTLIER_MAD_FACTOR * sigma).max(OUTLIER_MEDIAN_FACTOR * m).max(floor)
 }
 
-/// The median of `values` (the mean of the middle two for an even count).
+/// The median of `values` (the mean of the middle two for an even count); NaN when empty.
 fn median(values: &[f64]) -> f64 {
-    let mut sorted = values.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    let n = sorted.len();
-    if n == 0 {
-        return f64::NAN;
-    }
-    if n % 2 == 1 {
-        sorted[n / 2]
-    } else {
-        0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
-    }
+    crate::scoring::median(values).unwrap_or(f64::NAN)
 }
