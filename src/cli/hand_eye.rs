@@ -149,11 +149,22 @@ pub fn run(a: HandEyeArgs<'_>, board: &CalibrationBoard) -> anyhow::Result<ExitC
         HandEyeSetup::EyeToHand => (cal.t_mount_rig * a.rig.left.t_world_camera.inverse(), None),
         HandEyeSetup::EyeInHand => (cal.t_mount_board * a.t_world_board.inverse(), Some(cal.t_mount_rig)),
     };
-    let text = robot_table(&cal, &t_robot_world, t_flange_rig.as_ref(), &a.rig_path, poses.format);
-    // The table must read back as a cell's: the same checks as every `[robot]`.
-    let cell = camplace_config::Cell::from_toml_str(&text, Path::new("."))
-        .map_err(|e| anyhow::anyhow!("the calibrated [robot] table: {e}"))?;
-    debug_assert!(cell.robot.is_some());
+    let robot = camplace_config::Robot {
+        t_robot_world: isometry_to_rows(&t_robot_world),
+        t_flange_rig: t_flange_rig.as_ref().map(isometry_to_rows),
+        pose_format: None,
+    };
+    let comment = format!(
+        "camplace calibrate --hand-eye ({}): {kept} poses ({}), reprojection RMS {:.3} px, expected error ±{:.3} mm \
+         ±{:.4}° (1 σ);\nthe world frame is {}'s",
+        cal.setup.name(),
+        poses.format,
+        cal.rms_px,
+        cal.expected.rig_translation_mm,
+        cal.expected.rig_rotation_deg,
+        a.rig_path.display()
+    );
+    let text = robot.to_toml(&comment).map_err(|e| anyhow::anyhow!("the calibrated [robot] table: {e}"))?;
     camplace_config::write_atomic(a.out, text.as_bytes())?;
     outln!(
         "{} from {kept} poses in {seconds:.3} s: reprojection RMS {:.3} px; wrote {}",
@@ -178,9 +189,7 @@ fn print_poses(cal: &HandEyeCalibration, names: &[String], poses: &RobotPoses, f
         "deg"
     );
     let kept: Vec<f64> = cal.poses.iter().filter(|p| !p.dropped).map(|p| p.score).collect();
-    let mut sorted = kept.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+    let median = camplace_estimator::scoring::median(&kept).unwrap_or(0.0);
     for p in &cal.poses {
         let (index, name) = (p.index, &names[p.index]);
         let line = poses.lines[index];
@@ -206,34 +215,4 @@ fn print_poses(cal: &HandEyeCalibration, names: &[String], poses: &RobotPoses, f
             p.rotation_deg
         );
     }
-}
-
-/// The `[robot]` table as a cell file takes it, with how it was made in comments.
-fn robot_table(
-    cal: &HandEyeCalibration,
-    t_robot_world: &Isometry3<f64>,
-    t_flange_rig: Option<&Isometry3<f64>>,
-    rig_path: &Path,
-    format: RobotPoseFormat,
-) -> String {
-    let matrix = |t: &Isometry3<f64>| {
-        let rows = isometry_to_rows(t);
-        let row = |r: &[f64; 4]| format!("[{}]", r.iter().map(|v| format!("{v:?}")).collect::<Vec<_>>().join(", "));
-        format!("[{}]", rows.iter().map(row).collect::<Vec<_>>().join(", "))
-    };
-    let kept = cal.poses.iter().filter(|p| !p.dropped).count();
-    let mut text = format!(
-        "# camplace calibrate --hand-eye ({}): {kept} poses ({format}), reprojection RMS {:.3} px, expected error \
-         ±{:.3} mm ±{:.4}° (1 σ);\n# the world frame is {}'s\n[robot]\nT_robot_world = {}\n",
-        cal.setup.name(),
-        cal.rms_px,
-        cal.expected.rig_translation_mm,
-        cal.expected.rig_rotation_deg,
-        rig_path.display(),
-        matrix(t_robot_world)
-    );
-    if let Some(t) = t_flange_rig {
-        text.push_str(&format!("T_flange_rig = {}\n", matrix(t)));
-    }
-    text
 }

@@ -67,6 +67,29 @@ pub struct Robot {
 }
 
 impl Robot {
+    /// The `[robot]` table as a cell file takes it, after `comment` (each of its lines
+    /// written as a `#` line), every number in full; it is read back through the cell's own
+    /// checks, so a table that a cell file would refuse is refused here, never written.
+    pub fn to_toml(&self, comment: &str) -> Result<String, Error> {
+        let matrix = |rows: &[[f64; 4]; 4]| {
+            let row = |r: &[f64; 4]| format!("[{}]", r.iter().map(|v| format!("{v:?}")).collect::<Vec<_>>().join(", "));
+            format!("[{}]", rows.iter().map(row).collect::<Vec<_>>().join(", "))
+        };
+        let mut text: String = comment.lines().map(|l| format!("# {l}\n")).collect();
+        text.push_str(&format!("[robot]\nT_robot_world = {}\n", matrix(&self.t_robot_world)));
+        if let Some(t) = &self.t_flange_rig {
+            text.push_str(&format!("T_flange_rig = {}\n", matrix(t)));
+        }
+        if let Some(f) = &self.pose_format {
+            text.push_str(&format!("pose_format = {f:?}\n"));
+        }
+        let read = crate::Cell::from_toml_str(&text, std::path::Path::new("."))?;
+        if read.robot.as_ref() != Some(self) {
+            return Err(Error::value("robot", "expected a table that reads back as written"));
+        }
+        Ok(text)
+    }
+
     /// The pose format of `serve`'s replies (`"matrix mm"` when the cell names none).
     pub fn reply_format(&self) -> Result<crate::RobotPoseFormat, Error> {
         match &self.pose_format {
@@ -319,4 +342,34 @@ pub struct Metrics {
 /// Whether a distortion is all zero (serde's skip test for `camera_dist`).
 fn is_distortion_free(dist: &[f64; 5]) -> bool {
     dist.iter().all(|&d| d == 0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_robot_table_reads_back_as_written_and_a_bad_one_is_not_written() {
+        let half_turn = [[-1.0, 0.0, 0.0, 412.5], [0.0, 1.0, 0.0, -0.1], [0.0, 0.0, -1.0, 1e-17], [0.0, 0.0, 0.0, 1.0]];
+        let robot = Robot {
+            t_robot_world: half_turn,
+            t_flange_rig: Some([
+                [0.0, -1.0, 0.0, 1.0],
+                [1.0, 0.0, 0.0, 2.0],
+                [0.0, 0.0, 1.0, 3.0],
+                [0.0, 0.0, 0.0, 1.0],
+            ]),
+            pose_format: Some("ur m".into()),
+        };
+        let text = robot.to_toml("made by a test\nsecond line").unwrap();
+        assert!(text.starts_with("# made by a test\n# second line\n[robot]\n"), "{text}");
+        let read = crate::Cell::from_toml_str(&text, std::path::Path::new(".")).unwrap();
+        assert_eq!(read.robot, Some(robot.clone()));
+        let mut bad = robot.clone();
+        bad.t_robot_world[0][3] = f64::NAN;
+        assert!(bad.to_toml("").is_err());
+        let mut sheared = robot;
+        sheared.t_robot_world[0][1] = 0.5;
+        assert!(sheared.to_toml("").unwrap_err().to_string().contains("T_robot_world"));
+    }
 }
