@@ -1,164 +1,20 @@
-//! `camplace trial`: the real-world trial, from plan to report — `plan` (the placements to
-//! visit, with the robot's flange poses for a rig on the flange), `mock` (a trial rendered
-//! by a cell the study does not know, its truth moved aside), `estimate` (every placement's
-//! frames through the estimator), `mark` (the scripted reviewer of a mock trial) and
-//! `report` (real against simulated success).
+//! The steps of `camplace trial`, one function each: flags in, one library call, what it
+//! wrote printed.
 
-use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Context};
-use camplace_config::{placement_dir, Axis, Cell, Grid, TrialPlan, PLAN_FILE};
-use camplace_estimator::{depth::Method, Model};
+use camplace_config::{placement_dir, Grid, TrialPlan, PLAN_FILE};
+use camplace_estimator::Model;
 use camplace_hwio::{estimate_dataset, DatasetEstimate};
 use camplace_sim::{
     append_label, check_placement_rig, frame_names, make_mock_trial, make_plan, rho_text, scripted_marks, study_grid,
     tie_marks_to_poses, trial_report, LABELS_FILE, REPORT_HTML, REPORT_JSON,
 };
 
-use super::cell_args::CellArgs;
+use super::{cell_of, EstimateArgs, MarkArgs, MockArgs, PlanArgs, ReportArgs};
 
-/// Flags of `camplace trial`.
-#[derive(clap::Args, Debug)]
-pub struct Args {
-    #[command(subcommand)]
-    step: Step,
-}
-
-#[derive(clap::Subcommand, Debug)]
-enum Step {
-    /// The placements to visit: a study's sweep grid (--study), another grid (--x, --y) or a list.
-    Plan(PlanArgs),
-    /// A mock trial: each placement rendered by a cell the study does not know, truth hidden.
-    Mock(MockArgs),
-    /// Every placement's frames through the estimator (poses.jsonl in each NNN/).
-    Estimate(EstimateArgs),
-    /// The scripted reviewer of a mock trial: marks from the hidden truth into labels.jsonl.
-    Mark(MarkArgs),
-    /// Real success beside simulated success: maps, rank correlation, verdict; HTML + JSON.
-    Report(ReportArgs),
-}
-
-/// Flags of `trial plan`.
-#[derive(clap::Args, Debug)]
-struct PlanArgs {
-    #[command(flatten)]
-    cell: CellArgs,
-    /// A study (or sweep) folder: its sweep's grid is visited.
-    #[arg(long, value_name = "DIR", conflicts_with_all = ["x", "y", "placements"])]
-    study: Option<PathBuf>,
-    /// The grid's horizontal axis (as `sweep` takes it), over the cell's placement.
-    #[arg(long, value_parser = parse_axis, requires = "y", conflicts_with = "placements")]
-    x: Option<Axis>,
-    /// The grid's vertical axis.
-    #[arg(long, value_parser = parse_axis, requires = "x")]
-    y: Option<Axis>,
-    /// A list of placements separated by ';' (each as --placement takes it), in visiting order.
-    #[arg(long, value_name = "P;P;...")]
-    placements: Option<String>,
-    /// The plan file to write (plan.csv is written beside it).
-    #[arg(long, value_name = "FILE")]
-    out: PathBuf,
-}
-
-fn parse_axis(s: &str) -> Result<Axis, String> {
-    s.parse()
-}
-
-/// Flags of `trial mock`.
-#[derive(clap::Args, Debug)]
-struct MockArgs {
-    /// The plan to render (from `trial plan`).
-    #[arg(long, value_name = "FILE")]
-    plan: PathBuf,
-    /// The "real" cell the frames come from (the study's cell with other values); the
-    /// built-in default when not given.
-    #[arg(long, value_name = "FILE")]
-    cell: Option<PathBuf>,
-    /// Overrides the real cell's sensor.noise_amplitude (grey levels).
-    #[arg(long, value_name = "N")]
-    noise_amplitude: Option<u32>,
-    /// Overrides the real cell's sensor.blur (odd filter side).
-    #[arg(long, value_name = "N")]
-    blur: Option<u32>,
-    /// The real cell's seed (another than the study's).
-    #[arg(long, default_value_t = 9001)]
-    seed: u64,
-    /// Tray set-downs (frames) per placement, 1 to 10000.
-    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=10_000))]
-    frames: u64,
-    /// one-shot or phase-12.
-    #[arg(long, default_value = "one-shot")]
-    method: Method,
-    /// Where each frame's truth.json is moved (outside the trial folder).
-    #[arg(long, value_name = "DIR")]
-    hidden: PathBuf,
-    /// The trial folder to make.
-    #[arg(long, value_name = "DIR")]
-    out: PathBuf,
-}
-
-/// Flags of `trial estimate`.
-#[derive(clap::Args, Debug)]
-struct EstimateArgs {
-    /// The trial folder.
-    #[arg(long, value_name = "DIR")]
-    trial: PathBuf,
-    /// The tray model (from `camplace model`).
-    #[arg(long, value_name = "FILE")]
-    model: PathBuf,
-    /// Cell file; the built-in default when not given. The model must be built for its tray.
-    #[arg(long, value_name = "FILE")]
-    cell: Option<PathBuf>,
-}
-
-/// Flags of `trial mark`.
-#[derive(clap::Args, Debug)]
-struct MarkArgs {
-    /// The trial folder (estimated).
-    #[arg(long, value_name = "DIR")]
-    trial: PathBuf,
-    /// The hidden truth of `trial mock`.
-    #[arg(long, value_name = "DIR")]
-    hidden: PathBuf,
-    /// Cell file with the success tolerances; the built-in default when not given.
-    #[arg(long, value_name = "FILE")]
-    cell: Option<PathBuf>,
-}
-
-/// Flags of `trial report`.
-#[derive(clap::Args, Debug)]
-struct ReportArgs {
-    /// The trial folder.
-    #[arg(long, value_name = "DIR")]
-    trial: PathBuf,
-    /// The study (or sweep) folder of the simulated side.
-    #[arg(long, value_name = "DIR")]
-    study: Option<PathBuf>,
-    /// Cell file the rigs are checked against; the built-in default when not given.
-    #[arg(long, value_name = "FILE")]
-    cell: Option<PathBuf>,
-    /// Where trial_report.json and .html go (the trial folder when not given).
-    #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
-}
-
-fn cell_of(path: &Option<PathBuf>) -> anyhow::Result<Cell> {
-    Ok(Cell::load_one(path.as_deref(), None)?)
-}
-
-/// Runs `camplace trial`.
-pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    match a.step {
-        Step::Plan(a) => plan(a),
-        Step::Mock(a) => mock(a),
-        Step::Estimate(a) => estimate(a),
-        Step::Mark(a) => mark(a),
-        Step::Report(a) => report(a),
-    }
-}
-
-fn plan(a: PlanArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn plan(a: PlanArgs) -> anyhow::Result<ExitCode> {
     let (cell, base) = a.cell.load()?;
     let (grid, placements) = if let Some(list) = &a.placements {
         let ps = list
@@ -188,7 +44,7 @@ fn plan(a: PlanArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn mock(a: MockArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn mock(a: MockArgs) -> anyhow::Result<ExitCode> {
     let mut real = cell_of(&a.cell)?;
     if let Some(n) = a.noise_amplitude {
         real.sensor.noise_amplitude = n;
@@ -212,7 +68,7 @@ fn mock(a: MockArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn estimate(a: EstimateArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn estimate(a: EstimateArgs) -> anyhow::Result<ExitCode> {
     let cell = cell_of(&a.cell)?;
     let plan = TrialPlan::load(&a.trial.join(PLAN_FILE))?;
     // One model for every placement: read and checked once.
@@ -238,7 +94,7 @@ fn estimate(a: EstimateArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn mark(a: MarkArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn mark(a: MarkArgs) -> anyhow::Result<ExitCode> {
     let cell = cell_of(&a.cell)?;
     let plan = TrialPlan::load(&a.trial.join(PLAN_FILE))?;
     for i in 0..plan.placements.len() {
@@ -258,7 +114,7 @@ fn mark(a: MarkArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn report(a: ReportArgs) -> anyhow::Result<ExitCode> {
+pub(super) fn report(a: ReportArgs) -> anyhow::Result<ExitCode> {
     let cell = cell_of(&a.cell)?;
     let out = a.out.clone().unwrap_or_else(|| a.trial.clone());
     let r = trial_report(&a.trial, &cell, a.study.as_deref(), &out)?;
