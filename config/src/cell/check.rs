@@ -85,6 +85,20 @@ impl Cell {
 
     /// Checks everything but the table, the tray and the items.
     fn validate_rest(&self) -> Result<(), Error> {
+        self.check_robot()?;
+        self.check_sensor()?;
+        self.check_lighting()?;
+        self.check_scenarios()?;
+        self.check_work_volume()?;
+        self.check_stereo()?;
+        self.check_estimator()?;
+        self.check_estimator_search()?;
+        self.check_metrics()?;
+        Ok(())
+    }
+
+    /// The robot's frames and its replies' format.
+    fn check_robot(&self) -> Result<(), Error> {
         if let Some(robot) = &self.robot {
             let t = &robot.t_robot_world;
             crate::check_rigid(t).map_err(|m| Error::value("robot.T_robot_world", m))?;
@@ -105,6 +119,11 @@ impl Cell {
                 }
             }
         }
+        Ok(())
+    }
+
+    /// The sensor: cameras, projector, noise, blur and fringes.
+    fn check_sensor(&self) -> Result<(), Error> {
         let s = &self.sensor;
         let [cw, ch] = s.camera_resolution;
         crate::check_image_size("sensor.camera_resolution", cw, ch, crate::BYTES_PER_CAMERA_PIXEL, 1)?;
@@ -156,6 +175,11 @@ impl Cell {
             return Err(Error::value("sensor.fringe_periods", "expected periods in increasing order, coarse to fine"));
         }
         self.placement.validate("placement")?;
+        Ok(())
+    }
+
+    /// The lamp.
+    fn check_lighting(&self) -> Result<(), Error> {
         let l = &self.lighting;
         range("lighting.ambient", l.ambient, 0.0, 10.0)?;
         range("lighting.lamp_strength", l.lamp_strength, 0.0, 10.0)?;
@@ -167,6 +191,11 @@ impl Cell {
                 format!("expected 100 to {MAX_DISTANCE_MM} mm, got {}", l.lamp_distance),
             ));
         }
+        Ok(())
+    }
+
+    /// The scenarios' counts.
+    fn check_scenarios(&self) -> Result<(), Error> {
         let sc = &self.scenarios;
         if sc.count == 0 {
             return Err(Error::value("scenarios.count", "expected at least 1 scenario"));
@@ -175,6 +204,11 @@ impl Cell {
         range("scenarios.tray_y", sc.tray_y, -1e5, 1e5)?;
         range("scenarios.tray_yaw", sc.tray_yaw, -720.0, 720.0)?;
         unit("scenarios.fill_probability", sc.fill_probability)?;
+        Ok(())
+    }
+
+    /// The work volume's extent.
+    fn check_work_volume(&self) -> Result<(), Error> {
         let w = &self.work_volume;
         for (key, v) in [("work_volume.x", w.x), ("work_volume.y", w.y), ("work_volume.z", w.z)] {
             range(key, v, -1e5, 1e5)?;
@@ -184,6 +218,11 @@ impl Cell {
                 return Err(Error::value(key, format!("expected max at least 1 mm above min, got {v:?}")));
             }
         }
+        Ok(())
+    }
+
+    /// The stereo matcher and the reconstruction.
+    fn check_stereo(&self) -> Result<(), Error> {
         let st = &self.stereo;
         if !(1..=64).contains(&st.support_step) {
             return Err(Error::value(
@@ -230,6 +269,11 @@ impl Cell {
         if self.reconstruction.background_dilation > 64 {
             return Err(Error::value("reconstruction.background_dilation", "expected 0 to 64 pixels"));
         }
+        Ok(())
+    }
+
+    /// The estimator's model and features: resolution, radii, counts.
+    fn check_estimator(&self) -> Result<(), Error> {
         let e = &self.estimator;
         if !(e.surface_resolution.is_finite() && (0.1..=50.0).contains(&e.surface_resolution)) {
             return Err(Error::value(
@@ -298,6 +342,12 @@ impl Cell {
                 ),
             ));
         }
+        Ok(())
+    }
+
+    /// The estimator's search: matching, RANSAC, ICP and the verification.
+    fn check_estimator_search(&self) -> Result<(), Error> {
+        let e = &self.estimator;
         if e.k == 0 || e.k > 64 {
             return Err(Error::value("estimator.k", format!("expected 1 to 64 nearest neighbours, got {}", e.k)));
         }
@@ -347,6 +397,11 @@ impl Cell {
                 format!("expected a share from 0 to 0.9, got {}", e.icp_trim),
             ));
         }
+        Ok(())
+    }
+
+    /// What counts as a correct match and a success.
+    fn check_metrics(&self) -> Result<(), Error> {
         let m = &self.metrics;
         for (key, v, most, unit) in [
             ("metrics.correct_match", m.correct_match, MAX_DISTANCE_MM, "mm"),
