@@ -90,6 +90,16 @@ impl Response {
         self
     }
 
+    /// The content type as given.
+    pub fn content_type(&self) -> &str {
+        &self.content_type
+    }
+
+    /// The value of the extra header field `name` (case-insensitive), when one was added.
+    pub fn header(&self, name: &str) -> Option<&str> {
+        self.headers.iter().find(|(n, _)| n.eq_ignore_ascii_case(name)).map(|(_, v)| v.as_str())
+    }
+
     /// The bytes on the wire: always `Connection: close`, since one request is served per
     /// connection.
     fn encode(&self) -> Vec<u8> {

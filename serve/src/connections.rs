@@ -196,3 +196,90 @@ fn trigger(id: Option<String>, slot: Option<usize>, cx: &Context) -> String {
     cx.shared.count(Status::Busy);
     busy_line("stopping", id.as_deref())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crossbeam_channel::Receiver;
+
+    fn context(queue: usize) -> (Context, Receiver<Job>) {
+        let (jobs, taken) = bounded(queue);
+        let cx = Context {
+            jobs,
+            shared: Arc::new(Shared::default()),
+            stop: Arc::new(AtomicBool::new(false)),
+            limits: ConnectionLimits::default(),
+            active: Arc::new(AtomicUsize::new(0)),
+            version: "9.9.9".into(),
+        };
+        (cx, taken)
+    }
+
+    fn counts(cx: &Context) -> [u64; 6] {
+        cx.shared.lock().counts
+    }
+
+    #[test]
+    fn ping_version_and_status_are_answered_without_the_worker() {
+        let (cx, _taken) = context(1);
+        assert_eq!(answer(b"PING", &cx), "PONG");
+        assert_eq!(answer(b"version\r", &cx), "VERSION CAMPLACE/1 camplace=9.9.9");
+        assert!(answer(b"STATUS", &cx).starts_with("STATUS triggers=0 ok=0 "));
+        assert_eq!(counts(&cx), [0; 6]);
+    }
+
+    #[test]
+    fn a_refused_line_is_answered_and_counted_as_a_bad_request() {
+        let (cx, _taken) = context(1);
+        assert_eq!(answer(b"FIRE", &cx), "BAD_REQUEST unknown-command");
+        assert_eq!(answer(b"TRIGGER a b", &cx), "BAD_REQUEST extra-words");
+        assert_eq!(counts(&cx)[Status::BadRequest.index()], 2);
+    }
+
+    #[test]
+    fn a_trigger_past_a_full_queue_is_busy_and_counted() {
+        // A queue of one, already holding a trigger no worker takes.
+        let (cx, _taken) = context(1);
+        let (reply, _replied) = bounded(1);
+        cx.jobs.try_send(Job { id: None, at: Instant::now(), reply, slot: None }).unwrap();
+        assert_eq!(answer(b"TRIGGER 7", &cx), "BUSY queue-full id=7");
+        assert_eq!(answer(b"SLOT 0", &cx), "BUSY queue-full");
+        assert_eq!(counts(&cx)[Status::Busy.index()], 2);
+    }
+
+    #[test]
+    fn a_trigger_after_the_worker_has_gone_is_told_the_service_is_stopping() {
+        let (cx, taken) = context(1);
+        drop(taken);
+        assert_eq!(answer(b"TRIGGER", &cx), "BUSY stopping");
+        assert_eq!(counts(&cx)[Status::Busy.index()], 1);
+    }
+
+    #[test]
+    fn a_job_the_worker_drops_unanswered_is_told_stopping() {
+        let (cx, taken) = context(1);
+        let worker = std::thread::spawn(move || drop(taken.recv().unwrap()));
+        assert_eq!(answer(b"TRIGGER q", &cx), "BUSY stopping id=q");
+        worker.join().unwrap();
+    }
+
+    #[test]
+    fn the_worker_s_reply_is_passed_on_and_slot_requests_reach_it_in_turn() {
+        let (cx, taken) = context(2);
+        let worker = std::thread::spawn(move || {
+            for _ in 0..2 {
+                let job = taken.recv().unwrap();
+                let line = match job.slot {
+                    Some(n) => format!("OK slot={n}"),
+                    None => format!("OK id={}", job.id.unwrap_or_default()),
+                };
+                job.reply.send(line).unwrap();
+            }
+        });
+        assert_eq!(answer(b"TRIGGER r2", &cx), "OK id=r2");
+        assert_eq!(answer(b"SLOT 0003", &cx), "OK slot=3");
+        worker.join().unwrap();
+        // The worker counts what it answers; the connection counted nothing.
+        assert_eq!(counts(&cx), [0; 6]);
+    }
+}

@@ -300,4 +300,100 @@ mod tests {
         assert_eq!(bad_request_line(BadRequest::TooLong), "BAD_REQUEST too-long");
         assert_eq!(busy_line("queue-full", Some("4")), "BUSY queue-full id=4");
     }
+
+    #[test]
+    fn every_refusal_has_its_own_reason_word_on_a_bad_request_line() {
+        let all = [
+            BadRequest::TooLong,
+            BadRequest::NotAscii,
+            BadRequest::Empty,
+            BadRequest::UnknownCommand,
+            BadRequest::BadId,
+            BadRequest::ExtraWords,
+            BadRequest::BadSlot,
+            BadRequest::NoSuchSlot,
+        ];
+        let words: std::collections::BTreeSet<&str> = all.iter().map(|b| b.as_str()).collect();
+        assert_eq!(words.len(), all.len());
+        for b in all {
+            let line = bad_request_line(b);
+            assert_eq!(line.split(' ').collect::<Vec<_>>(), ["BAD_REQUEST", b.as_str()]);
+        }
+    }
+
+    #[test]
+    fn every_status_has_its_own_word_and_place() {
+        for (i, s) in Status::ALL.iter().enumerate() {
+            assert_eq!(s.index(), i);
+            assert!(s.as_str().bytes().all(|b| b.is_ascii_uppercase() || b == b'_'), "{}", s.as_str());
+        }
+        let words: std::collections::BTreeSet<&str> = Status::ALL.iter().map(|s| s.as_str()).collect();
+        assert_eq!(words.len(), Status::ALL.len());
+    }
+
+    #[test]
+    fn each_refusing_verdict_has_a_reason_of_its_own() {
+        use camplace_estimator::pose::Verdict;
+        let refusing = [Verdict::NoTray, Verdict::OffTable, Verdict::Ambiguous, Verdict::PoorFit];
+        let words: std::collections::BTreeSet<&str> = refusing.iter().map(|&v| rejected_reason(v)).collect();
+        assert_eq!(words.len(), refusing.len());
+        assert!(!words.contains(rejected_reason(Verdict::Accepted)));
+    }
+
+    fn reply(status: Status) -> TriggerReply {
+        TriggerReply {
+            status,
+            reason: None,
+            id: None,
+            frame: None,
+            pose: None,
+            score: None,
+            capture_ms: 0.04,
+            compute_ms: 0.0,
+            slots: None,
+        }
+    }
+
+    #[test]
+    fn a_camera_error_reply_carries_no_frame_pose_or_score() {
+        assert_eq!(reply(Status::CameraError).line(), "CAMERA_ERROR capture_ms=0.0 compute_ms=0.0");
+        let with_id = TriggerReply { id: Some("a.b-c_1".into()), capture_ms: 5000.0, ..reply(Status::CameraError) };
+        assert_eq!(with_id.line(), "CAMERA_ERROR id=a.b-c_1 capture_ms=5000.0 compute_ms=0.0");
+    }
+
+    #[test]
+    fn a_no_pose_reply_names_its_frame_and_times() {
+        let r = TriggerReply { frame: Some("0042".into()), compute_ms: 18.26, ..reply(Status::NoPose) };
+        assert_eq!(r.line(), "NO_POSE frame=0042 capture_ms=0.0 compute_ms=18.3");
+    }
+
+    #[test]
+    fn busy_lines_say_why_with_and_without_an_id() {
+        assert_eq!(busy_line("stopping", None), "BUSY stopping");
+        assert_eq!(busy_line("too-many-clients", None), "BUSY too-many-clients");
+        assert_eq!(busy_line("queue-full", Some("x")), "BUSY queue-full id=x");
+    }
+
+    #[test]
+    fn requests_at_their_limits_are_taken() {
+        // Case and blanks: any case, tabs and spaces between words.
+        assert_eq!(parse_request(b"PiNg"), Ok(Request::Ping));
+        assert_eq!(parse_request(b"\tTRIGGER\t \tz\r"), Ok(Request::Trigger { id: Some("z".into()) }));
+        // An id of 32 characters of every kind allowed.
+        let id = "aZ09_.-".repeat(5)[..MAX_ID_CHARS].to_string();
+        assert_eq!(parse_request(format!("TRIGGER {id}").as_bytes()), Ok(Request::Trigger { id: Some(id) }));
+        // A line of exactly the limit is parsed (an unknown word), one byte more is too long;
+        // its `\r` does not count.
+        let mut line = vec![b'X'; MAX_REQUEST_BYTES];
+        assert_eq!(parse_request(&line), Err(BadRequest::UnknownCommand));
+        line.push(b'\r');
+        assert_eq!(parse_request(&line), Err(BadRequest::UnknownCommand));
+        line.insert(0, b'X');
+        assert_eq!(parse_request(&line), Err(BadRequest::TooLong));
+        assert_eq!(parse_request(b"SLOT 9999"), Ok(Request::Slot { n: 9999 }));
+        assert_eq!(parse_request(b"SLOT 1a"), Err(BadRequest::BadSlot));
+        assert_eq!(parse_request(b"SLOT +1"), Err(BadRequest::BadSlot));
+        assert_eq!(parse_request(b"   "), Err(BadRequest::Empty));
+        assert_eq!(parse_request(b"\r"), Err(BadRequest::Empty));
+    }
 }

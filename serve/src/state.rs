@@ -214,4 +214,91 @@ mod tests {
         assert!(s.settling);
         assert!(start.elapsed() >= SETTLE_WAIT);
     }
+
+    #[test]
+    fn latencies_fall_in_their_bars_and_the_last_bar_takes_the_rest() {
+        let mut s = State::default();
+        for ms in [0.0, 9.99, 10.0, 25.0, 199.9, 200.0, 5000.0, -3.0] {
+            s.add_latency(ms);
+        }
+        let mut expected = [0u64; HISTOGRAM_BARS];
+        for bar in [0, 0, 1, 2, 19, 20, 20, 0] {
+            expected[bar] += 1;
+        }
+        assert_eq!(s.histogram, expected);
+    }
+
+    #[test]
+    fn percentiles_are_of_the_most_recent_latencies_only() {
+        let mut s = State::default();
+        // The first 500 are far slower and fall out of the window.
+        let all: Vec<f64> =
+            (0..RECENT + 500).map(|i| if i < 500 { 1000.0 + i as f64 } else { (i % 97) as f64 }).collect();
+        for &ms in &all {
+            s.add_latency(ms);
+        }
+        assert_eq!(s.recent.len(), RECENT);
+        let window = &all[all.len() - RECENT..];
+        for q in [1.0, 50.0, 99.0, 100.0] {
+            // Brute force: the smallest value with at least q % of the window at or below it.
+            let slow = window
+                .iter()
+                .copied()
+                .filter(|&v| window.iter().filter(|&&w| w <= v).count() as f64 >= q / 100.0 * RECENT as f64)
+                .fold(f64::INFINITY, f64::min);
+            assert_eq!(s.percentile(q), Some(slow), "q {q}");
+        }
+        assert_eq!(State::default().percentile(50.0), None);
+    }
+
+    #[test]
+    fn the_status_line_counts_every_status_and_triggers_only_once() {
+        let shared = Shared::default();
+        for (status, times) in [
+            (Status::Ok, 3),
+            (Status::NoPose, 2),
+            (Status::Rejected, 1),
+            (Status::CameraError, 1),
+            (Status::Busy, 4),
+            (Status::BadRequest, 5),
+        ] {
+            (0..times).for_each(|_| shared.count(status));
+        }
+        let line = shared.lock().status_line();
+        assert_eq!(
+            line,
+            "STATUS triggers=7 ok=3 no_pose=2 rejected=1 camera_error=1 busy=4 bad_request=5 p50_ms=- p99_ms=- \
+             drift=unchecked camera=ok"
+        );
+    }
+
+    #[test]
+    fn the_status_line_says_the_drift_and_the_camera_as_they_are() {
+        let mut s = State::default();
+        s.add_latency(12.0);
+        s.drift.rotation_deg = Some(0.123);
+        s.drift.translation_mm = Some(1.25);
+        assert!(s.status_line().ends_with("p50_ms=12.0 p99_ms=12.0 drift=ok drift_deg=0.12 drift_mm=1.2 camera=ok"));
+        s.drift.warning = true;
+        s.camera_error = Some("left: gone".into());
+        assert!(
+            s.status_line().ends_with("drift=warning drift_deg=0.12 drift_mm=1.2 camera=error"),
+            "{}",
+            s.status_line()
+        );
+    }
+
+    #[test]
+    fn the_json_holds_the_same_counts_as_the_line() {
+        let shared = Shared::default();
+        shared.count(Status::Rejected);
+        shared.count(Status::Busy);
+        let v = serde_json::to_value(shared.lock().json()).unwrap();
+        assert_eq!(v["protocol"], PROTOCOL);
+        assert_eq!(v["counts"]["REJECTED"], 1);
+        assert_eq!(v["counts"]["BUSY"], 1);
+        assert_eq!(v["counts"]["OK"], 0);
+        assert_eq!(v["latency_ms"]["histogram"].as_array().unwrap().len(), HISTOGRAM_BARS);
+        assert!(v["latency_ms"]["p50"].is_null());
+    }
 }

@@ -168,3 +168,62 @@ fn page(s: &State) -> String {
     html.push_str(&format!("</p><p>flight recorder: {} frames kept</p></body></html>", s.recorded));
     html
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::protocol::Status;
+
+    fn get(shared: &Shared, method: &str, path: &str) -> Response {
+        answer(shared, &Request { method: method.into(), path: path.into(), query: String::new(), body: Vec::new() })
+    }
+
+    #[test]
+    fn only_get_is_answered_on_the_page_s_routes() {
+        let shared = Shared::default();
+        for path in ["/", "/index.html", "/status.json", "/frame.png"] {
+            let r = get(&shared, "POST", path);
+            assert_eq!((r.status, r.header("Allow")), (405, Some("GET")), "{path}");
+        }
+        assert_eq!(get(&shared, "DELETE", "/nope").status, 404);
+        assert_eq!(get(&shared, "GET", "/nope").status, 404);
+        assert_eq!(get(&shared, "GET", "/status.json/").status, 404);
+    }
+
+    #[test]
+    fn the_page_and_the_json_show_the_counts_and_are_never_cached() {
+        let shared = Shared::default();
+        shared.count(Status::Ok);
+        shared.count(Status::Ok);
+        shared.count(Status::CameraError);
+        let html = get(&shared, "GET", "/");
+        assert_eq!((html.status, html.content_type()), (200, "text/html; charset=utf-8"));
+        assert_eq!(html.header("cache-control"), Some("no-store"));
+        assert!(String::from_utf8(html.body).unwrap().contains("camplace serve"));
+        let json = get(&shared, "GET", "/status.json");
+        assert_eq!((json.status, json.content_type()), (200, "application/json"));
+        let v: serde_json::Value = serde_json::from_slice(&json.body).unwrap();
+        assert_eq!((v["counts"]["OK"].as_u64(), v["counts"]["CAMERA_ERROR"].as_u64()), (Some(2), Some(1)));
+    }
+
+    #[test]
+    fn the_frame_is_the_last_left_shot_as_a_png_once_there_is_one() {
+        let shared = Shared::default();
+        assert_eq!(get(&shared, "GET", "/frame.png").status, 404);
+        let image = camplace_config::GrayImage { width: 7, height: 3, data: (0..21u8).map(|v| v * 12).collect() };
+        shared.lock().image = image.clone();
+        let r = get(&shared, "GET", "/frame.png");
+        assert_eq!((r.status, r.content_type()), (200, "image/png"));
+        let decoded = camplace_config::decode_gray(&r.body).unwrap();
+        assert_eq!(decoded, image);
+    }
+
+    #[test]
+    fn text_on_the_page_is_escaped() {
+        assert_eq!(escape(r#"<b a="1">&</b>"#), "&lt;b a=&quot;1&quot;&gt;&amp;&lt;/b&gt;");
+        let mut s = State::default();
+        s.camera_error = Some("<script>alert(1)</script>".into());
+        let html = page(&s);
+        assert!(!html.contains("<script>alert"), "the camera's error went onto the page unescaped");
+    }
+}

@@ -237,3 +237,36 @@ impl Worker {
         latency_ms
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn last(accepted: bool) -> LastSlots {
+        LastSlots {
+            accepted,
+            frame: "0012".into(),
+            slots: vec![(SlotState::Filled, false, "1,2,3".into()), (SlotState::Empty, true, "4,5,6".into())],
+        }
+    }
+
+    #[test]
+    fn a_slot_of_an_accepted_pose_is_handed_on_with_its_state_and_frame() {
+        assert_eq!(slot_reply(0, &last(true), 2), "OK slot=0 state=filled askew=0 frame=0012 pose=1,2,3");
+        assert_eq!(slot_reply(1, &last(true), 2), "OK slot=1 state=empty askew=1 frame=0012 pose=4,5,6");
+    }
+
+    #[test]
+    fn a_slot_past_the_tray_s_last_is_a_bad_request() {
+        assert_eq!(slot_reply(2, &last(true), 2), "BAD_REQUEST no-such-slot");
+        assert_eq!(slot_reply(9999, &last(false), 2), "BAD_REQUEST no-such-slot");
+    }
+
+    #[test]
+    fn without_an_accepted_pose_a_slot_has_no_frame() {
+        assert_eq!(slot_reply(0, &last(false), 2), "NO_POSE slot=0");
+        assert_eq!(slot_reply(1, &LastSlots::default(), 2), "NO_POSE slot=1");
+        // A model without slots: nothing to hand on, whatever the number.
+        assert_eq!(slot_reply(5, &LastSlots { accepted: true, ..LastSlots::default() }, 0), "NO_POSE slot=5");
+    }
+}
