@@ -221,8 +221,7 @@ mod tests {
     #[test]
     fn text_on_the_page_is_escaped() {
         assert_eq!(escape(r#"<b a="1">&</b>"#), "&lt;b a=&quot;1&quot;&gt;&amp;&lt;/b&gt;");
-        let mut s = State::default();
-        s.camera_error = Some("<script>alert(1)</script>".into());
+        let s = State { camera_error: Some("<script>alert(1)</script>".into()), ..State::default() };
         let html = page(&s);
         assert!(!html.contains("<script>alert"), "the camera's error went onto the page unescaped");
     }
