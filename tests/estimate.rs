@@ -53,13 +53,16 @@ fn scenes_without_a_tray_give_no_error() {
     // in a new capture, and a table patch can pass RANSAC's inlier share of a view (the
     // tray's base plate is flat too), so a wrong pose is possible here; an error is not.
     sim.render(&background, Method::OneShot, noise_key(seed, 1, true), &mut frame);
+    // Whatever pose RANSAC finds there, the verification hands none on.
     let pose = estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
     assert!(pose.t_world_tray.to_homogeneous().iter().all(|v| v.is_finite()), "{pose:?}");
+    assert!(!pose.accepted(), "a tray accepted in the empty cell: {:?}", pose.verification);
     // Without a background, the bare table is all the estimator sees.
     let mut bare =
         Estimator::new(&EstimatorConfig::from(&cell), sim.rig(), estimator.model().clone(), Method::OneShot).unwrap();
     let pose = bare.process(&frame.shots.left, &frame.shots.right).unwrap();
     assert!(pose.t_world_tray.to_homogeneous().iter().all(|v| v.is_finite()), "{pose:?}");
+    assert!(!pose.accepted(), "a tray accepted on the bare table: {:?}", pose.verification);
 }
 
 #[test]

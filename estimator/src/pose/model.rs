@@ -243,18 +243,23 @@ pub(crate) mod tests {
 
     #[test]
     fn inconsistent_models_fail_validation() {
+        // Each refused for what is wrong with it, named in the message.
+        let refusal = |m: Model| m.validate().unwrap_err().to_string();
+        assert!(small_model(5).validate().is_ok());
         let mut m = small_model(5);
         m.descriptors.pop();
-        assert!(m.validate().is_err());
+        assert!(refusal(m).contains("as many feature normals and descriptors as feature points"));
         let mut m = small_model(5);
         m.views[1].normals.pop();
-        assert!(m.validate().is_err());
+        assert!(refusal(m).contains("as many normals as points in view 1"));
         let mut m = small_model(5);
         m.views[0].points[2].x = f32::NAN;
-        assert!(m.validate().is_err());
+        let r = refusal(m);
+        assert!(r.contains("finite points and normals in view 0"), "{r}");
         let mut m = small_model(5);
         m.views[0].view_direction *= 2.0;
-        assert!(m.validate().is_err());
+        let r = refusal(m);
+        assert!(r.contains("unit view direction in view 0, found length 1.99"), "{r}");
     }
 
     #[test]
