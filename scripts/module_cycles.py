@@ -5,7 +5,7 @@ a path to one of a file's own ancestor modules does not count (a submodule is pa
 parent). Prints each strongly connected component of more than one file, nothing when
 there is none, and exits 1 when there is one.
 
-    python3 scripts/module_cycles.py config/src estimator/src sim-harness/src hwio/src serve/src src python/src
+    python3 scripts/module_cycles.py config/src estimator/src sim/src hwio/src serve/src src python/src
 """
 import os
 import re
