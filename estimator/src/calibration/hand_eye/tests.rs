@@ -5,6 +5,7 @@
 use nalgebra::{Isometry3, Matrix3, Point2, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 
 use super::*;
 use crate::camera::Camera;
@@ -243,12 +244,19 @@ fn the_expected_error_covers_the_true_one_about_as_often_as_one_sigma_should() {
                 let (mut covered, mut total, mut ratios) = (0, 0, Vec::new());
                 // Sums of the squared true and expected errors: translation, rotation.
                 let (mut true_sq, mut expected_sq) = ([0.0; 2], [0.0; 2]);
-                for seed in 0..COVERAGE_SEEDS {
-                    let s = scene_with_robot(setup, n, 1000 + seed, 0.05, 35.0, robot);
-                    let cal = calibrate_stated(setup, &s, robot).unwrap();
-                    let truth = if setup == HandEyeSetup::EyeToHand { s.z } else { s.x };
-                    let (t, r) = errors(&cal.t_mount_rig, &truth);
-                    let e = &cal.expected;
+                // Each seed's calibration on its own (in parallel), then summed in seed order.
+                let solved: Vec<(f64, f64, ExpectedError)> = (0..COVERAGE_SEEDS)
+                    .into_par_iter()
+                    .map(|seed| {
+                        let s = scene_with_robot(setup, n, 1000 + seed, 0.05, 35.0, robot);
+                        let cal = calibrate_stated(setup, &s, robot).unwrap();
+                        let truth = if setup == HandEyeSetup::EyeToHand { s.z } else { s.x };
+                        let (t, r) = errors(&cal.t_mount_rig, &truth);
+                        (t, r, cal.expected)
+                    })
+                    .collect();
+                for (t, r, e) in &solved {
+                    let (t, r) = (*t, *r);
                     covered += (t <= e.rig_translation_mm) as usize + (r <= e.rig_rotation_deg) as usize;
                     total += 2;
                     ratios.push(t / e.rig_translation_mm);
