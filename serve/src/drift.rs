@@ -223,7 +223,7 @@ fn fit_plane(points: &[Point3<f64>], keep: &[bool]) -> Option<Plane> {
 
 /// The median of `values` (the mean of the middle two for an even count); 0 when empty.
 fn median(values: impl Iterator<Item = f64>) -> f64 {
-    camplace_estimator::scoring::median(&values.collect::<Vec<_>>()).unwrap_or(0.0)
+    camplace_estimator::scoring::median_in_place(&mut values.collect::<Vec<_>>()).unwrap_or(0.0)
 }
 
 #[cfg(test)]

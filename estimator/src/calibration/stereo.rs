@@ -2,6 +2,7 @@
 //! closed form, then refined with distortion), the pose between them from the views both saw,
 //! one joint refinement of everything, and the dropping of views whose error stands out.
 
+use crate::scoring::median_or_nan as median;
 use std::collections::BTreeMap;
 
 use nalgebra::{DVector, Isometry3, Point2, Point3, Translation3, Vector3};
@@ -255,9 +256,4 @@ fn check_cameras(fit: &StereoFit) -> Result<()> {
         ));
     }
     Ok(())
-}
-
-/// The median of `values` (the mean of the middle two for an even count); NaN when empty.
-fn median(values: &[f64]) -> f64 {
-    crate::scoring::median(values).unwrap_or(f64::NAN)
 }

@@ -12,5 +12,6 @@ mod verified;
 
 pub use intervals::wilson_interval;
 pub use record::{score, FrameRecord, Score, SlotRecord, SlotScore, Timings};
-pub use summary::{median, pct, percentile, SlotSummary, Summary};
+pub(crate) use summary::median_or_nan;
+pub use summary::{median, median_in_place, pct, percentile, SlotSummary, Summary};
 pub use verified::{choose_threshold, clopper_pearson_upper, precision_recall, Scored, VerifiedSummary};

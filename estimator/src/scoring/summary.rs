@@ -206,13 +206,23 @@ pub use camplace_config::pct;
 
 /// Median of `values` (mean of the middle two for an even count); `None` when empty.
 pub fn median(values: &[f64]) -> Option<f64> {
+    median_in_place(&mut values.to_vec())
+}
+
+/// [`median`] of values the caller owns, sorted in place: no copy.
+pub fn median_in_place(values: &mut [f64]) -> Option<f64> {
     if values.is_empty() {
         return None;
     }
-    let mut v = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    let m = v.len() / 2;
-    Some(if v.len() % 2 == 1 { v[m] } else { 0.5 * (v[m - 1] + v[m]) })
+    values.sort_by(f64::total_cmp);
+    let m = values.len() / 2;
+    Some(if values.len() % 2 == 1 { values[m] } else { 0.5 * (values[m - 1] + values[m]) })
+}
+
+/// [`median`], NaN when empty: for the calibrations' outlier rules, where an empty list
+/// has been refused before.
+pub(crate) fn median_or_nan(values: &[f64]) -> f64 {
+    median(values).unwrap_or(f64::NAN)
 }
 
 /// The nearest-rank `q`-th percentile (0 < q ≤ 100) of ascending `sorted` values: the

@@ -15,6 +15,7 @@ mod refine;
 #[cfg(test)]
 mod tests;
 
+use crate::scoring::median_or_nan as median;
 use nalgebra::{Isometry3, Point3};
 
 use super::board::{BoardView, CalibrationBoard};
@@ -570,9 +571,4 @@ fn outlier_threshold(values: &[f64], floor: f64) -> f64 {
     let deviations: Vec<f64> = values.iter().map(|v| (v - m).abs()).collect();
     let sigma = 1.4826 * median(&deviations);
     (m + OUTLIER_MAD_FACTOR * sigma).max(OUTLIER_MEDIAN_FACTOR * m).max(floor)
-}
-
-/// The median of `values` (the mean of the middle two for an even count); NaN when empty.
-fn median(values: &[f64]) -> f64 {
-    crate::scoring::median(values).unwrap_or(f64::NAN)
 }
