@@ -2,7 +2,6 @@
 //! closed form, then refined with distortion), the pose between them from the views both saw,
 //! one joint refinement of everything, and the dropping of views whose error stands out.
 
-use crate::scoring::median_or_nan as median;
 use std::collections::BTreeMap;
 
 use nalgebra::{DVector, Isometry3, Point2, Point3, Translation3, Vector3};
@@ -13,6 +12,7 @@ use super::refine::{degrees_of_freedom, refine_camera, refine_stereo, CameraFit,
 use super::zhang::zhang_start;
 use crate::camera::Camera;
 use crate::error::{Error, ErrorKind, Result};
+use crate::scoring::median_or_nan as median;
 
 /// A view stands out when the larger RMS error of the cameras that saw it exceeds this
 /// multiple of the median view's. With detection noise alone a view's RMS, an average over all its corners, stays

@@ -15,12 +15,12 @@ mod refine;
 #[cfg(test)]
 mod tests;
 
-use crate::scoring::median_or_nan as median;
 use nalgebra::{Isometry3, Point3};
 
 use super::board::{BoardView, CalibrationBoard};
 use crate::camera::Camera;
 use crate::error::{Error, ErrorKind, Result};
+use crate::scoring::median_or_nan as median;
 use board_poses::{board_pose_in_view, StereoPair};
 pub use closed_form::RotationSpread;
 use closed_form::{rotation_spread, solve_ax_zb};
