@@ -7,6 +7,7 @@ use std::process::Command;
 use camplace_config::{Cell, Placement};
 use serde_json::Value;
 
+use crate::browser::{inline_scene, screenshot_pixels};
 use crate::camplace_cmd::{assert_one_line_error, camplace, stderr};
 
 /// A .glb's JSON and BIN chunks, after checking its header and chunk lengths.
@@ -216,25 +217,6 @@ fn a_frames_cloud_is_exported_as_points_in_metres_y_up() {
     assert!(!d.join("x.glb").exists(), "nothing written on bad input");
 }
 
-/// The (x, y) pixels of a PNG screenshot as RGB, with its width.
-fn screenshot_pixels(path: &Path) -> (Vec<[u8; 3]>, usize) {
-    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
-    let mut reader = decoder.read_info().unwrap();
-    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut buf).unwrap();
-    let step = info.color_type.samples();
-    let px = buf[..info.buffer_size()].chunks(step).map(|c| [c[0], c[1], c[2]]).collect();
-    (px, info.width as usize)
-}
-
-/// The JSON of `<script type="application/json" id="scene3d">` in a page.
-fn inline_scene(html: &str) -> Value {
-    let open = "<script type=\"application/json\" id=\"scene3d\">";
-    let at = html.find(open).expect("the page holds the scene as inline JSON") + open.len();
-    let text = &html[at..at + html[at..].find("</script>").unwrap()];
-    serde_json::from_str(&text.replace("<\\/", "</")).expect("the scene parses")
-}
-
 /// Every URL the page itself asked for, from Chromium's net log: the requests whose initiator
 /// is the file page (an opaque origin, "null"); the browser's own background requests have
 /// none and are left out.
@@ -260,9 +242,7 @@ fn page_requests(log: &Path) -> Vec<String> {
 
 #[test]
 fn the_reports_3d_view_draws_the_recommended_rig_offline() {
-    let Some(browser) = ["chromium", "chromium-browser"].into_iter().find(|b| crate::own_cell::which(b)) else {
-        assert!(std::env::var_os("CAMPLACE_BROWSER").is_none(), "CAMPLACE_BROWSER is set but no chromium is installed");
-        eprintln!("no chromium: the 3D view's browser test is skipped (CI installs it and sets CAMPLACE_BROWSER)");
+    let Some(browser) = crate::browser::chromium("the 3D view's browser test") else {
         return;
     };
     let out = crate::own_cell::study();

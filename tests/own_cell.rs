@@ -237,9 +237,7 @@ fn keyed(dom: &str, key: &str) -> String {
 
 #[test]
 fn the_report_opens_in_a_browser_with_every_image_and_the_summary_numbers() {
-    let Some(browser) = ["chromium", "chromium-browser"].into_iter().find(|b| which(b)) else {
-        assert!(std::env::var_os("CAMPLACE_BROWSER").is_none(), "CAMPLACE_BROWSER is set but no chromium is installed");
-        eprintln!("no chromium: the report's browser test is skipped (CI installs it and sets CAMPLACE_BROWSER)");
+    let Some(browser) = crate::browser::chromium("the report's browser test") else {
         return;
     };
     let out = study();
@@ -368,8 +366,4 @@ fn the_report_opens_in_a_browser_with_every_image_and_the_summary_numbers() {
     let o = run(&[&format!("--screenshot={}", shot.display())]);
     let size = std::fs::metadata(&shot).map(|m| m.len()).unwrap_or(0);
     assert!(size > 10_000, "a screenshot of the first screen: {} bytes, {}", size, stderr(&o));
-}
-
-pub(crate) fn which(program: &str) -> bool {
-    std::env::var_os("PATH").is_some_and(|paths| std::env::split_paths(&paths).any(|p| p.join(program).is_file()))
 }

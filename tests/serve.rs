@@ -12,6 +12,7 @@ use std::time::Duration;
 use camplace_config::{parse_pose, LengthUnit, PoseConvention, RobotPoseFormat};
 use camplace_estimator::scoring::FrameRecord;
 
+use crate::browser::{cloud, dom_attr, farthest_from, inline_scene, region, shows_colour};
 use crate::camplace_cmd::{camplace, stderr};
 use crate::deploy::fixture;
 use crate::served::{ask, parse_reply, read, replayed_dataset, Served, TRIGGER_STATUSES};
@@ -407,7 +408,7 @@ fn http_get(port: u16, path: &str) -> Vec<u8> {
 }
 
 #[test]
-fn the_status_page_shows_the_last_frame_the_outline_and_the_counts() {
+fn the_status_page_shows_the_last_frame_the_outline_the_counts_and_the_cloud_in_3d() {
     let accepted = accepted_frames();
     let dir = dataset_of(&[Frame::Empty, Frame::Rendered(accepted[0])]);
     let served = Served::start(dir.path(), &["--source", "dir:data", "--model", "tray.model"], "page.log", true);
@@ -436,10 +437,10 @@ fn the_status_page_shows_the_last_frame_the_outline_and_the_counts() {
         assert_eq!(json["counts"][status].as_u64(), Some(counts.get(status).copied().unwrap_or(0)), "{status}: {json}");
     }
     assert!(json["outline"].as_array().unwrap().len() >= 3, "{json}");
+    let scene = inline_scene(&html);
+    let (scene_points, model_points) = (cloud(&scene, "scene"), cloud(&scene, "model"));
 
-    let Some(browser) = ["chromium", "chromium-browser"].into_iter().find(|b| which(b)) else {
-        assert!(std::env::var_os("CAMPLACE_BROWSER").is_none(), "CAMPLACE_BROWSER is set but no chromium is installed");
-        eprintln!("no chromium: the status page's browser test is skipped (CI installs it and sets CAMPLACE_BROWSER)");
+    let Some(browser) = crate::browser::chromium("the status page's browser test") else {
         return;
     };
     // The page as served, with the server as its base and a probe that marks, once loaded,
@@ -455,12 +456,17 @@ fn the_status_page_shows_the_last_frame_the_outline_and_the_counts() {
         .replace("<meta http-equiv=\"refresh\" content=\"2\">", "")
         .replace("</body>", &format!("{probe}</body>"));
     let file = dir.path().join("page.html");
-    std::fs::write(&file, page).unwrap();
-    let o = Command::new(browser)
-        .args(["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", "--window-size=1280,1000"])
-        .args(["--virtual-time-budget=5000", "--dump-dom", &format!("file://{}", file.display())])
-        .output()
-        .expect("chromium runs");
+    std::fs::write(&file, &page).unwrap();
+    let chromium = |extra: &[String], file: &Path| {
+        Command::new(browser)
+            .args(["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", "--window-size=1280,1000"])
+            .arg("--virtual-time-budget=5000")
+            .args(extra)
+            .arg(format!("file://{}", file.display()))
+            .output()
+            .expect("chromium runs")
+    };
+    let o = chromium(&["--dump-dom".into()], &file);
     let dom = String::from_utf8_lossy(&o.stdout).into_owned();
     let attr = |name: &str| -> i64 {
         let at = dom.find(&format!("{name}=\"")).unwrap_or_else(|| panic!("no {name} on the page: {}", stderr(&o)));
@@ -476,11 +482,45 @@ fn the_status_page_shows_the_last_frame_the_outline_and_the_counts() {
         let shown: u64 = dom[at..dom[at..].find('<').unwrap() + at].parse().unwrap();
         assert_eq!(shown, counts.get(status).copied().unwrap_or(0), "{status}");
     }
+    // The 3D view drew both clouds, all of their points.
+    let drawn: serde_json::Value =
+        serde_json::from_str(&dom_attr(&dom, "data-clouds").expect("the view's counts")).unwrap();
+    assert_eq!(drawn, serde_json::json!({"scene": scene_points.len(), "model": model_points.len()}));
+    // And as a screenshot, the view alone at the top: grey scene, green model (the pose sent).
+    let top = dir.path().join("top.html");
+    let style = "<style>#view3d{position:fixed;top:0;left:0;z-index:9;background:#fff}</style>";
+    std::fs::write(&top, page.replace("</body>", &format!("{style}</body>"))).unwrap();
+    let shot = dir.path().join("shot.png");
+    chromium(&[format!("--screenshot={}", shot.display())], &top);
+    let canvas = region(&shot, 2..638, 2..418);
+    let drawn = canvas.iter().filter(|p| **p != [0xf4, 0xf6, 0xf8]).count();
+    assert!(drawn > 500, "{drawn} pixels of the 3D view drawn");
+    assert!(shows_colour(&canvas, "#6b6f76") && shows_colour(&canvas, "#2ca02c"), "the scene and the model are drawn");
     served.stop();
-}
 
-fn which(program: &str) -> bool {
-    std::env::var_os("PATH").is_some_and(|paths| std::env::split_paths(&paths).any(|p| p.join(program).is_file()))
+    // Against replay (the slow, obvious way) of the same frames: the model's points are the
+    // model's own at the pose sent, the scene's those of the cloud the pose was sought in.
+    let records = replayed_dataset(dir.path(), "data", &[]);
+    let t = camplace_estimator::geometry::isometry_from_rows(&records["0001"].t_world_tray);
+    let model = camplace_estimator::Model::load(&dir.path().join("tray.model")).unwrap();
+    let placed: Vec<[f64; 3]> = model
+        .views
+        .iter()
+        .flat_map(|v| v.points.iter())
+        .chain(&model.feature_points)
+        .map(|p| (t * p.cast::<f64>()).coords.into())
+        .collect();
+    assert!(model_points.len() >= 500, "{} model points", model_points.len());
+    // Each coordinate is written to 0.1 mm: at most 0.087 mm from where it was.
+    let off = farthest_from(&model_points, &placed);
+    assert!(off < 0.09, "a drawn model point is {off} mm from the model at the pose");
+    let written = camplace_config::read_cloud(&dir.path().join("data/frames/0001/scene.ply")).unwrap().points;
+    assert!(written.len() < camplace_config::SCENE_CLOUD_POINTS, "scene.ply holds the whole cloud here");
+    let written: Vec<[f64; 3]> = written.iter().map(|p| p.map(f64::from)).collect();
+    let off = farthest_from(&scene_points, &written);
+    assert!(off < 0.09, "a drawn scene point is {off} mm from the frame's scene cloud");
+    // Thinned by a whole step: at least half of 3 000 (or all of a smaller cloud).
+    assert!(scene_points.len() >= written.len().min(3000) / 2, "{} of {}", scene_points.len(), written.len());
 }
 
 /// `rows` (a rig.json camera's T_world_camera) turned by `deg` about the world x axis

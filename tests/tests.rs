@@ -1,5 +1,6 @@
 //! camplace's end-to-end tests: the CLI and the crates together, in one test binary.
 
+mod browser;
 mod budgets;
 mod calibrate;
 mod camplace_cmd;

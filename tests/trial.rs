@@ -219,9 +219,7 @@ fn attr(body: &str, name: &str) -> String {
 
 #[test]
 fn the_review_page_driven_by_key_presses_in_chromium_saves_the_scripted_marks_and_resumes() {
-    let Some(browser) = ["chromium", "chromium-browser"].into_iter().find(|b| which(b)) else {
-        assert!(std::env::var_os("CAMPLACE_BROWSER").is_none(), "CAMPLACE_BROWSER is set but no chromium is installed");
-        eprintln!("no chromium: the review page's browser test is skipped (CI installs it and sets CAMPLACE_BROWSER)");
+    let Some(browser) = crate::browser::chromium("the review page's browser test") else {
         return;
     };
     let d = fixture();
@@ -266,10 +264,73 @@ fn the_review_page_driven_by_key_presses_in_chromium_saves_the_scripted_marks_an
     assert_eq!(attr(&body, "data-judged"), "6");
     assert_eq!(std::fs::read_to_string(ds.join("labels.jsonl")).unwrap(), expected, "every mark as scripted");
     assert_eq!(attr(&body, "data-marks"), keys);
-}
 
-fn which(program: &str) -> bool {
-    std::env::var_os("PATH").is_some_and(|paths| std::env::split_paths(&paths).any(|p| p.join(program).is_file()))
+    // The 3D view, on the page written to a file: each frame's scene cloud (its scene.ply,
+    // which `trial estimate` wrote) and the tray's surface at the frame's pose.
+    run_ok(d, &["review", ds.to_str().unwrap(), "--cell", small_cell().to_str().unwrap()]);
+    let html = std::fs::read_to_string(ds.join("review.html")).unwrap();
+    let at = html.find("const data = ").unwrap() + "const data = ".len();
+    let data: Value = serde_json::from_str(&html[at..at + html[at..].find(";\n").unwrap()]).unwrap();
+    let tray = &data["tray_points"][0];
+    let poses: Vec<Value> = std::fs::read_to_string(ds.join("poses.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let mut checked = 0;
+    for (frame, pose) in data["frames"].as_array().unwrap().iter().zip(&poses) {
+        let name = frame["name"].as_str().unwrap();
+        let scene = camplace_config::read_cloud(&ds.join("frames").join(name).join("scene.ply")).unwrap().points;
+        let drawn = frame["cloud"].as_array().unwrap();
+        assert!(!drawn.is_empty() && drawn.len() <= 1500 && drawn.len() >= scene.len().min(1500) / 2, "{name}");
+        // Every drawn point is one of scene.ply's, written to 0.1 mm (brute force).
+        let drawn: Vec<[f64; 3]> = drawn.iter().map(|p| [0, 1, 2].map(|i| p[i].as_f64().unwrap())).collect();
+        let written: Vec<[f64; 3]> = scene.iter().map(|p| p.map(f64::from)).collect();
+        let off = crate::browser::farthest_from(&drawn, &written);
+        assert!(off < 0.09, "frame {name}: a drawn point is {off} mm from its scene.ply");
+        assert_eq!(frame["pose"].is_null(), !pose["found"].as_bool().unwrap(), "{name}");
+        checked += 1;
+    }
+    assert_eq!(checked, 6);
+    // In Chromium: the first frame's view, its points and the tray placed by its pose.
+    let o = Command::new(browser)
+        .args(["--headless", "--no-sandbox", "--disable-gpu", "--virtual-time-budget=5000", "--dump-dom"])
+        .arg(format!("file://{}", ds.join("review.html").display()))
+        .output()
+        .expect("chromium runs");
+    let dom = String::from_utf8_lossy(&o.stdout).into_owned();
+    let shown = crate::browser::dom_attr(&dom, "data-frame").expect("the frame shown");
+    let k = data["frames"].as_array().unwrap().iter().position(|f| f["name"] == shown.as_str()).unwrap();
+    let counts: Value = serde_json::from_str(&crate::browser::dom_attr(&dom, "data-clouds").unwrap()).unwrap();
+    assert_eq!(counts["scene"], data["frames"][k]["cloud"].as_array().unwrap().len(), "{counts}");
+    let posed: Value = serde_json::from_str(&crate::browser::dom_attr(&dom, "data-posed").unwrap()).unwrap();
+    if poses[k]["found"].as_bool().unwrap() {
+        assert_eq!(counts["model"], data["tray_points"].as_array().unwrap().len(), "{counts}");
+        let t = &poses[k]["t_world_tray"];
+        for r in 0..3 {
+            let want: f64 = (0..3).map(|c| t[r][c].as_f64().unwrap() * tray[c].as_f64().unwrap()).sum::<f64>()
+                + t[r][3].as_f64().unwrap();
+            let got = posed["model"][r].as_f64().unwrap();
+            assert!((got - want).abs() < 1e-6, "the tray's first point drawn at {posed} against {want} (row {r})");
+        }
+    } else {
+        assert!(counts["model"].is_null() && posed["model"].is_null(), "no pose, no tray: {counts} {posed}");
+    }
+    // As a screenshot, the view alone at the top: the scene cloud's grey is drawn.
+    let top = ds.join("top.html");
+    let style = "<style>#view3d{position:fixed;top:0;left:0;z-index:9;background:#fff}</style>";
+    std::fs::write(&top, html.replace("</body>", &format!("{style}</body>"))).unwrap();
+    let shot = work.path().join("review.png");
+    Command::new(browser)
+        .args(["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", "--window-size=1280,800"])
+        .args(["--virtual-time-budget=5000".to_string(), format!("--screenshot={}", shot.display())])
+        .arg(format!("file://{}", top.display()))
+        .output()
+        .expect("chromium runs");
+    let canvas = crate::browser::region(&shot, 2..718, 2..478);
+    let drawn = canvas.iter().filter(|p| **p != [0xf4, 0xf6, 0xf8]).count();
+    assert!(drawn > 500, "{drawn} pixels of the 3D view drawn");
+    assert!(crate::browser::shows_colour(&canvas, "#6b6f76"), "the scene cloud is drawn");
 }
 
 #[test]

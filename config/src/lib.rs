@@ -37,7 +37,8 @@ pub use cell::{
 pub use cell_hash::{CellHashes, ContentHash, MeshHash};
 pub use error::{Error, ErrorKind};
 pub use formats::dataset::{
-    frame_folders, frame_name, image_name, is_image_name, DATASET_FILES, DATASET_SUMMARY, FRAME_FILES,
+    frame_folders, frame_name, image_name, is_image_name, DATASET_FILES, DATASET_SUMMARY, FRAME_FILES, SCENE_CLOUD,
+    SCENE_CLOUD_POINTS,
 };
 pub use formats::dataset_read::{read_background, truth_path, RecordedDataset};
 pub use formats::dataset_write::{

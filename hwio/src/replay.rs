@@ -1,11 +1,14 @@
 //! A recorded dataset through the estimator, shared by `estimate --dataset`, `replay` and
 //! `run --source dir:`: the estimator set up from the dataset's rig and background, each frame's
-//! record scored against its `truth.json` (the estimator's scoring), `poses.jsonl` written,
+//! record scored against its `truth.json` (the estimator's scoring), `poses.jsonl` and each
+//! frame's scene cloud (`scene.ply`) written,
 //! and the records summed up with the verification's figures at the threshold in force.
 
 use std::path::Path;
 
-use camplace_config::{remove_stale_temp_files, write_atomic, DATASET_SUMMARY};
+use camplace_config::{
+    remove_stale_temp_files, write_atomic, write_cloud, DATASET_SUMMARY, SCENE_CLOUD, SCENE_CLOUD_POINTS,
+};
 use camplace_config::{Cell, TruthFile};
 use camplace_estimator::{depth::method_for, depth::Method, Estimator, EstimatorConfig, Model, PoseEstimate, Rig};
 use camplace_estimator::{
@@ -89,6 +92,7 @@ pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> Result<Dataset
     let mut estimator = estimator_for(cell, model, &rig, &dir.join("rig.json"), method, background)?;
     let mut lines = String::new();
     let mut records = Vec::with_capacity(source.frame_dirs().len());
+    let mut clouds = Vec::with_capacity(source.frame_dirs().len());
     for i in 0..source.frame_dirs().len() {
         let info = source.read_into(i, &mut frames)?;
         let pose = estimator
@@ -98,6 +102,9 @@ pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> Result<Dataset
         lines.push_str(&record.to_line());
         lines.push('\n');
         records.push(record);
+        let cloud = estimator.scene_cloud();
+        let step = cloud.len().div_ceil(SCENE_CLOUD_POINTS).max(1);
+        clouds.push(cloud.iter().step_by(step).map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>());
     }
     if records.is_empty() {
         return Err(Error::format(dir, "the dataset has no frames"));
@@ -114,6 +121,11 @@ pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> Result<Dataset
         }
     }
     write_atomic(&dir.join("poses.jsonl"), lines.as_bytes())?;
+    // Each frame's scene cloud once every frame is estimated, so a failed run leaves the
+    // earlier clouds beside the earlier poses.
+    for (frame, cloud) in source.frame_dirs().iter().zip(&clouds) {
+        write_cloud(&frame.join(SCENE_CLOUD), cloud, None)?;
+    }
     let summary = Summary::from_records(&records).verified_at(
         &records,
         threshold,

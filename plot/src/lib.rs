@@ -2,13 +2,17 @@
 //! TrueType font their text is drawn with. plotters' pure-Rust text needs one, and camplace
 //! ships none: it is looked for once in `CAMPLACE_FONT` and the usual system places
 //! (Debian's fonts-dejavu-core, macOS, Windows); without one, plots are skipped and the
-//! caller keeps its tables.
+//! caller keeps its tables. And the 3D view the HTML pages share (`view3d_html`), a canvas
+//! viewer inlined into the page.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
+
+mod view3d;
+pub use view3d::{legend_entry, view3d_html, ViewCanvas};
 
 /// A plot that could not be drawn into its file: `PATH: cannot draw the plot: why`.
 #[derive(Debug, Clone, PartialEq)]

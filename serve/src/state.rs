@@ -1,6 +1,7 @@
 //! What the service has done, shared by the worker, the connections, `STATUS` and the status
 //! page: counts by status, the latency histogram, the last trigger (its left image and the
-//! model's outline at its pose) and the drift watch's state.
+//! model's outline at its pose, its scene cloud and the model's points at the pose) and the
+//! drift watch's state.
 
 use std::collections::VecDeque;
 use std::sync::{Condvar, Mutex};
@@ -49,6 +50,12 @@ pub(crate) struct State {
     pub(crate) image_serial: u64,
     /// The model's outline at the last pose, left-image pixels (empty without a pose).
     pub(crate) outline: Vec<[f32; 2]>,
+    /// The last frame's scene cloud, thinned (world mm): the page's 3D view.
+    pub(crate) cloud: Vec<[f32; 3]>,
+    /// The model's points at the last frame's pose (world mm; empty when no pose was found),
+    /// and whether that pose was handed to the robot.
+    pub(crate) model_at_pose: Vec<[f32; 3]>,
+    pub(crate) pose_accepted: bool,
     pub(crate) drift: DriftState,
     pub(crate) drift_limits: Option<DriftLimits>,
     pub(crate) camera_error: Option<String>,

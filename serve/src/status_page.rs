@@ -1,13 +1,14 @@
 //! The status page over HTTP (camplace-http, so no client can stall or starve it): `/` an
 //! HTML page that reloads itself every two seconds (the last left image with the model's
-//! outline at the pose, the verdict and score, counts by status, the latency histogram, the
-//! drift state), `/frame.png` that image and `/status.json` the same figures for programs.
+//! outline at the pose, the verdict and score, the scene cloud in 3D with the model's points
+//! at the pose, counts by status, the latency histogram, the drift state), `/frame.png` that image and `/status.json` the same figures for programs.
 
 use std::net::TcpListener;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use camplace_http::{Limits, Request, Response, Server};
+use camplace_plot::{legend_entry, view3d_html, ViewCanvas};
 use image::ImageEncoder;
 
 use crate::protocol::Status;
@@ -109,6 +110,10 @@ fn page(s: &State) -> String {
             points.join(" ")
         ));
     }
+    if s.last.is_some() && !s.cloud.is_empty() {
+        html.push_str("<h2>in 3D</h2>");
+        html.push_str(&view3d(s));
+    }
     // Counts by status.
     html.push_str("<h2>replies</h2><table><tr>");
     for status in Status::ALL {
@@ -169,10 +174,49 @@ fn page(s: &State) -> String {
     html
 }
 
+/// The colour of the model at a pose handed to the robot, and at one refused.
+const MODEL_ACCEPTED: &str = "#2ca02c";
+const MODEL_REFUSED: &str = "#d62728";
+const SCENE_CLOUD: &str = "#6b6f76";
+
+/// The 3D view of the last frame: its scene cloud and the model's points at its pose, world mm.
+fn view3d(s: &State) -> String {
+    let points = |pts: &[[f32; 3]]| {
+        let mut out = String::with_capacity(pts.len() * 24 + 2);
+        out.push('[');
+        for (i, p) in pts.iter().enumerate() {
+            if i > 0 {
+                out.push(',');
+            }
+            out.push_str(&format!("[{:.1},{:.1},{:.1}]", p[0], p[1], p[2]));
+        }
+        out.push(']');
+        out
+    };
+    let model_colour = if s.pose_accepted { MODEL_ACCEPTED } else { MODEL_REFUSED };
+    let mut clouds =
+        vec![format!("{{\"name\":\"scene\",\"colour\":\"{SCENE_CLOUD}\",\"positions\":{}}}", points(&s.cloud))];
+    let mut legend = legend_entry(SCENE_CLOUD, "the scene cloud the pose was sought in");
+    if !s.model_at_pose.is_empty() {
+        clouds.push(format!(
+            "{{\"name\":\"model\",\"colour\":\"{model_colour}\",\"positions\":{}}}",
+            points(&s.model_at_pose)
+        ));
+        legend.push_str(&legend_entry(
+            model_colour,
+            if s.pose_accepted { "the model at the pose sent" } else { "the model at the pose refused" },
+        ));
+    }
+    let scene = format!("{{\"frame\":\"world: mm, z up\",\"clouds\":[{}]}}", clouds.join(","));
+    let side = format!("<ul style=\"list-style:none;padding:0\">{legend}</ul>");
+    view3d_html(&scene, &side, ViewCanvas { size: [640, 420], persist: Some("status") })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::protocol::Status;
+    use crate::state::LastTrigger;
 
     fn get(shared: &Shared, method: &str, path: &str) -> Response {
         answer(shared, &Request { method: method.into(), path: path.into(), query: String::new(), body: Vec::new() })
@@ -216,6 +260,37 @@ mod tests {
         assert_eq!((r.status, r.content_type()), (200, "image/png"));
         let decoded = camplace_config::decode_gray(&r.body).unwrap();
         assert_eq!(decoded, image);
+    }
+
+    /// The JSON of the page's inline 3D scene.
+    fn scene_of(html: &str) -> Option<serde_json::Value> {
+        let open = "<script type=\"application/json\" id=\"scene3d\">";
+        let at = html.find(open)? + open.len();
+        serde_json::from_str(&html[at..at + html[at..].find("</script>")?]).ok()
+    }
+
+    #[test]
+    fn the_page_shows_the_scene_cloud_and_the_model_at_the_pose_in_3d() {
+        let mut s = State {
+            last: Some(LastTrigger::default()),
+            cloud: vec![[1.0, 2.0, 3.0], [-4.5, 5.04, 6.06]],
+            model_at_pose: vec![[7.0, 8.0, 9.0]],
+            pose_accepted: true,
+            ..State::default()
+        };
+        let scene = scene_of(&page(&s)).expect("a 3D scene on the page");
+        let want = serde_json::json!([
+            {"name": "scene", "colour": SCENE_CLOUD, "positions": [[1.0, 2.0, 3.0], [-4.5, 5.0, 6.1]]},
+            {"name": "model", "colour": MODEL_ACCEPTED, "positions": [[7.0, 8.0, 9.0]]},
+        ]);
+        assert_eq!(scene["clouds"], want);
+        // A refused pose is drawn in the refused colour; no pose, no model; no trigger, no view.
+        s.pose_accepted = false;
+        assert_eq!(scene_of(&page(&s)).unwrap()["clouds"][1]["colour"], MODEL_REFUSED);
+        s.model_at_pose.clear();
+        assert_eq!(scene_of(&page(&s)).unwrap()["clouds"].as_array().unwrap().len(), 1);
+        s.last = None;
+        assert!(scene_of(&page(&s)).is_none(), "a view before any trigger");
     }
 
     #[test]

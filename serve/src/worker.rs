@@ -61,6 +61,15 @@ pub(crate) struct Worker {
     pub(crate) log: Log,
 }
 
+/// Most scene points and model points the status page's 3D view is handed.
+const CLOUD_POINTS: usize = 3000;
+const MODEL_POINTS: usize = 2000;
+
+/// The step that thins `len` points to at most `most`.
+fn thinning(len: usize, most: usize) -> usize {
+    len.div_ceil(most).max(1)
+}
+
 /// Slot `n` of `last` as the reply to `SLOT n`; `slot_count` is the model's slots.
 fn slot_reply(n: usize, last: &LastSlots, slot_count: usize) -> String {
     if n >= slot_count && slot_count > 0 {
@@ -208,6 +217,19 @@ impl Worker {
                 s.image_serial += 1;
             }
             s.outline = hull;
+            // The 3D view: the buffers keep their capacity, so no frame allocates once warm.
+            let cloud = self.estimator.scene_cloud();
+            s.cloud.clear();
+            s.cloud.extend(cloud.iter().step_by(thinning(cloud.len(), CLOUD_POINTS)).map(|p| [p.x, p.y, p.z]));
+            s.model_at_pose.clear();
+            if pose.found {
+                let t = pose.t_world_tray.cast::<f32>();
+                s.model_at_pose.extend(points.iter().step_by(thinning(points.len(), MODEL_POINTS)).map(|p| {
+                    let q = t * p.cast::<f32>();
+                    [q.x, q.y, q.z]
+                }));
+            }
+            s.pose_accepted = reply.status == Status::Ok;
             if recorded.is_some() {
                 s.recorded += 1;
             }

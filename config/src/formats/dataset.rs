@@ -41,9 +41,16 @@ pub const DATASET_SUMMARY: &str = "summary.json";
 /// calibration, and the poses and summary of `estimate --dataset` and `replay`.
 pub const DATASET_FILES: [&str; 3] = ["rig.json", "poses.jsonl", "summary.json"];
 
+/// The scene cloud a frame's pose was sought in, written beside its images by `estimate
+/// --dataset` and `replay` (world mm, at most [`SCENE_CLOUD_POINTS`] points): what the review
+/// page draws in 3D.
+pub const SCENE_CLOUD: &str = "scene.ply";
+/// Most points a frame's [`SCENE_CLOUD`] keeps.
+pub const SCENE_CLOUD_POINTS: usize = 8000;
+
 /// Files camplace writes into a frame folder besides the camera images: the simulator's
-/// truth and preview, and `reconstruct --dataset`'s outputs.
-pub const FRAME_FILES: [&str; 12] = [
+/// truth and preview, `reconstruct --dataset`'s outputs and the scene cloud of `estimate`.
+pub const FRAME_FILES: [&str; 13] = [
     "truth.json",
     "depth_left.pfm",
     "depth_right.pfm",
@@ -56,6 +63,7 @@ pub const FRAME_FILES: [&str; 12] = [
     "disparity.pfm",
     "depth.pfm",
     "cloud.ply",
+    SCENE_CLOUD,
 ];
 
 /// Whether `name` is a camera image's file name as [`image_name`] gives it (`left.png`,

@@ -2,15 +2,15 @@
 //! items of the shown scenario, the lamp, each camera's and the projector's frustum, the
 //! table region all three cover, the box the rig's position may move in within its mounting
 //! tolerances, and the other checked placements coloured by success. The scene is an inline
-//! JSON block (`#scene3d`, world mm, z up) drawn by `view3d.js`, inlined too: no request
-//! leaves the page.
+//! JSON block (`#scene3d`, world mm, z up) drawn by camplace-plot's shared viewer, inlined
+//! too: no request leaves the page.
 
 use camplace_config::{Cell, Placement, ToleranceReport};
 use camplace_estimator::{geometry::rig_pose, Rig};
+use camplace_plot::{legend_entry, view3d_html, ViewCanvas};
 use serde_json::{json, Value};
 
 use super::heatmap::viridis;
-use super::html::escape;
 use crate::export::{cell_parts, table_footprint, Primitive};
 use crate::scene::scenario::Scenario;
 use crate::Result;
@@ -253,15 +253,9 @@ fn legend_has(legend: &[Value], label: &str) -> bool {
 
 /// The view's markup: the canvas, the reset button, the legend, the scene and its script.
 pub fn view_html(scene: &Value) -> String {
-    // "</" inside the JSON would end its script element early.
-    let data = scene.to_string().replace("</", "<\\/");
     let mut legend = String::new();
     for l in scene["legend"].as_array().into_iter().flatten() {
-        legend.push_str(&format!(
-            "<li><span class=\"sw\" style=\"background:{}\"></span>{}</li>",
-            escape(l["colour"].as_str().unwrap_or("#000")),
-            escape(l["label"].as_str().unwrap_or(""))
-        ));
+        legend.push_str(&legend_entry(l["colour"].as_str().unwrap_or("#000"), l["label"].as_str().unwrap_or("")));
     }
     let stops: Vec<String> = scene["success_scale"]
         .as_array()
@@ -269,20 +263,15 @@ pub fn view_html(scene: &Value) -> String {
         .flatten()
         .map(|s| format!("{} {}%", s[1].as_str().unwrap_or("#000"), s[0]))
         .collect();
-    format!(
-        "<div id=\"view3d\" style=\"display:flex;gap:1em;flex-wrap:wrap;align-items:flex-start\">\
-<canvas id=\"view3d-canvas\" width=\"820\" height=\"560\" style=\"border:1px solid #bbb;cursor:grab\"></canvas>\
-<div style=\"font-size:0.9em;max-width:330px\"><button id=\"view3d-reset\" type=\"button\">reset view</button>\
-<p>Left drag turns, right (or shift) drag moves, the wheel zooms.</p><ul style=\"list-style:none;padding:0\">{legend}\
+    let side = format!(
+        "<ul style=\"list-style:none;padding:0\">{legend}\
 <li><span class=\"sw\" style=\"background:#fff;border:3px solid #00c800;border-radius:50%\"></span>the recommended rig</li>\
 <li>other checked placements' rigs, by success:<div style=\"height:12px;width:220px;margin-top:4px;\
 background:linear-gradient(to right,{})\"></div><div style=\"display:flex;justify-content:space-between;width:220px\">\
-<span>0 %</span><span>50 %</span><span>100 %</span></div></li></ul></div></div>\n\
-<style>.sw{{display:inline-block;width:14px;height:14px;margin-right:6px;vertical-align:middle;border:1px solid #666}}</style>\n\
-<script type=\"application/json\" id=\"scene3d\">{data}</script>\n<script>{}</script>\n",
-        stops.join(","),
-        include_str!("view3d.js")
-    )
+<span>0 %</span><span>50 %</span><span>100 %</span></div></li></ul>",
+        stops.join(",")
+    );
+    view3d_html(&scene.to_string(), &side, ViewCanvas { size: [820, 560], persist: None })
 }
 
 #[cfg(test)]

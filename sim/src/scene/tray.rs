@@ -66,6 +66,34 @@ impl Solid {
         Ok(Solid { triangles })
     }
 
+    /// About `count` points spread over the surface by area (each triangle gets its share,
+    /// placed by the R2 low-discrepancy sequence): the same points every call, whatever the
+    /// mesh's triangle count. Empty for a solid without area.
+    pub fn surface_points(&self, count: usize) -> Vec<Point3<f64>> {
+        let area = |t: &[Point3<f64>; 3]| 0.5 * (t[1] - t[0]).cross(&(t[2] - t[0])).norm();
+        let total: f64 = self.triangles.iter().map(area).sum();
+        if total.is_nan() || total <= 0.0 || count == 0 {
+            return Vec::new();
+        }
+        // R2's constants: 1/g and 1/g² for g the plastic number's root of x³ = x + 1.
+        const G: f64 = 1.324_717_957_244_746;
+        let mut out = Vec::with_capacity(count + self.triangles.len().min(count));
+        let (mut owed, mut k) = (0.0, 0u64);
+        for t in &self.triangles {
+            owed += area(t) / total * count as f64;
+            while owed >= 0.5 {
+                owed -= 1.0;
+                k += 1;
+                let (mut a, mut b) = ((k as f64 / G).fract(), (k as f64 / (G * G)).fract());
+                if a + b > 1.0 {
+                    (a, b) = (1.0 - a, 1.0 - b);
+                }
+                out.push(t[0] + (t[1] - t[0]) * a + (t[2] - t[0]) * b);
+            }
+        }
+        out
+    }
+
     /// Axis-aligned bounds `(min, max)`; both at the origin for an empty solid.
     pub fn bounds(&self) -> (Point3<f64>, Point3<f64>) {
         let mut it = self.triangles.iter().flatten();
@@ -317,6 +345,35 @@ mod tests {
     /// Signed volume by the divergence theorem: positive when every face is wound outwards.
     fn volume(s: &Solid) -> f64 {
         s.triangles.iter().map(|[a, b, c]| a.coords.dot(&b.coords.cross(&c.coords)) / 6.0).sum()
+    }
+
+    #[test]
+    fn surface_points_lie_on_the_surface_shared_by_area() {
+        // A 2 x 1 x 1 box: faces of area 2 (four) and 1 (two), 10 in all.
+        let mut solid = Solid::default();
+        solid.push_box([0.0, 0.0, 0.0], [2.0, 1.0, 1.0]);
+        let points = solid.surface_points(10_000);
+        assert_eq!(points, solid.surface_points(10_000), "the same points every call");
+        assert!(points.len().abs_diff(10_000) <= solid.triangles.len(), "{}", points.len());
+        // Each point on exactly the faces it belongs to; counted per face (slow and obvious).
+        let mut per_face = [0usize; 6];
+        for p in &points {
+            let on = [p.x == 0.0, p.x == 2.0, p.y == 0.0, p.y == 1.0, p.z == 0.0, p.z == 1.0];
+            let near = |v: f64, w: f64| (v - w).abs() < 1e-12;
+            let close =
+                [near(p.x, 0.0), near(p.x, 2.0), near(p.y, 0.0), near(p.y, 1.0), near(p.z, 0.0), near(p.z, 1.0)];
+            let inside = (-1e-12..=2.0 + 1e-12).contains(&p.x)
+                && (-1e-12..=1.0 + 1e-12).contains(&p.y)
+                && (-1e-12..=1.0 + 1e-12).contains(&p.z);
+            assert!(inside && close.iter().any(|&c| c), "{p} is off the box's surface ({on:?})");
+            per_face[close.iter().position(|&c| c).unwrap()] += 1;
+        }
+        // x faces have area 1, y and z faces area 2: 1 000 and 2 000 points, each to a few.
+        let want = [1000, 1000, 2000, 2000, 2000, 2000];
+        for (face, (&got, &want)) in per_face.iter().zip(&want).enumerate() {
+            assert!(got.abs_diff(want) <= 25, "face {face}: {got} points, expected about {want}");
+        }
+        assert!(Solid::default().surface_points(100).is_empty());
     }
 
     #[test]

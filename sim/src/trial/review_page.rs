@@ -1,6 +1,7 @@
 //! The review page of a dataset without truth: each frame's left image with the tray's
 //! outline (the edges of its model's bounding box and its +x axis) drawn where the estimated
-//! pose puts it, the verification's score and verdict, and keys to judge it — c correct,
+//! pose puts it, the frame's scene cloud in 3D with the tray's surface at the pose, the
+//! verification's score and verdict, and keys to judge it — c correct,
 //! w wrong, u unsure, n / → next, p / ← previous, s sorts by score (lowest first) or by frame.
 //! Served by `camplace review --listen`, each mark is POSTed to `/label` and appended to
 //! `labels.jsonl` before the page moves on; the page is made afresh from that file each
@@ -14,8 +15,9 @@
 
 use std::path::Path;
 
-use camplace_config::{image_name, Cell};
+use camplace_config::{image_name, read_cloud, Cell, SCENE_CLOUD};
 use camplace_estimator::{geometry::isometry_from_rows, Rig};
+use camplace_plot::{legend_entry, view3d_html, ViewCanvas};
 use nalgebra::Point3;
 use serde::Serialize;
 
@@ -35,6 +37,11 @@ struct PageFrame {
     outline: Vec<[f32; 4]>,
     /// Success by the truth, when the frame has a truth.json.
     truth: Option<bool>,
+    /// The scene cloud the pose was sought in (its `scene.ply`, thinned), world mm; empty
+    /// when the frame has none.
+    cloud: Vec<[f32; 3]>,
+    /// The pose's rows (3 x 4, world from tray) when one was found.
+    pose: Option<[f64; 12]>,
 }
 
 /// The page's data.
@@ -45,6 +52,28 @@ struct PageData {
     frames: Vec<PageFrame>,
     marks: std::collections::BTreeMap<String, Mark>,
     live: bool,
+    /// Points on the tray's surface, tray frame, mm: the model drawn at each pose in 3D.
+    tray_points: Vec<[f32; 3]>,
+}
+
+/// Most scene points a frame's 3D view is handed, and points drawn on the tray.
+const CLOUD_POINTS: usize = 1500;
+const TRAY_POINTS: usize = 1500;
+
+/// A coordinate to a tenth of a millimetre: what the view resolves, in few characters.
+fn tenth(p: [f32; 3]) -> [f32; 3] {
+    p.map(|v| (v * 10.0).round() / 10.0)
+}
+
+/// The scene cloud `estimate` wrote beside frame `name`'s images, thinned; empty without one.
+fn scene_cloud(dir: &Path, name: &str) -> Result<Vec<[f32; 3]>> {
+    let path = dir.join("frames").join(name).join(SCENE_CLOUD);
+    if !path.is_file() {
+        return Ok(Vec::new());
+    }
+    let points = read_cloud(&path)?.points;
+    let step = points.len().div_ceil(CLOUD_POINTS).max(1);
+    Ok(points.into_iter().step_by(step).map(tenth).collect())
 }
 
 /// The edges of `tray`'s bounding box and its +x axis from the top centre, as segments in
@@ -83,7 +112,10 @@ pub fn review_page(dir: &Path, cell: &Cell, live: bool) -> Result<String> {
     let rig = Rig::from_file(&rig_file);
     let poses = read_poses(dir)?;
     let labels = read_labels(dir, &names)?;
-    let outline = tray_outline(&TrayModel::from_cell(cell)?);
+    let tray = TrayModel::from_cell(cell)?;
+    let outline = tray_outline(&tray);
+    let tray_points =
+        tray.solid.surface_points(TRAY_POINTS).iter().map(|p| tenth([p.x as f32, p.y as f32, p.z as f32])).collect();
     let first = dir.join("frames").join(&names[0]);
     let shots = if first.join("left.png").is_file() { 1 } else { 12 };
     let mut frames = Vec::with_capacity(names.len());
@@ -115,15 +147,44 @@ pub fn review_page(dir: &Path, cell: &Cell, live: bool) -> Result<String> {
             verdict: pose.verdict.clone(),
             outline: segments,
             truth: pose.score.map(|s| s.success),
+            cloud: scene_cloud(dir, name)?,
+            pose: pose.found.then(|| {
+                let r = &pose.t_world_tray;
+                std::array::from_fn(|i| r[i / 4][i % 4])
+            }),
         });
     }
     // Marks made on earlier poses judge nothing now: their frames open again.
     let marks = present_marks(&labels, &poses).0.into_iter().collect();
-    let data = PageData { width: rig_file.left.width, height: rig_file.left.height, frames, marks, live };
+    let data = PageData { width: rig_file.left.width, height: rig_file.left.height, frames, marks, live, tray_points };
     // Inside a <script>, "</" would end it early.
     let json = serde_json::to_string(&data).expect("page data is plain").replace("</", "<\\/");
-    Ok(PAGE.replace("__DATA__", &json).replace("__TITLE__", &crate::report::html::escape(&dir.display().to_string())))
+    let legend = [
+        (SCENE_COLOUR, "the frame's scene cloud (scene.ply, written by estimate)"),
+        (ACCEPTED_COLOUR, "the tray at an accepted pose"),
+        (REFUSED_COLOUR, "the tray at a refused pose"),
+    ]
+    .map(|(c, l)| legend_entry(c, l))
+    .concat();
+    let view = view3d_html(
+        "",
+        &format!("<ul style=\"list-style:none;padding:0\">{legend}</ul><p id=\"view3d-note\"></p>"),
+        ViewCanvas { size: [720, 480], persist: Some("review") },
+    );
+    Ok(PAGE
+        .replace("__VIEW3D__", &view)
+        .replace(
+            "__COLOURS__",
+            &format!("{{scene: '{SCENE_COLOUR}', accepted: '{ACCEPTED_COLOUR}', refused: '{REFUSED_COLOUR}'}}"),
+        )
+        .replace("__DATA__", &json)
+        .replace("__TITLE__", &crate::report::html::escape(&dir.display().to_string())))
 }
+
+/// The 3D view's colours: the scene cloud, the tray at an accepted and at a refused pose.
+const SCENE_COLOUR: &str = "#6b6f76";
+const ACCEPTED_COLOUR: &str = "#2ca02c";
+const REFUSED_COLOUR: &str = "#d62728";
 
 const PAGE: &str = r##"<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>review __TITLE__</title>
@@ -140,6 +201,8 @@ body{font-family:sans-serif;margin:1em;color:#222}
 <div id="status"></div>
 <div id="view"><img id="image" alt="left image"><svg id="outline" xmlns="http://www.w3.org/2000/svg"></svg></div>
 <p id="progress"></p>
+<h2>in 3D</h2>
+__VIEW3D__
 <script>
 const data = __DATA__;
 const marks = data.marks;
@@ -168,6 +231,11 @@ function show() {
     `frame ${f.name} (${at + 1} of ${order.length}${byScore ? ', by score' : ''}): ${f.found ? 'pose found' : 'no pose'}, score ${score}, ${f.verdict ?? '-'}; ${state}`;
   const done = data.frames.filter(judged).length;
   document.getElementById('progress').textContent = `${done} of ${data.frames.length} frames judged` + (data.live ? '' : ' (not served: marks are not saved; open it with camplace review --listen)');
+  const colours = __COLOURS__;
+  const clouds = [{name: 'scene', colour: colours.scene, positions: f.cloud}];
+  if (f.pose !== null) clouds.push({name: 'model', colour: f.verdict === 'accepted' ? colours.accepted : colours.refused, positions: data.tray_points, pose: f.pose});
+  window.camplaceView3d.show({frame: 'world: mm, z up', clouds: clouds});
+  document.getElementById('view3d-note').textContent = f.cloud.length ? '' : 'no scene cloud for this frame: estimate the dataset again to write frames/' + f.name + '/scene.ply';
   document.body.dataset.frame = f.name;
   document.body.dataset.judged = done;
 }

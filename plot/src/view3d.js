@@ -1,44 +1,90 @@
-// The report's 3D view: draws the inline scene (#scene3d, world mm, z up) on a 2D canvas,
-// triangles sorted far to near. Left drag orbits, right or shift drag pans, the wheel zooms.
-// No WebGL: a few thousand triangles draw fast enough this way and every browser (headless
-// ones without a GPU too) draws the same picture.
+// camplace's 3D view: draws a scene (world mm, z up) on a 2D canvas, triangles and points
+// sorted far to near. Left drag orbits, right or shift drag pans, the wheel zooms.
+// No WebGL: a few thousand triangles and points draw fast enough this way and every browser
+// (headless ones without a GPU too) draws the same picture.
+//
+// The scene: `parts` (each `positions`, `triangles`, optional `edges`, `colour` #rrggbb,
+// `opacity`, `kind`, `name`, and an optional `pose`: 12 numbers, the rows of a 3x4 rigid
+// transform applied to its positions), optional `clouds` (each `name`, `colour`,
+// `positions` and an optional `pose` as the parts'), optional `markers` (each `position`,
+// `colour`, `recommended`) and an optional `view_azimuth_deg`. The inline `#scene3d` block is drawn at load when present;
+// `window.camplaceView3d.show(scene)` draws another, from the same view. With `data-persist` on the canvas the
+// view (orbit, pan, zoom) is kept in the session across reloads of the page.
 (function () {
   "use strict";
-  const scene = JSON.parse(document.getElementById("scene3d").textContent);
   const canvas = document.getElementById("view3d-canvas");
   const ctx = canvas.getContext("2d");
+  const reset = document.getElementById("view3d-reset");
+  const persist = canvas.dataset.persist ? "view3d:" + canvas.dataset.persist : null;
   const hex = (c) => [1, 3, 5].map((i) => parseInt(c.slice(i, i + 2), 16));
-  // Every drawable: triangles (with their part's colour) and marker points.
-  const tris = [];
-  const edges = [];
-  for (const part of scene.parts) {
-    const rgb = hex(part.colour);
-    const p = part.positions;
-    for (const t of part.triangles) {
-      tris.push({ a: p[t[0]], b: p[t[1]], c: p[t[2]], rgb: rgb, alpha: part.opacity });
-    }
-    for (const e of part.edges || []) edges.push({ a: p[e[0]], b: p[e[1]], rgb: rgb });
-  }
-  const markers = scene.markers.map((m) => ({ p: m.position, rgb: hex(m.colour), big: m.recommended }));
-  // The view: orbit about a target; the start is the reset view.
-  const lo = [Infinity, Infinity, Infinity];
-  const hi = [-Infinity, -Infinity, -Infinity];
-  for (const part of scene.parts) {
-    for (const q of part.positions) {
+  const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+  // A 3x4 row-major rigid transform applied to a point.
+  const apply = (m, q) => [0, 1, 2].map((r) => m[4 * r] * q[0] + m[4 * r + 1] * q[1] + m[4 * r + 2] * q[2] + m[4 * r + 3]);
+  let tris = [], edges = [], markers = [], points = [], home = null, view = null;
+
+  function load(scene) {
+    tris = [];
+    edges = [];
+    points = [];
+    const lo = [Infinity, Infinity, Infinity];
+    const hi = [-Infinity, -Infinity, -Infinity];
+    const grow = (q) => {
       for (let i = 0; i < 3; i++) {
         lo[i] = Math.min(lo[i], q[i]);
         hi[i] = Math.max(hi[i], q[i]);
       }
+    };
+    const posed = {};
+    const apexes = {};
+    for (const part of scene.parts || []) {
+      const rgb = hex(part.colour);
+      const p = part.pose ? part.positions.map((q) => apply(part.pose, q)) : part.positions;
+      for (const t of part.triangles || []) {
+        tris.push({ a: p[t[0]], b: p[t[1]], c: p[t[2]], rgb: rgb, alpha: part.opacity });
+      }
+      for (const e of part.edges || []) edges.push({ a: p[e[0]], b: p[e[1]], rgb: rgb });
+      p.forEach(grow);
+      if (part.pose && p.length > 0) posed[part.name] = p[0];
+      if (part.kind === "frustum") apexes[part.name] = p[0];
     }
+    const counts = {};
+    for (const cloud of scene.clouds || []) {
+      const rgb = hex(cloud.colour);
+      const p = cloud.pose ? cloud.positions.map((q) => apply(cloud.pose, q)) : cloud.positions;
+      for (const q of p) points.push({ p: q, rgb: rgb });
+      p.forEach(grow);
+      if (cloud.pose && p.length > 0) posed[cloud.name] = p[0];
+      counts[cloud.name] = p.length;
+    }
+    markers = (scene.markers || []).map((m) => ({ p: m.position, rgb: hex(m.colour), big: m.recommended }));
+    // The start is the reset view: orbit about the middle of what there is to see.
+    if (!(lo[0] <= hi[0])) {
+      lo.fill(-100);
+      hi.fill(100);
+    }
+    const span = Math.max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1);
+    home = {
+      target: [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 3],
+      yaw: ((scene.view_azimuth_deg || 0) * Math.PI) / 180 - 2.2,
+      pitch: 0.45,
+      dist: 1.6 * span,
+    };
+    // Another scene keeps the view the viewer turned to; the first starts from the one kept
+    // in the session, else from the reset view.
+    if (view === null && persist) {
+      try {
+        view = JSON.parse(sessionStorage.getItem(persist));
+      } catch (e) {
+        view = null;
+      }
+    }
+    if (!view || !Array.isArray(view.target)) view = JSON.parse(JSON.stringify(home));
+    // What a test reads back: what was drawn, where from.
+    canvas.dataset.apexes = JSON.stringify(apexes);
+    canvas.dataset.posed = JSON.stringify(posed);
+    canvas.dataset.clouds = JSON.stringify(counts);
   }
-  const span = Math.max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1);
-  const home = {
-    target: [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 3],
-    yaw: (scene.view_azimuth_deg * Math.PI) / 180 - 2.2,
-    pitch: 0.45,
-    dist: 1.6 * span,
-  };
-  let view = JSON.parse(JSON.stringify(home));
+
   // The camera's axes for the current view: right, up, back (towards the viewer).
   function axes() {
     const cp = Math.cos(view.pitch), sp = Math.sin(view.pitch);
@@ -51,7 +97,7 @@
     ];
     return { right: right, up: up, back: back };
   }
-  const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+
   function draw() {
     const w = canvas.width, h = canvas.height;
     const ax = axes();
@@ -88,6 +134,11 @@
       if (a[2] < near) continue;
       items.push({ depth: a[2], kind: 2, pts: [screen(a)], m: m });
     }
+    for (const q of points) {
+      const a = toView(q.p);
+      if (a[2] < near) continue;
+      items.push({ depth: a[2], kind: 3, pts: [screen(a)], rgb: q.rgb });
+    }
     items.sort((x, y) => y.depth - x.depth);
     for (const it of items) {
       if (it.kind === 0) {
@@ -114,7 +165,7 @@
         ctx.moveTo(it.pts[0][0], it.pts[0][1]);
         ctx.lineTo(it.pts[1][0], it.pts[1][1]);
         ctx.stroke();
-      } else {
+      } else if (it.kind === 2) {
         ctx.globalAlpha = 1;
         ctx.fillStyle = "rgb(" + it.m.rgb.join(",") + ")";
         ctx.strokeStyle = it.m.big ? "#00c800" : "#333";
@@ -123,11 +174,23 @@
         ctx.arc(it.pts[0][0], it.pts[0][1], it.m.big ? 7 : 4.5, 0, 2 * Math.PI);
         ctx.fill();
         ctx.stroke();
+      } else {
+        ctx.globalAlpha = 1;
+        ctx.fillStyle = "rgb(" + it.rgb.join(",") + ")";
+        ctx.fillRect(it.pts[0][0] - 1.5, it.pts[0][1] - 1.5, 3, 3);
       }
     }
     ctx.globalAlpha = 1;
     canvas.dataset.drawn = String(items.length);
+    if (persist) {
+      try {
+        sessionStorage.setItem(persist, JSON.stringify(view));
+      } catch (e) {
+        // A page without storage (a file page in some browsers) starts from the reset view.
+      }
+    }
   }
+
   // Mouse: orbit, pan, zoom.
   let drag = null;
   canvas.addEventListener("contextmenu", (e) => e.preventDefault());
@@ -138,7 +201,7 @@
     drag = null;
   });
   window.addEventListener("mousemove", (e) => {
-    if (!drag) return;
+    if (!drag || !view) return;
     const dx = e.clientX - drag.x, dy = e.clientY - drag.y;
     drag.x = e.clientX;
     drag.y = e.clientY;
@@ -155,20 +218,25 @@
   canvas.addEventListener(
     "wheel",
     (e) => {
+      if (!view) return;
       e.preventDefault();
       view.dist = Math.max(10, view.dist * Math.exp(e.deltaY * 0.001));
       draw();
     },
     { passive: false }
   );
-  document.getElementById("view3d-reset").addEventListener("click", () => {
+  reset.addEventListener("click", () => {
+    if (!home) return;
     view = JSON.parse(JSON.stringify(home));
     draw();
   });
-  draw();
-  // What a test reads back: the apex each frustum was drawn from, and when it was ready.
-  const apexes = {};
-  for (const part of scene.parts) if (part.kind === "frustum") apexes[part.name] = part.positions[0];
-  canvas.dataset.apexes = JSON.stringify(apexes);
+  window.camplaceView3d = {
+    show: (scene) => {
+      load(scene);
+      draw();
+    },
+  };
+  const inline = document.getElementById("scene3d");
+  if (inline && inline.textContent.trim()) window.camplaceView3d.show(JSON.parse(inline.textContent));
   canvas.dataset.readyMs = String(Math.round(performance.now()));
 })();
