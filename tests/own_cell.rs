@@ -367,3 +367,33 @@ fn the_report_opens_in_a_browser_with_every_image_and_the_summary_numbers() {
     let size = std::fs::metadata(&shot).map(|m| m.len()).unwrap_or(0);
     assert!(size > 10_000, "a screenshot of the first screen: {} bytes, {}", size, stderr(&o));
 }
+
+/// scripts/example_tray.py writes a tray of one's own that camplace takes as it is: rendered,
+/// the tray and every filled slot's item are in the left image where the truth says.
+#[test]
+fn the_example_tray_script_writes_a_cell_camplace_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = Command::new("python3")
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/example_tray.py"))
+        .arg(d.join("own"))
+        .output()
+        .expect("python3 runs");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = camplace(d, &["render", "--dataset", "--count", "2", "--cell", "own/cell.toml", "--out", "data"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut items_seen = 0;
+    for frame in ["0000", "0001"] {
+        let f = d.join("data/frames").join(frame);
+        let truth: Value = serde_json::from_slice(&std::fs::read(f.join("truth.json")).unwrap()).unwrap();
+        let ids = camplace_config::read_gray(&f.join("ids_left.png")).unwrap();
+        let count = |id: u8| ids.data.iter().filter(|&&v| v == id).count();
+        assert!(count(1) > 1000, "frame {frame}: the tray covers {} pixels", count(1));
+        for n in truth["filled"].as_array().unwrap() {
+            let n = n.as_u64().unwrap();
+            assert!(n < 6, "frame {frame}: slot {n} of a six-slot tray");
+            items_seen += usize::from(count(2 + n as u8) > 50);
+        }
+    }
+    assert!(items_seen > 0, "no item of the script's tray was seen");
+}
