@@ -91,8 +91,10 @@ fn hostile_flags_and_values_are_one_line_errors() {
         let o = camplace(d, &["render", "--cell", name, "--out", "out"]);
         assert_one_line_error(o.status.code().unwrap_or(-1), &stderr(&o), &[name, key]);
     }
-    let flags: [(&[&str], &[&str]); 5] = [
+    let flags: [(&[&str], &[&str]); 7] = [
         (&["evaluate"], &["--out"]),
+        (&["capture", "--source", "dir:x"], &["--out"]),
+        (&["replay", "--bogus"], &["--bogus"]),
         (&["evaluate", "--placement", "vergence=auto,r=1e-6", "--out", "o"], &["placement.vergence", "auto"]),
         (&["evaluate", "--scenarios", "1000000000", "--out", "o"], &["--scenarios"]),
         (&["sweep", "--x", "r=400:900:100000000", "--out", "o"], &["--x", "steps"]),
@@ -101,6 +103,7 @@ fn hostile_flags_and_values_are_one_line_errors() {
     for (args, names) in flags {
         let o = camplace(d, args);
         assert_one_line_error(o.status.code().unwrap_or(-1), &stderr(&o), names);
+        assert!(!stderr(&o).contains("Usage"), "{}", stderr(&o));
     }
     assert!(!d.join("o").exists(), "a refused run writes no study folder");
 }

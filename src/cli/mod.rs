@@ -211,18 +211,3 @@ fn one_line(text: &str) -> String {
         joined.to_string()
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn clap_errors_become_one_line_naming_the_flag() {
-        let e = Cli::try_parse_from(["camplace", "capture", "--source", "dir:x"]).unwrap_err();
-        let line = one_line(&e.to_string());
-        assert!(!line.contains('\n') && line.contains("--out"), "{line}");
-        let e = Cli::try_parse_from(["camplace", "replay", "--bogus"]).unwrap_err();
-        let line = one_line(&e.to_string());
-        assert!(line.contains("--bogus") && !line.contains("Usage"), "{line}");
-    }
-}
