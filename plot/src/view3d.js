@@ -52,9 +52,16 @@
       const rgb = hex(cloud.colour);
       const p = cloud.pose ? cloud.positions.map((q) => apply(cloud.pose, q)) : cloud.positions;
       for (const q of p) points.push({ p: q, rgb: rgb });
-      p.forEach(grow);
       if (cloud.pose && p.length > 0) posed[cloud.name] = p[0];
       counts[cloud.name] = p.length;
+    }
+    // A measured cloud has strays: the view frames the middle 96 % of its points on each axis.
+    if (points.length > 0) {
+      for (let i = 0; i < 3; i++) {
+        const v = points.map((q) => q.p[i]).sort((a, b) => a - b);
+        lo[i] = Math.min(lo[i], v[Math.floor(0.02 * (v.length - 1))]);
+        hi[i] = Math.max(hi[i], v[Math.ceil(0.98 * (v.length - 1))]);
+      }
     }
     markers = (scene.markers || []).map((m) => ({ p: m.position, rgb: hex(m.colour), big: m.recommended }));
     // The start is the reset view: orbit about the middle of what there is to see.
