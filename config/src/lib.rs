@@ -47,7 +47,7 @@ pub use formats::dataset_write::{
 pub use formats::frames::{FrameInfo, Frames};
 pub use formats::mesh::{decode_obj, decode_stl, load_mesh, Mesh};
 pub use formats::pfm::{decode_pfm, encode_pfm, read_pfm, write_pfm};
-pub use formats::ply::{decode_ply, encode_cloud, read_cloud, read_ply, write_cloud, PlyCloud, PlyData};
+pub use formats::ply::{decode_ply, encode_cloud, read_cloud, read_ply, thinned, write_cloud, PlyCloud, PlyData};
 pub use formats::png::{decode_gray, read_gray, read_image_size, write_gray, write_rgb};
 pub use formats::read::{
     open_checked, read_bounded, read_text, FileKind, MAX_DATA_BYTES, MAX_IMAGE_FILE_BYTES, MAX_IMAGE_PIXELS,

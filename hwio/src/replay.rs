@@ -7,7 +7,7 @@
 use std::path::Path;
 
 use camplace_config::{
-    remove_stale_temp_files, write_atomic, write_cloud, DATASET_SUMMARY, SCENE_CLOUD, SCENE_CLOUD_POINTS,
+    remove_stale_temp_files, thinned, write_atomic, write_cloud, DATASET_SUMMARY, SCENE_CLOUD, SCENE_CLOUD_POINTS,
 };
 use camplace_config::{Cell, TruthFile};
 use camplace_estimator::{depth::method_for, depth::Method, Estimator, EstimatorConfig, Model, PoseEstimate, Rig};
@@ -102,9 +102,7 @@ pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> Result<Dataset
         lines.push_str(&record.to_line());
         lines.push('\n');
         records.push(record);
-        let cloud = estimator.scene_cloud();
-        let step = cloud.len().div_ceil(SCENE_CLOUD_POINTS).max(1);
-        clouds.push(cloud.iter().step_by(step).map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>());
+        clouds.push(thinned(estimator.scene_cloud(), SCENE_CLOUD_POINTS).map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>());
     }
     if records.is_empty() {
         return Err(Error::format(dir, "the dataset has no frames"));

@@ -2,6 +2,7 @@
 //! projected through the left camera (with its distortion), and the convex hull of what lands
 //! in the image, the polygon the status page draws over the frame.
 
+use camplace_config::thinned;
 use camplace_estimator::{geometry::Camera, Model};
 use nalgebra::{Isometry3, Point3};
 
@@ -17,8 +18,7 @@ pub(crate) fn outline_points(model: &Model) -> Vec<Point3<f64>> {
         .chain(model.feature_points.iter())
         .map(|p| p.cast::<f64>())
         .collect();
-    let step = all.len().div_ceil(OUTLINE_POINTS).max(1);
-    all.into_iter().step_by(step).collect()
+    thinned(&all, OUTLINE_POINTS).copied().collect()
 }
 
 /// The outline of `points` at `t_world_tray` in `camera`'s image: a convex polygon, pixels.

@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use camplace_config::{format_pose_exact, RobotPoseFormat};
+use camplace_config::{format_pose_exact, thinned, RobotPoseFormat};
 use camplace_estimator::{
     geometry::isometry_from_rows, geometry::isometry_to_rows, geometry::Camera as LensCamera, pose::slot_letters,
     pose::SlotState, pose::Verdict, Estimator,
@@ -64,11 +64,6 @@ pub(crate) struct Worker {
 /// Most scene points and model points the status page's 3D view is handed.
 const CLOUD_POINTS: usize = 3000;
 const MODEL_POINTS: usize = 2000;
-
-/// The step that thins `len` points to at most `most`.
-fn thinning(len: usize, most: usize) -> usize {
-    len.div_ceil(most).max(1)
-}
 
 /// Slot `n` of `last` as the reply to `SLOT n`; `slot_count` is the model's slots.
 fn slot_reply(n: usize, last: &LastSlots, slot_count: usize) -> String {
@@ -220,11 +215,11 @@ impl Worker {
             // The 3D view: the buffers keep their capacity, so no frame allocates once warm.
             let cloud = self.estimator.scene_cloud();
             s.cloud.clear();
-            s.cloud.extend(cloud.iter().step_by(thinning(cloud.len(), CLOUD_POINTS)).map(|p| [p.x, p.y, p.z]));
+            s.cloud.extend(thinned(cloud, CLOUD_POINTS).map(|p| [p.x, p.y, p.z]));
             s.model_at_pose.clear();
             if pose.found {
                 let t = pose.t_world_tray.cast::<f32>();
-                s.model_at_pose.extend(points.iter().step_by(thinning(points.len(), MODEL_POINTS)).map(|p| {
+                s.model_at_pose.extend(thinned(points, MODEL_POINTS).map(|p| {
                     let q = t * p.cast::<f32>();
                     [q.x, q.y, q.z]
                 }));

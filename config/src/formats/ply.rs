@@ -58,6 +58,12 @@ pub fn read_cloud(path: &Path) -> Result<PlyCloud, Error> {
     Ok(PlyCloud { points: d.vertices, normals: d.normals })
 }
 
+/// Every `k`-th of `points`, `k` the smallest whole step that leaves at most `most` of them
+/// (all of them when they are that few): how a cloud is thinned for a file or a page.
+pub fn thinned<T>(points: &[T], most: usize) -> impl Iterator<Item = &T> {
+    points.iter().step_by(points.len().div_ceil(most.max(1)).max(1))
+}
+
 /// Reads a PLY file.
 pub fn read_ply(path: &Path) -> Result<PlyData, Error> {
     let bytes = super::read::read_bounded(path, super::read::FileKind::Data)?;
@@ -313,6 +319,20 @@ fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn thinning_keeps_every_kth_point_and_at_most_the_most() {
+        for len in [0usize, 1, 5, 99, 100, 101, 1000, 12_345] {
+            for most in [0usize, 1, 7, 100, 20_000] {
+                let points: Vec<usize> = (0..len).collect();
+                let got: Vec<usize> = thinned(&points, most).copied().collect();
+                // Slow and obvious: the smallest step k whose every-k-th points are few enough.
+                let k = (1..=len.max(1)).find(|k| len.div_ceil(*k) <= most.max(1)).unwrap_or(1);
+                let want: Vec<usize> = (0..len).filter(|i| i % k == 0).collect();
+                assert_eq!(got, want, "len {len}, most {most}");
+            }
+        }
+    }
 
     #[test]
     fn binary_round_trip_with_normals() {

@@ -15,7 +15,7 @@
 
 use std::path::Path;
 
-use camplace_config::{image_name, read_cloud, Cell, SCENE_CLOUD};
+use camplace_config::{image_name, read_cloud, thinned, Cell, SCENE_CLOUD};
 use camplace_estimator::{geometry::isometry_from_rows, Rig};
 use camplace_plot::{legend_entry, view3d_html, ViewCanvas};
 use nalgebra::Point3;
@@ -71,9 +71,7 @@ fn scene_cloud(dir: &Path, name: &str) -> Result<Vec<[f32; 3]>> {
     if !path.is_file() {
         return Ok(Vec::new());
     }
-    let points = read_cloud(&path)?.points;
-    let step = points.len().div_ceil(CLOUD_POINTS).max(1);
-    Ok(points.into_iter().step_by(step).map(tenth).collect())
+    Ok(thinned(&read_cloud(&path)?.points, CLOUD_POINTS).map(|&p| tenth(p)).collect())
 }
 
 /// The edges of `tray`'s bounding box and its +x axis from the top centre, as segments in
