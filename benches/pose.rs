@@ -3,8 +3,8 @@
 //! nearest-point grids are built once per model (per placement in a study).
 
 use camplace_config::Cell;
-use camplace_estimator::testing::{self, Scene, SceneSpec};
 use camplace_estimator::{pose::Icp, pose::IcpResult, pose::Ransac};
+use camplace_testing::{self as testing, Scene, SceneSpec};
 use criterion::{criterion_group, Criterion};
 use std::sync::Arc;
 

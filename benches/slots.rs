@@ -2,8 +2,8 @@
 //! judged from its scene cloud (about 10k tray points and the items' tops) under the true
 //! pose, with the judge's buffers reused as the estimator reuses them.
 
-use camplace_estimator::testing::{self, Scene, SceneSpec};
 use camplace_estimator::{pose::SlotJudge, pose::SlotLayout, pose::SlotState};
+use camplace_testing::{self as testing, Scene, SceneSpec};
 use criterion::{criterion_group, Criterion};
 use nalgebra::Point3;
 

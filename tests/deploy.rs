@@ -285,7 +285,7 @@ fn a_model_of_another_tray_is_refused_when_a_cell_is_given() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     std::fs::write(d.join("tray4.toml"), "[tray]\nkind = \"tray-4\"\n").unwrap();
-    std::fs::write(d.join("old.model"), camplace_estimator::testing::tray(false, 1).to_bytes()).unwrap();
+    std::fs::write(d.join("old.model"), camplace_testing::tray(false, 1).to_bytes()).unwrap();
     let data = f.root.join("data").display().to_string();
     let model = f.root.join("tray.model").display().to_string();
     let source = format!("dir:{data}");

@@ -76,7 +76,10 @@ pub(crate) use pose::*;
 // there, the stages here as `crate::GrayImage`.
 use camplace_config::{FloatImage, GrayImage};
 
-#[cfg(any(test, feature = "testing"))]
+// The test fixtures are camplace-testing's; this crate's unit tests compile the same module
+// (a dev-dependency on that crate would give them a second copy of this crate's types).
+#[cfg(test)]
+#[path = "../../testing/src/fixtures.rs"]
 pub mod testing;
 
 /// Instruction-set checks the [`multiversion!`] expansions in other crates call.

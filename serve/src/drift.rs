@@ -233,7 +233,7 @@ mod tests {
 
     /// A tolerance report with `(parameter, minus, plus)` measured.
     fn tolerances(axes: &[(PlacementParam, f64, f64)]) -> ToleranceReport {
-        camplace_estimator::testing::tolerance_report("r=605,alpha=32,baseline=81,vergence=3.5", axes)
+        camplace_testing::tolerance_report("r=605,alpha=32,baseline=81,vergence=3.5", axes)
     }
 
     #[test]

@@ -1,14 +1,12 @@
-//! Test fixtures, built only for this crate's tests and with the `testing` feature: a box
-//! tray made of cuboids and scenes of it with known poses, built analytically so tests and
-//! benches can check the pose stages against ground truth without rendering.
+//! The fixtures (see the crate's root). Compiled in two crates, this one and the
+//! estimator's unit tests: the estimator's types are named through `super`, the root of
+//! either.
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::features::ECSAD_DIM;
-use crate::pose::{Model, ModelView};
-use crate::Correspondence;
+use super::{Correspondence, Model, ModelView, ECSAD_DIM};
 
 /// Spacing of surface samples, mm (the paper's surface resolution).
 pub const SPACING: f32 = 2.0;
