@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
+use camplace_estimator::scoring::SlotSummary;
 use serde_json::Value;
 
 use crate::camplace_cmd::{camplace, stderr};
@@ -105,10 +106,13 @@ fn accept_fails_a_poor_placement_and_passes_a_good_one() {
             "0.2",
             "--scenarios",
             "8",
+            "--out",
+            "acc",
         ],
     );
     assert_eq!(good.status.code(), Some(0), "{}{}", String::from_utf8_lossy(&good.stdout), stderr(&good));
     assert!(String::from_utf8_lossy(&good.stdout).contains("PASS"));
+    slot_accuracy_is_judged_on_the_accepted_poses_slots(dir.path());
     let poor = camplace(
         dir.path(),
         &["accept", "--placement", "r=1500,alpha=32,baseline=5", "--min-success", "0.2", "--scenarios", "8"],
@@ -117,14 +121,58 @@ fn accept_fails_a_poor_placement_and_passes_a_good_one() {
     assert!(String::from_utf8_lossy(&poor.stdout).contains("FAIL"));
 }
 
+/// `accept --min-slot-accuracy` on the folder of the good placement above (its scenes
+/// kept, not run again): the wrong calls and slots it names are those of the accepted
+/// records, and it passes just below their lower bound and fails just above it.
+fn slot_accuracy_is_judged_on_the_accepted_poses_slots(dir: &Path) {
+    let mut summary = SlotSummary::default();
+    let results = std::fs::read_to_string(dir.join("acc/results.jsonl")).unwrap();
+    for record in results.lines().map(|l| serde_json::from_str::<Value>(l).unwrap()) {
+        if record["verdict"] != "accepted" {
+            continue;
+        }
+        let score = &record["slot_score"];
+        let count = |key: &str| score[key].as_u64().unwrap_or_else(|| panic!("{key} in {score}"));
+        summary.frames += 1;
+        summary.slots += count("slots");
+        summary.wrong += count("filled_called_empty") + count("empty_called_filled");
+        summary.unseen += count("unseen");
+    }
+    assert!(summary.slots >= 8, "the good placement's accepted poses judged slots: {summary:?}");
+    let low = summary.accuracy_lower();
+    let counts = format!(
+        "({} wrong of {} slots in {} accepted poses, {} unseen)",
+        summary.wrong, summary.slots, summary.frames, summary.unseen
+    );
+    let accept = |min: f64| {
+        let min = format!("{min:.4}");
+        camplace(
+            dir,
+            &["accept", "--placement", "r=605,alpha=32,baseline=81,vergence=3.5", "--scenarios", "8"]
+                .into_iter()
+                .chain(["--out", "acc", "--min-slot-accuracy", &min])
+                .collect::<Vec<_>>(),
+        )
+    };
+    for (min, code, verdict) in [(low - 0.01, 0, "PASS"), (low + 0.01, 1, "FAIL")] {
+        let o = accept(min.clamp(0.0, 1.0));
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert_eq!(o.status.code(), Some(code), "{out}{}", stderr(&o));
+        let line = out.lines().find(|l| l.contains("slots called right")).unwrap_or_else(|| panic!("{out}"));
+        assert!(line.starts_with(verdict) && line.ends_with(&counts), "{line} vs {counts}");
+        assert!(line.contains(&format!("{:.2} %", 100.0 * low)), "{line}: lower bound {low}");
+    }
+}
+
 #[test]
 fn bad_study_flags_are_one_line_errors() {
     let dir = tempfile::tempdir().unwrap();
-    let cases: [&[&str]; 5] = [
+    let cases: [&[&str]; 6] = [
         &["sweep", "--x", "foo=1:2:3", "--out", "s"],
         &["evaluate", "--shard", "4/3", "--out", "e"],
         &["optimize", "--params", "r,height", "--out", "o"],
         &["accept", "--min-success", "1.5"],
+        &["accept", "--min-slot-accuracy", "1.5"],
         &["optimize", "--test-function", "rosenbrock"],
     ];
     for args in cases {

@@ -1,7 +1,8 @@
 //! `camplace accept`: the acceptance test of one placement. It passes when the lower
-//! Wilson bound of the success rate reaches the required rate and, with `--max-wrong`, the
-//! upper 95 % bound of the wrong poses among the verified ones stays within it: exit 0 on
-//! pass, 1 on fail.
+//! Wilson bound of the success rate reaches the required rate, with `--max-wrong` the
+//! upper 95 % bound of the wrong poses among the verified ones stays within it, and with
+//! `--min-slot-accuracy` the lower 95 % bound of the slots called right (filled or empty as
+//! the truth has them) among the accepted poses reaches it: exit 0 on pass, 1 on fail.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -23,12 +24,17 @@ pub struct Args {
     #[command(flatten)]
     scene: SceneArgs,
     /// Required success rate, 0..1: the lower end of the 95 % interval must reach it.
-    #[arg(long, required_unless_present = "max_wrong")]
+    #[arg(long, required_unless_present_any = ["max_wrong", "min_slot_accuracy"])]
     min_success: Option<f64>,
     /// Largest share of wrong poses among the accepted ones, 0..1: the one-sided 95 % upper
     /// bound (Clopper–Pearson) at the threshold chosen from these scenes must stay within it.
     #[arg(long)]
     max_wrong: Option<f64>,
+    /// Required share of slots called right (filled or empty as the truth has them) among
+    /// the accepted poses' slots, 0..1: the one-sided 95 % lower bound (Clopper–Pearson)
+    /// must reach it. A slot judged unseen is no wrong call (the robot is told to skip it).
+    #[arg(long)]
+    min_slot_accuracy: Option<f64>,
     /// Scenarios 0..N-1 of the seed.
     #[arg(long, default_value_t = 250)]
     scenarios: u64,
@@ -44,6 +50,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     if let Some(w) = a.max_wrong.filter(|w| !(w.is_finite() && *w > 0.0 && *w < 1.0)) {
         bail!("--max-wrong: expected a share above 0 and below 1 (e.g. 0.005), got {w}");
+    }
+    if let Some(m) = a.min_slot_accuracy.filter(|m| !(0.0..=1.0).contains(m)) {
+        bail!("--min-slot-accuracy: expected a share between 0 and 1 (e.g. 0.999), got {m}");
     }
     let (mut cell, mut placement) = a.cell.load()?;
     a.installed.apply(&mut cell, &mut placement)?;
@@ -74,6 +83,28 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             100.0 * upper,
             if ok { "is within" } else { "exceeds" },
             100.0 * max
+        );
+        pass &= ok;
+    }
+    if let Some(min) = a.min_slot_accuracy {
+        // No accepted pose with slots is no evidence, so it fails.
+        let (low, counts) = match &s.slots {
+            Some(slots) => (
+                slots.accuracy_lower(),
+                format!(
+                    "{} wrong of {} slots in {} accepted poses, {} unseen",
+                    slots.wrong, slots.slots, slots.frames, slots.unseen
+                ),
+            ),
+            None => (0.0, "no accepted pose with slots".to_string()),
+        };
+        let ok = low >= min;
+        outln!(
+            "{}: lower 95 % bound of slots called right {:.2} % {} the required {:.2} % ({counts})",
+            if ok { "PASS" } else { "FAIL" },
+            100.0 * low,
+            if ok { "reaches" } else { "is below" },
+            100.0 * min
         );
         pass &= ok;
     }

@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use super::intervals::wilson_interval;
 use super::record::{FrameRecord, SlotScore, Timings};
-use super::verified::{Scored, VerifiedSummary};
+use super::verified::{clopper_pearson_upper, Scored, VerifiedSummary, UPPER_CONFIDENCE};
 
 /// The summary of a set of frames (`summary.json`, and the end of `replay`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -91,6 +91,13 @@ impl SlotSummary {
             median_grasp_error_mm: median(&mm),
             median_grasp_error_deg: median(&deg),
         })
+    }
+
+    /// The one-sided 95 % lower bound of [`SlotSummary::accuracy`]: one minus the
+    /// Clopper–Pearson upper bound of the wrong calls' share (0 when no slot was judged).
+    /// Slots of one frame are counted as independent calls.
+    pub fn accuracy_lower(&self) -> f64 {
+        1.0 - clopper_pearson_upper(self.wrong as usize, self.slots as usize, UPPER_CONFIDENCE)
     }
 
     /// One line for a terminal and the report.
@@ -261,6 +268,31 @@ mod tests {
         }
         assert_eq!(percentile(&[7.0], 99.0), Some(7.0));
         assert_eq!(percentile(&[], 50.0), None);
+    }
+
+    #[test]
+    fn slot_accuracy_lower_bound_is_where_so_few_wrong_calls_become_unlikely() {
+        // The slowest way: the smallest accuracy a (on a 1e-5 grid) at which seeing `wrong`
+        // or fewer wrong calls in `slots` still has probability 5 % or more, from the
+        // binomial tail summed term by term.
+        let slow = |wrong: u64, slots: u64| {
+            let tail = |p: f64| {
+                (0..=wrong)
+                    .map(|k| {
+                        let ln_choose: f64 = (0..k).map(|i| ((slots - i) as f64 / (i + 1) as f64).ln()).sum();
+                        (ln_choose + k as f64 * p.ln() + (slots - k) as f64 * (1.0 - p).ln()).exp()
+                    })
+                    .sum::<f64>()
+            };
+            (0..100_000).map(|i| i as f64 * 1e-5).filter(|&a| tail(1.0 - a) >= 0.05).fold(1.0, f64::min)
+        };
+        for (wrong, slots) in [(0, 40), (1, 300), (3, 2400), (10, 500)] {
+            let s = SlotSummary { slots, wrong, ..SlotSummary::default() };
+            let got = s.accuracy_lower();
+            assert!((got - slow(wrong, slots)).abs() < 2e-5, "{wrong} of {slots}: {got} vs {}", slow(wrong, slots));
+            assert!(got < 1.0 - wrong as f64 / slots as f64, "{wrong} of {slots}: below the point estimate");
+        }
+        assert_eq!(SlotSummary::default().accuracy_lower(), 0.0, "no slot judged is no evidence");
     }
 
     #[test]

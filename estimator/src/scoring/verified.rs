@@ -14,7 +14,7 @@ use super::intervals::wilson_interval;
 use super::record::FrameRecord;
 
 /// One-sided confidence of the upper bound on the wrong share.
-const UPPER_CONFIDENCE: f64 = 0.95;
+pub(super) const UPPER_CONFIDENCE: f64 = 0.95;
 
 /// A wrong pose off by more than this many times a success limit is gross (a turn, a slot
 /// away): what the score is there to reject. A wrong pose within it is a near miss.
