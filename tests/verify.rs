@@ -1,10 +1,12 @@
 //! The verification end to end on rendered frames: frames without the tray, another tray
 //! under this tray's model and the tray half out of view are each rejected with a reason,
-//! while the tray in plain view is accepted; for the built-in 8-slot tray and for a mesh
-//! tray of the test's own.
+//! while the tray in plain view is accepted, and the camera's depth shows no view past the
+//! true pose but one past the truth moved by a slot's pitch; for the built-in 8-slot tray
+//! and for a mesh tray of the test's own.
 
 use camplace_config::{Cell, TrayKind};
-use camplace_estimator::{pose::Verdict, Estimator, EstimatorConfig, PoseEstimate};
+use camplace_estimator::pose::{Verdict, SEE_THROUGH_MIN_TESTED};
+use camplace_estimator::{Estimator, EstimatorConfig, Model, PoseEstimate};
 use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 
@@ -23,6 +25,13 @@ fn setup(cell: &Cell, seed: u64) -> (Simulator, Estimator) {
     let mut estimator = Estimator::new(&EstimatorConfig::from(cell), sim.rig(), model, Method::OneShot).unwrap();
     estimator.set_background(&frame.shots.left, &frame.shots.right).unwrap();
     (sim, estimator)
+}
+
+/// The offset, tray frame, from the first slot to its nearest neighbour.
+fn slot_pitch(model: &Model) -> Vector3<f64> {
+    let slots = &model.slots.as_ref().expect("a model built now carries its slots").slots;
+    let at = |s: &[f64; 4]| Vector3::new(s[0], s[1], 0.0);
+    slots[1..].iter().map(|s| at(s) - at(&slots[0])).min_by(|a, b| a.norm().total_cmp(&b.norm())).expect("two slots")
 }
 
 fn rejected(pose: &PoseEstimate, what: &str) {
@@ -44,11 +53,30 @@ fn rejections(cell: &Cell, other: &Cell, other_name: &str) {
     // The tray in plain view: accepted, so the rejections below are the verification's
     // judgement and not a verifier that rejects everything.
     let mut accepted = 0;
+    let pitch = slot_pitch(estimator.model());
     for i in 0..4 {
-        sim.render(&draw_scenario(cell, seed, i).scene(), Method::OneShot, noise_key(seed, i, false), &mut frame);
+        let scenario = draw_scenario(cell, seed, i);
+        sim.render(&scenario.scene(), Method::OneShot, noise_key(seed, i, false), &mut frame);
         let pose = estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
         eprintln!("tray in view {i}: {} (score {:.3})", pose.verification.verdict, pose.verification.score);
         accepted += usize::from(pose.verification.verdict.accepted());
+        // The camera's depth against the true pose and against the truth moved by one slot's
+        // pitch, which lies on the same slots and dividers but puts an end wall over the table.
+        let truth = estimator.verify(&scenario.t_world_tray);
+        let shifted = estimator.verify(&(scenario.t_world_tray * Translation3::from(pitch)));
+        eprintln!(
+            "scene {i}: seen past {:.3} at the truth ({:.3} a pitch away), {:.3} one slot's pitch off ({:.3} a pitch away)",
+            truth.see_through.share(),
+            truth.see_through_shifted.share(),
+            shifted.see_through.share(),
+            shifted.see_through_shifted.share()
+        );
+        assert!(truth.see_through.tested >= SEE_THROUGH_MIN_TESTED, "scene {i}: {truth:?}");
+        assert!(!truth.seen_past(), "scene {i}: the true pose seen past: {truth:?}");
+        assert!(shifted.seen_past(), "scene {i}: the truth moved by {pitch:?} not seen past: {shifted:?}");
+        if shifted.score >= threshold && shifted.rests_on_table() {
+            assert_eq!(shifted.verdict, Verdict::SeenThrough, "scene {i}: the truth moved by {pitch:?}: {shifted:?}");
+        }
     }
     assert!(accepted >= 3, "{accepted} of 4 trays in plain view accepted at threshold {threshold}");
 
@@ -109,7 +137,14 @@ fn the_same_holds_for_a_mesh_tray() {
 
 #[test]
 fn every_verdict_reads_back_from_its_text() {
-    for v in [Verdict::Accepted, Verdict::NoTray, Verdict::OffTable, Verdict::Ambiguous, Verdict::PoorFit] {
+    for v in [
+        Verdict::Accepted,
+        Verdict::NoTray,
+        Verdict::OffTable,
+        Verdict::Ambiguous,
+        Verdict::PoorFit,
+        Verdict::SeenThrough,
+    ] {
         assert_eq!(Verdict::parse(v.as_str()), Some(v));
         assert_eq!(v.accepted(), v.as_str() == "accepted");
     }

@@ -23,9 +23,9 @@ use nalgebra::{Isometry3, Point3};
 
 use crate::pose::{on_table, quarter_turns};
 use crate::{
-    Correspondence, Error, ErrorKind, EstimatorConfig, FeatureExtractor, FeatureMatcher, Icp, IcpResult, Method, Model,
-    Ransac, RansacResult, Reconstruction, Reconstructor, Result, Rig, SlotJudge, SlotReading, Verdict, Verification,
-    Verifier, AMBIGUOUS_TURN_SIGMAS,
+    Correspondence, DepthEvidence, Error, ErrorKind, EstimatorConfig, FeatureExtractor, FeatureMatcher, Icp, IcpResult,
+    Method, Model, Ransac, RansacResult, Reconstruction, Reconstructor, Result, Rig, SlotJudge, SlotReading, Verdict,
+    Verification, Verifier, AMBIGUOUS_TURN_SIGMAS,
 };
 
 /// Time spent in each stage of the last frame, ms (zero for stages a frame skipped).
@@ -154,6 +154,8 @@ pub struct Estimator {
     reconstructor: Reconstructor,
     reconstruction: Reconstruction,
     stages: Stages,
+    /// Whether the last frame was a stereo frame, whose depth map the verification reads.
+    depth_of_last_frame: bool,
 }
 
 impl std::fmt::Debug for Estimator {
@@ -210,7 +212,7 @@ impl Estimator {
             params,
             model,
         };
-        Ok(Estimator { reconstructor, reconstruction, stages })
+        Ok(Estimator { reconstructor, reconstruction, stages, depth_of_last_frame: false })
     }
 
     /// Uses `rig` from now on (a recalibrated rig, or the one a study's scenario believes
@@ -260,7 +262,12 @@ impl Estimator {
         let start = Instant::now();
         self.reconstructor.process(left, right, &mut self.reconstruction)?;
         let r = self.reconstruction.timings;
-        let mut out = self.stages.run(&self.reconstruction.cloud.points)?;
+        let depth = DepthEvidence {
+            disparity: &self.reconstruction.disparity,
+            camera: &self.reconstructor.rectification().camera,
+        };
+        let mut out = self.stages.run(&self.reconstruction.cloud.points, Some(&depth))?;
+        self.depth_of_last_frame = true;
         out.timings.rectify_ms = r.rectify_ms;
         out.timings.disparity_ms = r.disparity_ms;
         out.timings.cloud_ms = r.cloud_ms;
@@ -273,7 +280,8 @@ impl Estimator {
     pub fn process_cloud(&mut self, points: &[Point3<f32>]) -> Result<PoseEstimate> {
         rayon::scope(|_| {
             let start = Instant::now();
-            let mut out = self.stages.run(points)?;
+            self.depth_of_last_frame = false;
+            let mut out = self.stages.run(points, None)?;
             out.timings.total_ms = ms(start);
             Ok(out)
         })
@@ -290,6 +298,10 @@ impl Estimator {
     pub fn verify(&self, t_world_tray: &Isometry3<f64>) -> Verification {
         rayon::scope(|_| {
             let s = &self.stages;
+            let depth = DepthEvidence {
+                disparity: &self.reconstruction.disparity,
+                camera: &self.reconstructor.rectification().camera,
+            };
             s.verifier.verify(
                 &s.model,
                 &s.icp,
@@ -298,6 +310,7 @@ impl Estimator {
                 &s.sensor_position,
                 t_world_tray,
                 None,
+                self.depth_of_last_frame.then_some(&depth),
             )
         })
     }
@@ -357,7 +370,7 @@ impl Estimator {
 }
 
 impl Stages {
-    fn run(&mut self, points: &[Point3<f32>]) -> Result<PoseEstimate> {
+    fn run(&mut self, points: &[Point3<f32>], depth: Option<&DepthEvidence>) -> Result<PoseEstimate> {
         let p = &self.params;
         let mut out = PoseEstimate::default();
         self.correspondences.clear();
@@ -470,6 +483,7 @@ impl Stages {
             &self.sensor_position,
             &out.t_world_tray,
             counted.as_ref(),
+            depth,
         );
         // The rig's calibration error moves the whole measured cloud, table and tray alike,
         // so a fit's height and tilt above the table are that error's: a tray that rests on

@@ -236,6 +236,7 @@ pub fn rejected_reason(verdict: camplace_estimator::pose::Verdict) -> &'static s
         Verdict::OffTable => "off-table",
         Verdict::Ambiguous => "ambiguous",
         Verdict::PoorFit => "poor-fit",
+        Verdict::SeenThrough => "seen-through",
     }
 }
 
@@ -334,7 +335,7 @@ mod tests {
     #[test]
     fn each_refusing_verdict_has_a_reason_of_its_own() {
         use camplace_estimator::pose::Verdict;
-        let refusing = [Verdict::NoTray, Verdict::OffTable, Verdict::Ambiguous, Verdict::PoorFit];
+        let refusing = [Verdict::NoTray, Verdict::OffTable, Verdict::Ambiguous, Verdict::PoorFit, Verdict::SeenThrough];
         let words: std::collections::BTreeSet<&str> = refusing.iter().map(|&v| rejected_reason(v)).collect();
         assert_eq!(words.len(), refusing.len());
         assert!(!words.contains(rejected_reason(Verdict::Accepted)));

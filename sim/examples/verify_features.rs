@@ -1,7 +1,8 @@
 //! The verification's evidence on simulated scenes with their truth: builds the model at a
 //! placement, runs scenarios 0..N of a seed as `evaluate` does (each scene's miscalibrated
 //! rig included) and prints per scene whether the pose is correct, its errors, and the
-//! score, coverage, explained share, turn margin, height and tilt, then the score's
+//! score, coverage, explained share, turn margin, height and tilt, the share of the tray's
+//! surface the camera saw past at the pose and at the pose a slot's pitch away, then the score's
 //! distribution for correct and for wrong poses.
 //!
 //! ```text
@@ -34,7 +35,7 @@ fn main() {
     let evaluator = Evaluator::new(&cell, &placement, method, seed).expect("evaluator");
     let mut worker = evaluator.worker().expect("worker");
     if !quiet {
-        println!("scene found ok  pos_mm  rot_deg  score coverage explained turn_margin own other height_mm tilt_deg icp_rms icp_pairs verdict");
+        println!("scene found ok  pos_mm  rot_deg  score coverage explained turn_margin own other height_mm tilt_deg icp_rms icp_pairs seen_past shifted verdict");
     }
     let (mut right, mut wrong) = (Vec::new(), Vec::new());
     for i in 0..count {
@@ -47,7 +48,7 @@ fn main() {
         }
         if !quiet {
             println!(
-                "{i:5} {:5} {:2} {:7.2} {:8.2} {:6.3} {:8.3} {:9.3} {:11.3} {:5} {:5} {:9.2} {:8.2} {:7.3} {:9} {}",
+                "{i:5} {:5} {:2} {:7.2} {:8.2} {:6.3} {:8.3} {:9.3} {:11.3} {:5} {:5} {:9.2} {:8.2} {:7.3} {:9} {:9.3} {:7.3} {}",
                 u8::from(pose.found),
                 u8::from(s.success),
                 s.position_error_mm,
@@ -62,6 +63,8 @@ fn main() {
                 v.tilt_deg,
                 pose.icp.rms_mm,
                 pose.icp.correspondences,
+                v.see_through.share(),
+                v.see_through_shifted.share(),
                 v.verdict
             );
         }

@@ -129,6 +129,16 @@ pub struct FrameRecord {
     /// an accepted pose may be handed on. Absent from files written before the verification.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub verdict: Option<String>,
+    /// Of the model's sensor-facing points at the pose that fell on a measured pixel, the
+    /// share the sensor saw past (measured well behind them); absent when the pose came
+    /// from a cloud without its depth map, or from files written before it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub see_through: Option<f32>,
+    /// The same share at the pose moved by one slot's pitch that the camera saw past least
+    /// (absent where `see_through` is, where the tray has fewer than two slots, and where
+    /// the pose's own share is below the excess that could reject it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub see_through_shifted: Option<f32>,
     /// RANSAC inliers of the closest view.
     pub inliers: u32,
     /// Points of the down-sampled scene cloud.
@@ -265,6 +275,10 @@ impl FrameRecord {
             found: pose.found,
             verify_score: Some(pose.verification.score),
             verdict: Some(pose.verification.verdict.as_str().to_string()),
+            see_through: (pose.found && pose.verification.see_through.tested > 0)
+                .then(|| pose.verification.see_through.share()),
+            see_through_shifted: (pose.found && pose.verification.see_through_shifted.tested > 0)
+                .then(|| pose.verification.see_through_shifted.share()),
             inliers: pose.inliers,
             scene_points: pose.scene_points,
             keypoints: pose.keypoints,
