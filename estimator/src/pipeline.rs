@@ -168,6 +168,11 @@ impl std::fmt::Debug for Estimator {
     }
 }
 
+/// The last stereo frame's measured depth, as the verification reads it.
+fn depth_evidence<'a>(reconstruction: &'a Reconstruction, reconstructor: &'a Reconstructor) -> DepthEvidence<'a> {
+    DepthEvidence { disparity: &reconstruction.disparity, camera: &reconstructor.rectification().camera }
+}
+
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
@@ -262,10 +267,7 @@ impl Estimator {
         let start = Instant::now();
         self.reconstructor.process(left, right, &mut self.reconstruction)?;
         let r = self.reconstruction.timings;
-        let depth = DepthEvidence {
-            disparity: &self.reconstruction.disparity,
-            camera: &self.reconstructor.rectification().camera,
-        };
+        let depth = depth_evidence(&self.reconstruction, &self.reconstructor);
         let mut out = self.stages.run(&self.reconstruction.cloud.points, Some(&depth))?;
         self.depth_of_last_frame = true;
         out.timings.rectify_ms = r.rectify_ms;
@@ -298,10 +300,7 @@ impl Estimator {
     pub fn verify(&self, t_world_tray: &Isometry3<f64>) -> Verification {
         rayon::scope(|_| {
             let s = &self.stages;
-            let depth = DepthEvidence {
-                disparity: &self.reconstruction.disparity,
-                camera: &self.reconstructor.rectification().camera,
-            };
+            let depth = depth_evidence(&self.reconstruction, &self.reconstructor);
             s.verifier.verify(
                 &s.model,
                 &s.icp,

@@ -1,9 +1,10 @@
 //! See-through evidence against a pose: where the model at the pose puts a surface facing
 //! the sensor, the left camera's measured depth along the same pixel ray says whether the
 //! sensor saw that surface (or something in front of it) or saw past it, to the table or
-//! the floor behind. A wrong pose that scores well on the points it explains (a turn whose
-//! telling feature is hidden, a tray shifted by one slot's pitch) still puts parts of the
-//! model where the sensor looked through empty space.
+//! the floor behind. A wrong pose that scores well on the points it explains (a tray
+//! shifted by one slot's pitch) still puts parts of the model where the sensor looked
+//! through empty space; a half turn whose telling feature the camera does not see puts
+//! none, and is left to the turn check.
 //!
 //! The measured depth is the rectified left disparity map before the background was
 //! removed: a pixel that saw the table still holds the table's depth. The model's own
@@ -66,18 +67,21 @@ impl SeeThroughCounts {
 /// [`ITEM_FLOOR_MM`] above the slot's floor; every k-th of them, at most
 /// `SEE_THROUGH_POINTS` a view. Found once per model.
 pub fn tray_points(model: &Model) -> Vec<Vec<u32>> {
-    let on_an_item = |m: &Point3<f32>| {
-        let Some(layout) = &model.slots else { return false };
+    // Each slot's tray -> slot frame (the layout's own slot poses) and its item's outline
+    // there, grown: [x0, y0, x1, y1].
+    let items: Vec<(Isometry3<f32>, [f32; 4])> = model.slots.as_ref().map_or_else(Vec::new, |layout| {
         let [x0, y0] = layout.footprint_min_mm;
         let g = ITEM_GROWTH_MM;
-        let (x1, y1) =
-            (x0 + layout.cols as f32 * layout.cell_mm[0] + g, y0 + layout.rows as f32 * layout.cell_mm[1] + g);
-        let (x0, y0) = (x0 - g, y0 - g);
-        layout.slots.iter().any(|&[x, y, z, yaw]| {
-            let (sin, cos) = (-(yaw as f32).to_radians()).sin_cos();
-            let (dx, dy) = (m.x - x as f32, m.y - y as f32);
-            let (qx, qy) = (cos * dx - sin * dy, sin * dx + cos * dy);
-            m.z - z as f32 > ITEM_FLOOR_MM && qx >= x0 && qx <= x1 && qy >= y0 && qy <= y1
+        let (x1, y1) = (x0 + layout.cols as f32 * layout.cell_mm[0], y0 + layout.rows as f32 * layout.cell_mm[1]);
+        (0..layout.slots.len())
+            .filter_map(|n| layout.slot_pose(n))
+            .map(|pose| (pose.inverse().cast::<f32>(), [x0 - g, y0 - g, x1 + g, y1 + g]))
+            .collect()
+    });
+    let on_an_item = |m: &Point3<f32>| {
+        items.iter().any(|(to_slot, [x0, y0, x1, y1])| {
+            let q = to_slot * m;
+            q.z > ITEM_FLOOR_MM && q.x >= *x0 && q.x <= *x1 && q.y >= *y0 && q.y <= *y1
         })
     };
     model
