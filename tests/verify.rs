@@ -2,13 +2,16 @@
 //! under this tray's model and the tray half out of view are each rejected with a reason,
 //! while the tray in plain view is accepted, and the camera's depth shows no view past the
 //! true pose but one past the truth moved by a slot's pitch; for the built-in 8-slot tray
-//! and for a mesh tray of the test's own.
+//! and for a mesh tray of the test's own. A tray turned so that its tab stands behind its
+//! own far wall is found the right way round and its half turn rejected, the see-through
+//! evidence of the tab against the rendered scene's true depth; a tray whose symmetries
+//! list the half turn has it accepted.
 
 use camplace_config::{Cell, TrayKind};
-use camplace_estimator::pose::{Verdict, SEE_THROUGH_MIN_TESTED};
+use camplace_estimator::pose::{Verdict, SEE_THROUGH_MARGIN_MM, SEE_THROUGH_MIN_TESTED};
 use camplace_estimator::{Estimator, EstimatorConfig, Model, PoseEstimate};
 use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
-use nalgebra::{Isometry3, Point3, Translation3, Vector3};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
 use crate::meshes::tray_stl;
 
@@ -133,6 +136,206 @@ fn the_same_holds_for_a_mesh_tray() {
                 slots = [[-45.0, -30.0, 6.0, 0.0], [45.0, -30.0, 6.0, 0.0], [-45.0, 30.0, 6.0, 0.0], [45.0, 30.0, 6.0, 0.0]]\n";
     let cell = Cell::from_toml_str(text, dir.path()).unwrap();
     rejections(&cell, &Cell::default(), "tray-8");
+}
+
+/// The half turn about the tray's z axis.
+fn half_turn() -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::identity(),
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI),
+    )
+}
+
+/// Scenarios of `cell` with the tray turned so that its +x side (the tab's) faces away from
+/// the camera, without the occluder: the tab stands behind the tray's far wall. Each frame:
+/// the share of the tab's points `tab` (tray frame) the rendered scene hides (its true depth
+/// in front of them), the pose found, and the truth and its half turn verified, their
+/// see-through shares set against the same count on the rendered scene's true depth. In
+/// frames that hide at least 60 % of the tab the half turn must be rejected as seen
+/// through and the pose found must be the right way round.
+fn hidden_tab(cell: &Cell, tab: &[Point3<f64>]) {
+    let seed = 3;
+    let (mut sim, mut estimator) = setup(cell, seed);
+    let sensor = estimator.sensor_position().cast::<f64>();
+    let mut frame = Frame::default();
+    let mut hidden_scenes = 0;
+    for i in 0..6 {
+        let scenario = draw_scenario(cell, seed, i);
+        let mut scene = scenario.scene();
+        scene.occluder = None;
+        let t = scene.t_world_tray.translation.vector;
+        let yaw = (t.y - sensor.y).atan2(t.x - sensor.x);
+        scene.t_world_tray = Isometry3::new(t, Vector3::z() * yaw);
+        sim.render(&scene, Method::OneShot, noise_key(seed, i, false), &mut frame);
+        // The tab's share the rendered scene hides: its true depth more than 3 mm in front.
+        let left = &sim.rig().left;
+        let hidden = tab
+            .iter()
+            .filter(|m| {
+                let world = scene.t_world_tray * *m;
+                let z = left.t_world_camera.inverse_transform_point(&world).z;
+                left.project(&world).is_none_or(|uv| {
+                    let (u, v) = (uv.x.round() as usize, uv.y.round() as usize);
+                    u >= frame.depth_left.width
+                        || v >= frame.depth_left.height
+                        || f64::from(frame.depth_left.row(v)[u]) < z - 3.0
+                })
+            })
+            .count() as f64
+            / tab.len() as f64;
+        // The tray's half-turn parts at the truth and at its half turn against the rendered
+        // scene's true depth (the renderer's ray cast), as the verification counts them
+        // against the measured depth: facing the sensor, the nearest surface within two
+        // pixels more than the see-through margin behind.
+        let parts = &estimator.verifier().turn_parts.parts[1];
+        let true_share = |pose: &Isometry3<f64>| {
+            let (mut tested, mut past) = (0, 0);
+            let eye = pose.inverse() * sensor;
+            for (m, n) in parts.0.iter().zip(&parts.1) {
+                let (m, n) = (m.cast::<f64>(), n.cast::<f64>());
+                if n.dot(&(eye - m)) <= 0.0 {
+                    continue;
+                }
+                let world = pose * m;
+                let z = left.t_world_camera.inverse_transform_point(&world).z;
+                let Some(uv) = left.project(&world) else { continue };
+                let (u, v) = (uv.x.round() as isize, uv.y.round() as isize);
+                let mut nearest = f64::INFINITY;
+                for y in (v - 2).max(0)..=(v + 2).min(frame.depth_left.height as isize - 1) {
+                    for x in (u - 2).max(0)..=(u + 2).min(frame.depth_left.width as isize - 1) {
+                        nearest = nearest.min(f64::from(frame.depth_left.row(y as usize)[x as usize]));
+                    }
+                }
+                if nearest.is_finite() {
+                    tested += 1;
+                    past += usize::from(nearest > z + f64::from(SEE_THROUGH_MARGIN_MM));
+                }
+            }
+            past as f64 / tested.max(1) as f64
+        };
+        let truth_true = true_share(&scene.t_world_tray);
+        let turned_true = true_share(&(scene.t_world_tray * half_turn()));
+        let pose = estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
+        let truth = estimator.verify(&scene.t_world_tray);
+        let turned = estimator.verify(&(scene.t_world_tray * half_turn()));
+        let rotation = (pose.t_world_tray.rotation.inverse() * scene.t_world_tray.rotation).angle().to_degrees();
+        eprintln!(
+            "scene {i}: tab {:.0} % hidden; found {} ({:.1} deg off the truth); truth: tab parts seen past {:.3} \
+             of {} (true depth {truth_true:.3}), the turn's {:.3} of {} ({}); half turn: {:.3} of {} (true depth \
+             {turned_true:.3}), the truth's {:.3} of {} ({})",
+            100.0 * hidden,
+            pose.verification.verdict,
+            rotation,
+            truth.turn_see_through.share(),
+            truth.turn_see_through.tested,
+            truth.turn_see_through_other.share(),
+            truth.turn_see_through_other.tested,
+            truth.verdict,
+            turned.turn_see_through.share(),
+            turned.turn_see_through.tested,
+            turned.turn_see_through_other.share(),
+            turned.turn_see_through_other.tested,
+            turned.verdict
+        );
+        // The measured depth tells what the true depth does.
+        for (what, v, t) in [("truth", &truth, truth_true), ("half turn", &turned, turned_true)] {
+            let measured = f64::from(v.turn_see_through.share());
+            assert!(
+                (measured - t).abs() <= 0.1,
+                "scene {i}, {what}: seen past {measured:.3}, by the true depth {t:.3}"
+            );
+        }
+        if hidden < 0.6 {
+            continue;
+        }
+        hidden_scenes += 1;
+        // The camera saw the table where the half turn puts the tab, and nothing says the
+        // truth is turned.
+        assert!(turned.turned_wrong_way(), "scene {i}: the half turn not seen past: {turned:?}");
+        assert_eq!(turned.verdict, Verdict::SeenThrough, "scene {i}: the half turn: {turned:?}");
+        assert!(!truth.turned_wrong_way(), "scene {i}: the truth taken for turned: {truth:?}");
+        if pose.found {
+            assert!(rotation < 5.0, "scene {i}: the pose found is {rotation:.1} deg off the truth: {pose:?}");
+        }
+    }
+    assert!(hidden_scenes >= 3, "only {hidden_scenes} of 6 scenes hide most of the tab: the test shows nothing");
+}
+
+/// Points on the built-in 8-slot tray's tab (its top and outer face), tray frame: 12 mm out
+/// of the +x wall at x = 100, 40 mm wide, 15 mm high.
+fn builtin_tab() -> Vec<Point3<f64>> {
+    grid_on_tab(100.0, 12.0, 40.0, 15.0)
+}
+
+/// Points on a box tab from `hx` to `hx + tx`, `ty` wide, `tz` high: its top and outer face.
+fn grid_on_tab(hx: f64, tx: f64, ty: f64, tz: f64) -> Vec<Point3<f64>> {
+    let mut out = Vec::new();
+    for a in 1..8 {
+        for b in 1..8 {
+            let (fa, fb) = (f64::from(a) / 8.0, f64::from(b) / 8.0);
+            out.push(Point3::new(hx + fa * tx, (fb - 0.5) * ty, tz));
+            out.push(Point3::new(hx + tx, (fb - 0.5) * ty, fa * tz));
+        }
+    }
+    out
+}
+
+#[test]
+fn a_half_turn_whose_tab_the_camera_cannot_see_is_rejected_where_it_saw_the_table() {
+    hidden_tab(&Cell::default(), &builtin_tab());
+}
+
+#[test]
+fn a_mesh_trays_half_turn_with_its_tab_hidden_is_rejected() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("own.stl"), tray_stl(200.0, 140.0, 6.0, 8.0, 28.0)).unwrap();
+    let text = "[tray]\nkind = \"mesh\"\nmesh = \"own.stl\"\n\
+                slots = [[-45.0, -30.0, 6.0, 0.0], [45.0, -30.0, 6.0, 0.0], [-45.0, 30.0, 6.0, 0.0], [45.0, 30.0, 6.0, 0.0]]\n";
+    let cell = Cell::from_toml_str(text, dir.path()).unwrap();
+    hidden_tab(&cell, &grid_on_tab(100.0, 20.0, 30.0, 28.0 * 0.6));
+}
+
+/// A tray truly symmetric under a half turn (a box tray without a tab) whose cell lists the
+/// half turn: the truth and its half turn are both accepted, the turn no evidence against
+/// either; with the symmetry not listed, the half turn is ambiguous or worse.
+#[test]
+fn a_listed_half_turn_is_accepted() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("plain.stl"),
+        crate::meshes::boxes_stl(&[
+            ([-100.0, -70.0, 0.0], [100.0, 70.0, 6.0]),
+            ([-100.0, -70.0, 0.0], [-92.0, 70.0, 28.0]),
+            ([92.0, -70.0, 0.0], [100.0, 70.0, 28.0]),
+            ([-100.0, -70.0, 0.0], [100.0, -62.0, 28.0]),
+            ([-100.0, 62.0, 0.0], [100.0, 70.0, 28.0]),
+        ]),
+    )
+    .unwrap();
+    let text = "[tray]\nkind = \"mesh\"\nmesh = \"plain.stl\"\nsymmetries = [180.0]\n\
+                slots = [[-45.0, -30.0, 6.0, 0.0], [45.0, -30.0, 6.0, 0.0], [-45.0, 30.0, 6.0, 0.0], [45.0, 30.0, 6.0, 0.0]]\n";
+    let cell = Cell::from_toml_str(text, dir.path()).unwrap();
+    let seed = 4;
+    let (mut sim, mut estimator) = setup(&cell, seed);
+    let mut frame = Frame::default();
+    let mut accepted = 0;
+    for i in 0..4 {
+        let mut scene = draw_scenario(&cell, seed, i).scene();
+        scene.occluder = None;
+        sim.render(&scene, Method::OneShot, noise_key(seed, i, false), &mut frame);
+        estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
+        let truth = estimator.verify(&scene.t_world_tray);
+        let turned = estimator.verify(&(scene.t_world_tray * half_turn()));
+        eprintln!(
+            "scene {i}: truth {} ({:.3}), half turn {} ({:.3})",
+            truth.verdict, truth.score, turned.verdict, turned.score
+        );
+        assert!(!turned.turned_wrong_way() && !truth.turned_wrong_way(), "scene {i}: {truth:?} {turned:?}");
+        assert_eq!(turned.turn_seen_quarters % 2, 1, "scene {i}: the listed half turn weighed: {turned:?}");
+        assert!(turned.verdict != Verdict::Ambiguous && truth.verdict != Verdict::Ambiguous, "scene {i}");
+        accepted += usize::from(truth.verdict.accepted() && turned.verdict.accepted());
+    }
+    assert!(accepted >= 3, "{accepted} of 4 scenes had the truth and its listed half turn both accepted");
 }
 
 #[test]

@@ -21,7 +21,7 @@ use std::time::Instant;
 use camplace_config::{AsImageView, EstimatorParams};
 use nalgebra::{Isometry3, Point3};
 
-use crate::pose::{on_table, quarter_turns};
+use crate::pose::{on_table, quarter_turns, turn_favoured, turn_see_through};
 use crate::{
     Correspondence, DepthEvidence, Error, ErrorKind, EstimatorConfig, FeatureExtractor, FeatureMatcher, Icp, IcpResult,
     Method, Model, Ransac, RansacResult, Reconstruction, Reconstructor, Result, Rig, SlotJudge, SlotReading, Verdict,
@@ -438,14 +438,24 @@ impl Stages {
         // The pose's counts against its quarter turns, which the verification reuses while
         // the pose stands.
         let mut counted = None;
+        // Whether a turn of the pose was taken instead of it.
+        let mut refined_turn = false;
         if p.turn_check {
             let counts = self.icp.explained_near_and_apart(self.features.cloud(), &pose, &[1, 2, 3], reach);
             counted = Some(counts);
             let lead = |(own, theirs): (u32, u32)| (theirs as f32 - own as f32) / ((own + theirs).max(1) as f32).sqrt();
             // The turn the scene's distinct parts favour most over the pose, if any.
+            // A turn whose distinct parts the camera saw past, where it did not past the
+            // pose's, is no candidate however the few points on either's parts fall.
+            let seen_past_turn = |q: u32| {
+                depth.is_some_and(|d| {
+                    let (own, theirs) = turn_see_through(&self.verifier.turn_parts, d, &self.sensor_position, &pose, q);
+                    turn_favoured(theirs, own)
+                })
+            };
             let favoured = (1..4u32)
                 .zip(counts.apart)
-                .filter(|&(_, c)| lead(c) >= AMBIGUOUS_TURN_SIGMAS)
+                .filter(|&(q, c)| lead(c) >= AMBIGUOUS_TURN_SIGMAS && !seen_past_turn(q))
                 .max_by(|a, b| lead(a.1).total_cmp(&lead(b.1)));
             if let Some((quarters, _)) = favoured {
                 let turned = pose * quarter_turns(quarters);
@@ -464,6 +474,34 @@ impl Stages {
                         out.icp = other;
                         refined = true;
                         counted = None;
+                        refined_turn = true;
+                    }
+                }
+            }
+            // Where the scene's points cannot tell (the telling part hidden or out of view),
+            // what the camera saw past can: a turn whose distinct parts it saw past less
+            // than the pose's, by the verification's measure, is refined and kept when the
+            // evidence still favours it from there.
+            if let (Some(depth), false) = (depth, refined_turn) {
+                let model = &self.model;
+                let (quarters, own, theirs) = self.verifier.turn_evidence(model, depth, &self.sensor_position, &pose);
+                if quarters > 0 && turn_favoured(own, theirs) {
+                    let turned = pose * quarter_turns(quarters);
+                    let turned_view = model.closest_view(&turned, &self.sensor_position);
+                    let other = self.icp.refine(self.features.cloud(), turned_view, &self.sensor_position, &turned)?;
+                    if other.refined {
+                        let (theirs, back) = turn_see_through(
+                            &self.verifier.turn_parts,
+                            depth,
+                            &self.sensor_position,
+                            &other.t_world_tray,
+                            4 - quarters,
+                        );
+                        if turn_favoured(back, theirs) {
+                            out.icp = other;
+                            refined = true;
+                            counted = None;
+                        }
                     }
                 }
             }

@@ -2,8 +2,10 @@
 //! placement, runs scenarios 0..N of a seed as `evaluate` does (each scene's miscalibrated
 //! rig included) and prints per scene whether the pose is correct, its errors, and the
 //! score, coverage, explained share, turn margin, height and tilt, the share of the tray's
-//! surface the camera saw past at the pose and at the pose a slot's pitch away, then the score's
-//! distribution for correct and for wrong poses.
+//! surface the camera saw past at the pose and at the pose a slot's pitch away, the turn the
+//! see-through evidence weighs with the shares of the pose's and the turn's distinct parts
+//! seen past and how many of each were tested, then the score's distribution for correct and
+//! for wrong poses.
 //!
 //! ```text
 //! cargo run --release -p camplace-sim --example verify_features -- \
@@ -35,7 +37,7 @@ fn main() {
     let evaluator = Evaluator::new(&cell, &placement, method, seed).expect("evaluator");
     let mut worker = evaluator.worker().expect("worker");
     if !quiet {
-        println!("scene found ok  pos_mm  rot_deg  score coverage explained turn_margin own other height_mm tilt_deg icp_rms icp_pairs seen_past shifted verdict");
+        println!("scene found ok  pos_mm  rot_deg  score coverage explained turn_margin own other height_mm tilt_deg icp_rms icp_pairs seen_past shifted turn_q turn_own_st turn_other_st n_own n_other verdict");
     }
     let (mut right, mut wrong) = (Vec::new(), Vec::new());
     for i in 0..count {
@@ -48,7 +50,7 @@ fn main() {
         }
         if !quiet {
             println!(
-                "{i:5} {:5} {:2} {:7.2} {:8.2} {:6.3} {:8.3} {:9.3} {:11.3} {:5} {:5} {:9.2} {:8.2} {:7.3} {:9} {:9.3} {:7.3} {}",
+                "{i:5} {:5} {:2} {:7.2} {:8.2} {:6.3} {:8.3} {:9.3} {:11.3} {:5} {:5} {:9.2} {:8.2} {:7.3} {:9} {:9.3} {:7.3} {} {:6.3} {:6.3} {:4} {:4} {}",
                 u8::from(pose.found),
                 u8::from(s.success),
                 s.position_error_mm,
@@ -65,6 +67,11 @@ fn main() {
                 pose.icp.correspondences,
                 v.see_through.share(),
                 v.see_through_shifted.share(),
+                v.turn_seen_quarters,
+                v.turn_see_through.share(),
+                v.turn_see_through_other.share(),
+                v.turn_see_through.tested,
+                v.turn_see_through_other.tested,
                 v.verdict
             );
         }

@@ -20,11 +20,13 @@ pub use metrics::{correct_matches, pose_errors, PoseErrors};
 pub use model::{Model, ModelOrigin, ModelVerification, ModelView};
 pub use model_file::MODEL_FORMAT_VERSION;
 pub use ransac::{Ransac, RansacCheck, RansacResult};
+pub(crate) use see_through::turn_see_through;
 pub use see_through::{see_through, slot_pitches, tray_points, DepthEvidence, SeeThroughCounts, SEE_THROUGH_MARGIN_MM};
 pub use slots::{
     slot_letters, SlotJudge, SlotLayout, SlotReading, SlotState, EDGE_CELL, FLOOR_TOLERANCE_MM, MAX_FOOTPRINT_CELLS,
     MAX_MISMATCH_SHARE, MIN_SEEN_SHARE,
 };
+pub(crate) use verify::turn_favoured;
 pub use verify::{
     Verdict, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS, RESTING_HEIGHT_MM, RESTING_TILT_DEG,
     SEE_THROUGH_MIN_EXCESS, SEE_THROUGH_MIN_TESTED, SEE_THROUGH_SIGMAS,

@@ -14,6 +14,8 @@
 
 use nalgebra::{Isometry3, Point3, Vector3};
 
+use crate::pose::quarter_turns;
+use crate::spatial::NearestGrid;
 use crate::{FloatImage, Model, RectifiedCamera};
 
 /// A measured depth more than this behind the model's surface along the pixel's ray means
@@ -33,6 +35,11 @@ const ITEM_FLOOR_MM: f32 = 2.0;
 /// the count's deviation far below the gap between a pose and its neighbour a pitch away,
 /// and a pass a few tens of microseconds on one core.
 const SEE_THROUGH_POINTS: usize = 4000;
+/// A model point is the tray's surface when another view captured a point within this many
+/// surface resolutions of it.
+const SUPPORT_CELLS: f32 = 1.5;
+/// The points of a view where the tray and one turn of it differ, tested at most.
+const TURN_POINTS: usize = 3000;
 
 /// The measured depth a pose is set against: the rectified left camera's disparity map
 /// (px; +inf where nothing was measured) and the camera.
@@ -67,6 +74,83 @@ impl SeeThroughCounts {
 /// [`ITEM_FLOOR_MM`] above the slot's floor; every k-th of them, at most
 /// `SEE_THROUGH_POINTS` a view. Found once per model.
 pub fn tray_points(model: &Model) -> Vec<Vec<u32>> {
+    all_tray_points(model)
+        .iter()
+        .map(|tray| camplace_config::thinned(tray, SEE_THROUGH_POINTS).copied().collect())
+        .collect()
+}
+
+/// The tray's surface, every view's tray points merged (one a surface-resolution cell),
+/// split per quarter turn `q` of 1 to 3 (at `q - 1`) into the points that the whole tray
+/// turned by `q` quarter turns about its z axis has nothing within `margin` of, mm: the
+/// parts (a tab, a chamfer, a whole end) where the tray and that turn of it differ. Merged
+/// from every view because a view captured close up may miss a part another view shows.
+/// Every k-th of them, at most `TURN_POINTS` a turn. Found once per model.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TurnParts {
+    /// Per turn, the distinct points (tray frame, mm) and their outward normals.
+    pub parts: [SurfacePoints; 3],
+}
+
+/// Surface points (tray frame, mm) and their outward normals, index for index.
+pub type SurfacePoints = (Vec<Point3<f32>>, Vec<Vector3<f32>>);
+
+impl TurnParts {
+    /// The distinct parts of `model`'s tray for each quarter turn (see [`TurnParts`]).
+    pub fn of(model: &Model, margin: f32) -> TurnParts {
+        let whole: Vec<Point3<f32>> = model.views.iter().flat_map(|v| v.points.iter().copied()).collect();
+        if whole.is_empty() {
+            return TurnParts::default();
+        }
+        let resolution = model.surface_resolution.max(0.1);
+        let grid = NearestGrid::new(&whole, resolution, margin);
+        let margin2 = margin * margin;
+        // Whether the tray turned by q has a point within the margin of m: m turned back by
+        // q quarter turns, (x, y) -> (y, -x) per quarter, looked up in the untouched tray.
+        let turn_has = |m: &Point3<f32>, q: u32| {
+            let back = match q {
+                1 => Point3::new(m.y, -m.x, m.z),
+                2 => Point3::new(-m.x, -m.y, m.z),
+                _ => Point3::new(-m.y, m.x, m.z),
+            };
+            grid.lookup(&back).is_some_and(|i| (back - whole[i as usize]).norm_squared() <= margin2)
+        };
+        // The tray's points of every view that another view also captured (within
+        // `SUPPORT_CELLS` surface resolutions: a captured model's stereo smear beside a wall
+        // differs from view to view, the surface does not), one per cell of the surface
+        // resolution (the first view's first), in view order.
+        let support = SUPPORT_CELLS * resolution;
+        let view_grids: Vec<NearestGrid> =
+            model.views.iter().map(|v| NearestGrid::new(&v.points, resolution, support)).collect();
+        let seen_by_another = |k: usize, m: &Point3<f32>| {
+            model.views.iter().zip(&view_grids).enumerate().any(|(j, (view, grid))| {
+                j != k && grid.lookup(m).is_some_and(|i| (m - view.points[i as usize]).norm() <= support)
+            })
+        };
+        let mut cells = std::collections::HashSet::new();
+        let mut merged: Vec<(Point3<f32>, Vector3<f32>)> = Vec::new();
+        for (k, (view, tray)) in model.views.iter().zip(all_tray_points(model)).enumerate() {
+            for i in tray {
+                let (m, n) = (view.points[i as usize], view.normals[i as usize]);
+                if !seen_by_another(k, &m) {
+                    continue;
+                }
+                let key = (m.coords / resolution).map(|c| c.floor() as i32);
+                if cells.insert((key.x, key.y, key.z)) {
+                    merged.push((m, n));
+                }
+            }
+        }
+        let parts = [1, 2, 3].map(|q| {
+            let apart: Vec<&(Point3<f32>, Vector3<f32>)> = merged.iter().filter(|(m, _)| !turn_has(m, q)).collect();
+            camplace_config::thinned(&apart, TURN_POINTS).map(|&&(m, n)| (m, n)).unzip()
+        });
+        TurnParts { parts }
+    }
+}
+
+/// Per view of `model`, every point that is the tray's and not a slot's item.
+fn all_tray_points(model: &Model) -> Vec<Vec<u32>> {
     // Each slot's tray -> slot frame (the layout's own slot poses) and its item's outline
     // there, grown: [x0, y0, x1, y1].
     let items: Vec<(Isometry3<f32>, [f32; 4])> = model.slots.as_ref().map_or_else(Vec::new, |layout| {
@@ -87,11 +171,7 @@ pub fn tray_points(model: &Model) -> Vec<Vec<u32>> {
     model
         .views
         .iter()
-        .map(|view| {
-            let tray: Vec<u32> =
-                (0..view.points.len() as u32).filter(|&i| !on_an_item(&view.points[i as usize])).collect();
-            camplace_config::thinned(&tray, SEE_THROUGH_POINTS).copied().collect()
-        })
+        .map(|view| (0..view.points.len() as u32).filter(|&i| !on_an_item(&view.points[i as usize])).collect())
         .collect()
 }
 
@@ -110,6 +190,40 @@ pub fn see_through(
     }
     let k = model.closest_view(pose, sensor);
     let (view, indices) = (&model.views[k], tray_points.get(k).map_or(&[][..], Vec::as_slice));
+    let points = indices.iter().map(|&i| (&view.points[i as usize], &view.normals[i as usize]));
+    count_seen_through(points, depth, sensor, pose)
+}
+
+/// The see-through counts of the pose and of its turn by `quarters` quarter turns about the
+/// tray's z axis, each over its own parts that the other lacks (`turn_parts`): the camera
+/// sees past the turned pose's tab where the tray stands the right way round, whether or
+/// not it sees the tab itself. One thread, no allocation.
+pub fn turn_see_through(
+    turn_parts: &TurnParts,
+    depth: &DepthEvidence,
+    sensor: &Point3<f32>,
+    pose: &Isometry3<f64>,
+    quarters: u32,
+) -> (SeeThroughCounts, SeeThroughCounts) {
+    if !(1..4).contains(&quarters) {
+        return Default::default();
+    }
+    let (own_points, own_normals) = &turn_parts.parts[quarters as usize - 1];
+    let own = count_seen_through(own_points.iter().zip(own_normals), depth, sensor, pose);
+    let (points, normals) = &turn_parts.parts[3 - quarters as usize];
+    let other = count_seen_through(points.iter().zip(normals), depth, sensor, &(pose * quarter_turns(quarters)));
+    (own, other)
+}
+
+/// The see-through counts of the model points `points` (tray frame, with their normals)
+/// at `pose`: those facing the sensor that fall on a measured pixel, and of them those the
+/// sensor measured clearly behind.
+fn count_seen_through<'a>(
+    points: impl Iterator<Item = (&'a Point3<f32>, &'a Vector3<f32>)>,
+    depth: &DepthEvidence,
+    sensor: &Point3<f32>,
+    pose: &Isometry3<f64>,
+) -> SeeThroughCounts {
     let camera = depth.camera;
     let disparity = depth.disparity;
     let (width, height) = (disparity.width as isize, disparity.height as isize);
@@ -119,8 +233,7 @@ pub fn see_through(
     let (fx, fy, cx, cy) = (kk[(0, 0)] as f32, kk[(1, 1)] as f32, kk[(0, 2)] as f32, kk[(1, 2)] as f32);
     let focal_baseline = (camera.focal() * camera.baseline) as f32;
     let mut counts = SeeThroughCounts::default();
-    for &i in indices {
-        let (m, n) = (&view.points[i as usize], &view.normals[i as usize]);
+    for (m, n) in points {
         if n.dot(&(eye - m)) <= 0.0 {
             continue;
         }
@@ -180,6 +293,57 @@ pub fn slot_pitches(model: &Model) -> [Option<Vector3<f64>>; 2] {
 mod tests {
     use super::*;
     use crate::pose::SlotLayout;
+    use crate::testing;
+
+    /// The turn parts of the synthetic tray against a search over every point of every
+    /// view: each part point has no point of the turned tray within the margin (up to the
+    /// grid's half-cell approximation) and another view's point near it; the half turn's
+    /// parts lie on the tab and nowhere else, and the symmetric tray has none.
+    #[test]
+    fn turn_parts_are_where_the_turned_tray_has_nothing() {
+        let margin = 6.0;
+        for symmetric in [false, true] {
+            let model = testing::tray(symmetric, 1);
+            let parts = TurnParts::of(&model, margin);
+            let whole: Vec<(usize, Point3<f32>)> =
+                model.views.iter().enumerate().flat_map(|(k, v)| v.points.iter().map(move |p| (k, *p))).collect();
+            let slack = model.surface_resolution;
+            for (q, (points, normals)) in (1..4u32).zip(&parts.parts) {
+                assert_eq!(points.len(), normals.len());
+                assert!(points.len() <= TURN_POINTS);
+                let turn = quarter_turns(q).cast::<f32>();
+                for p in points {
+                    // The turned tray's points near p: p turned back, against the tray.
+                    let back = turn.inverse() * p;
+                    let nearest = whole.iter().map(|(_, w)| (w - back).norm()).fold(f32::INFINITY, f32::min);
+                    assert!(nearest > margin - slack, "q {q}: {p} has a turned point {nearest} away");
+                    let views_near =
+                        model.views.iter().filter(|v| v.points.iter().any(|w| (w - p).norm() <= 1.5 * slack)).count();
+                    assert!(views_near >= 2, "q {q}: {p} captured by {views_near} view");
+                }
+                if q == 2 {
+                    // The half turn differs by the tab alone (x 100..116, y 15..45, z 0..15).
+                    let on_tab = |p: &Point3<f32>| p.x >= 100.0 - 1e-3 && p.y >= 15.0 - 1e-3 && p.y <= 45.0 + 1e-3;
+                    assert_eq!(
+                        points.is_empty(),
+                        symmetric,
+                        "symmetric {symmetric}: {} half-turn points",
+                        points.len()
+                    );
+                    let off: Vec<_> = points.iter().filter(|p| !on_tab(p)).collect();
+                    assert!(off.is_empty(), "half-turn parts off the tab: {off:?}");
+                    if !symmetric {
+                        // The tab's top, captured by every view, is all there (thinning aside).
+                        let top = whole.iter().filter(|(_, w)| on_tab(w) && w.x > 100.0 + margin + slack && w.z > 14.9);
+                        let top_cells = top.map(|(_, w)| ((w.x / slack).floor() as i32, (w.y / slack).floor() as i32));
+                        let cells: std::collections::HashSet<_> = top_cells.collect();
+                        let found = points.iter().filter(|p| p.z > 14.9).count();
+                        assert!(found + 2 >= cells.len(), "{found} tab-top points of {} cells", cells.len());
+                    }
+                }
+            }
+        }
+    }
 
     fn model_with_slots(slots: Vec<[f64; 4]>) -> Model {
         let layout = SlotLayout {

@@ -18,7 +18,11 @@
 //!   pitch explains the points it lies on as well as the right pose, but its end wall
 //!   floats where the camera saw the table, and the pose a pitch back does not. The share
 //!   itself depends on the depth method (one-shot stereo smears thin walls: 3–7 % on right
-//!   poses, phase-12 0.2 %), so the pose is judged against its neighbours, not a level.
+//!   poses, phase-12 0.2 %), so the pose is judged against its neighbours, not a level;
+//! - turn see-through: the same count over the pose's own distinct parts (those its turn
+//!   lacks: a tab) against the turn's over its own. Where the tab stands behind the tray's
+//!   far wall no scene point lies on it, yet the camera saw the table where the wrong turn
+//!   puts it.
 //!
 //! The score is coverage × explained: both must be high for a pose to be right, and each
 //! falls with a different kind of wrong pose (a shifted or half-seen tray loses coverage,
@@ -33,7 +37,10 @@ use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use rayon::prelude::*;
 
 use crate::pose::icp::ExplainedCounts;
-use crate::pose::see_through::{see_through, slot_pitches, tray_points, DepthEvidence, SeeThroughCounts};
+use crate::pose::icp::DISTINCT_MARGIN;
+use crate::pose::see_through::{
+    see_through, slot_pitches, tray_points, turn_see_through, DepthEvidence, SeeThroughCounts, TurnParts,
+};
 use crate::spatial::SceneGrid;
 use crate::{Icp, Model};
 
@@ -63,6 +70,22 @@ pub const SEE_THROUGH_SIGMAS: f32 = 4.0;
 pub const SEE_THROUGH_MIN_EXCESS: f32 = 0.02;
 /// Fewer tested points than this, at the pose or at the shifted pose, are no evidence.
 pub const SEE_THROUGH_MIN_TESTED: u32 = 200;
+/// A pose is turned the wrong way when the camera saw past its own distinct parts (those
+/// an unlisted quarter turn lacks) on a share larger, by at least this many standard
+/// deviations and by [`TURN_SEE_THROUGH_MIN_EXCESS`], than it saw past the turn's. Measured
+/// with the `verify_features` example (300 scenes, seed 1): at tray-8's quick-study
+/// placement (phase-12) the half turns stood at 0.81–1.0 with the right tab untested, the
+/// correct poses' own share at most 0.04 above their turn's; at the paper's optimum (one
+/// shot, whose captured model smears the walls beside the tab) the right pose's tab parts
+/// stood at 0.43–0.47 against 0.59–0.61 at the half turn (`tests/verify.rs`).
+pub const TURN_SEE_THROUGH_SIGMAS: f32 = 3.0;
+/// The smallest excess share over the turn's that makes a pose turned the wrong way.
+pub const TURN_SEE_THROUGH_MIN_EXCESS: f32 = 0.1;
+/// Where too few of the turn's parts were tested to weigh, the share of the pose's own
+/// parts seen past that alone makes the pose turned the wrong way.
+pub const TURN_SEE_THROUGH_ALONE: f32 = 0.5;
+/// Fewer tested distinct points than this, at the pose or at its turn, are no evidence.
+pub const TURN_SEE_THROUGH_MIN_TESTED: u32 = 30;
 /// A tray resting on the table has its bottom within this of the table, mm.
 pub const RESTING_HEIGHT_MM: f64 = 6.0;
 /// A tray resting on the table has its z axis within this of the world's, deg.
@@ -159,6 +182,19 @@ pub struct Verification {
     /// The same of the pose moved by one slot's pitch (either way, along either of the
     /// tray's two slot directions) that the camera saw past least.
     pub see_through_shifted: SeeThroughCounts,
+    /// The pose's own distinct parts (those its closest unlisted quarter turn lacks) set
+    /// against the measured depth: of the turns, the one whose parts the camera saw past
+    /// least against the pose's.
+    pub turn_see_through: SeeThroughCounts,
+    /// The same turn's distinct parts (those the pose lacks) at the turned pose.
+    pub turn_see_through_other: SeeThroughCounts,
+    /// That turn, in quarter turns about the tray's z axis (0 when none was weighed).
+    pub turn_seen_quarters: u32,
+    /// The camera saw past the distinct parts of the closest unlisted turn (the one the
+    /// turn margin is of) and not past the pose's, by the measure of
+    /// [`Verification::turned_wrong_way`] the other way round: the pose stands against
+    /// that turn whatever the few scene points on either's parts say.
+    pub turn_confirmed: bool,
 }
 
 impl Verification {
@@ -172,13 +208,21 @@ impl Verification {
     /// moved by a slot's pitch: by [`SEE_THROUGH_SIGMAS`] and [`SEE_THROUGH_MIN_EXCESS`],
     /// each tested on at least [`SEE_THROUGH_MIN_TESTED`] points.
     pub fn seen_past(&self) -> bool {
-        let (pose, shifted) = (self.see_through, self.see_through_shifted);
-        if pose.tested < SEE_THROUGH_MIN_TESTED || shifted.tested < SEE_THROUGH_MIN_TESTED {
-            return false;
-        }
-        let (p, q) = (pose.share(), shifted.share());
-        let deviation = (p * (1.0 - p) / pose.tested as f32 + q * (1.0 - q) / shifted.tested as f32).sqrt();
-        p - q >= SEE_THROUGH_MIN_EXCESS && p - q >= SEE_THROUGH_SIGMAS * deviation
+        seen_past_more(
+            self.see_through,
+            self.see_through_shifted,
+            SEE_THROUGH_MIN_TESTED,
+            SEE_THROUGH_SIGMAS,
+            SEE_THROUGH_MIN_EXCESS,
+        )
+    }
+
+    /// Whether the camera saw past the pose's own distinct parts more than past those of
+    /// its turn (`turn_see_through` against `turn_see_through_other`): by
+    /// [`TURN_SEE_THROUGH_SIGMAS`] and [`TURN_SEE_THROUGH_MIN_EXCESS`], each tested on at
+    /// least [`TURN_SEE_THROUGH_MIN_TESTED`] points. The tray stands the other way round.
+    pub fn turned_wrong_way(&self) -> bool {
+        turn_favoured(self.turn_see_through, self.turn_see_through_other)
     }
 
     /// How many standard deviations the points only the pose explains exceed those only
@@ -191,6 +235,43 @@ impl Verification {
         }
         (self.turn_own as f32 - self.turn_other as f32) / (n as f32).sqrt()
     }
+}
+
+/// Whether the camera saw past `pose`'s parts on a share larger than past `other`'s by
+/// `sigmas` standard deviations (two proportions) and by `min_excess`, both tested on at
+/// least `min_tested` points.
+fn seen_past_more(
+    pose: SeeThroughCounts,
+    other: SeeThroughCounts,
+    min_tested: u32,
+    sigmas: f32,
+    min_excess: f32,
+) -> bool {
+    if pose.tested < min_tested || other.tested < min_tested {
+        return false;
+    }
+    let (p, q) = (pose.share(), other.share());
+    let deviation = (p * (1.0 - p) / pose.tested as f32 + q * (1.0 - q) / other.tested as f32).sqrt();
+    p - q >= min_excess && p - q >= sigmas * deviation
+}
+
+/// Whether the see-through evidence of a pose's distinct parts (`own`) against its turn's
+/// (`other`) says the tray stands turned: [`Verification::turned_wrong_way`]. The turn's
+/// parts count as not seen past when too few of them were tested: a telling part the
+/// camera cannot see at the right pose (behind the tray's own far wall, under an
+/// occluder) gives no evidence there, while the camera saw past it where the wrong pose
+/// puts it.
+pub(crate) fn turn_favoured(own: SeeThroughCounts, other: SeeThroughCounts) -> bool {
+    if other.tested < TURN_SEE_THROUGH_MIN_TESTED {
+        own.tested >= TURN_SEE_THROUGH_MIN_TESTED && own.share() >= TURN_SEE_THROUGH_ALONE
+    } else {
+        seen_past_more(own, other, TURN_SEE_THROUGH_MIN_TESTED, TURN_SEE_THROUGH_SIGMAS, TURN_SEE_THROUGH_MIN_EXCESS)
+    }
+}
+
+/// Whether `model`'s symmetries list the turn by `quarters` quarter turns about its z axis.
+pub(crate) fn listed_turn(model: &Model, quarters: u32) -> bool {
+    model.symmetries_deg.iter().any(|s| (s.rem_euclid(360.0) - 90.0 * quarters as f32).abs() < 1.0)
 }
 
 /// The verification stage's settings: whether it may reject, and the threshold.
@@ -206,6 +287,8 @@ pub struct Verifier {
     pub pitches: [Option<Vector3<f64>>; 2],
     /// Per model view, its points that are the tray's and not an item's (see-through's).
     pub tray_points: Vec<Vec<u32>>,
+    /// The tray's parts that each quarter turn of it lacks (the turn's see-through evidence).
+    pub turn_parts: TurnParts,
 }
 
 impl Verifier {
@@ -218,6 +301,7 @@ impl Verifier {
             reach: params.inlier_distance as f32,
             pitches: slot_pitches(model),
             tray_points: tray_points(model),
+            turn_parts: TurnParts::of(model, DISTINCT_MARGIN * params.inlier_distance as f32),
         }
     }
 
@@ -270,6 +354,11 @@ impl Verifier {
                 .min_by(|a, b| a.share().total_cmp(&b.share()))
                 .unwrap_or_default();
         }
+        // The quarter turns the symmetries do not list, weighed by what the camera saw past.
+        if let Some(depth) = depth {
+            (v.turn_seen_quarters, v.turn_see_through, v.turn_see_through_other) =
+                self.turn_evidence(model, depth, sensor, pose);
+        }
         // The quarter turns weighed against the pose in the same pass over the scene as the
         // explained share.
         let counts = match counted {
@@ -280,12 +369,16 @@ impl Verifier {
         v.score = (v.coverage * v.explained).clamp(0.0, 1.0);
         // The quarter turn the tray's symmetries do not list that comes closest: the points
         // on the pose's distinct parts against those on the turn's.
-        let listed = |q: u32| model.symmetries_deg.iter().any(|s| (s.rem_euclid(360.0) - 90.0 * q as f32).abs() < 1.0);
-        for (_, &(own, other)) in (1..4u32).zip(&counts.apart).filter(|(q, _)| !listed(*q)) {
+        let mut closest = 0;
+        for (q, &(own, other)) in (1..4u32).zip(&counts.apart).filter(|(q, _)| !listed_turn(model, *q)) {
             let margin = if own + other == 0 { 1.0 } else { (own as f32 - other as f32) / (own + other) as f32 };
             if margin < v.turn_margin {
-                (v.turn_margin, v.turn_own, v.turn_other) = (margin, own, other);
+                (v.turn_margin, v.turn_own, v.turn_other, closest) = (margin, own, other, q);
             }
+        }
+        if let (Some(depth), true) = (depth, closest > 0) {
+            let (own, other) = turn_see_through(&self.turn_parts, depth, sensor, pose, closest);
+            v.turn_confirmed = turn_favoured(other, own);
         }
         v.verdict = if !self.enabled {
             Verdict::Accepted
@@ -293,14 +386,36 @@ impl Verifier {
             Verdict::OffTable
         } else if v.score < self.threshold {
             Verdict::PoorFit
-        } else if v.seen_past() {
+        } else if v.seen_past() || v.turned_wrong_way() {
             Verdict::SeenThrough
-        } else if v.turn_sigmas() < AMBIGUOUS_TURN_SIGMAS {
+        } else if v.turn_sigmas() < AMBIGUOUS_TURN_SIGMAS && !v.turn_confirmed {
             Verdict::Ambiguous
         } else {
             Verdict::Accepted
         };
         v
+    }
+}
+
+impl Verifier {
+    /// Of the quarter turns the model's symmetries do not list, the one whose distinct parts the camera
+    /// saw past least against the pose's own (the largest excess of the pose's share over
+    /// the turn's), with both counts; `(0, none, none)` when every turn is listed.
+    pub(crate) fn turn_evidence(
+        &self,
+        model: &Model,
+        depth: &DepthEvidence,
+        sensor: &Point3<f32>,
+        pose: &Isometry3<f64>,
+    ) -> (u32, SeeThroughCounts, SeeThroughCounts) {
+        (1..4u32)
+            .filter(|&q| !listed_turn(model, q))
+            .map(|q| {
+                let (own, other) = turn_see_through(&self.turn_parts, depth, sensor, pose, q);
+                (q, own, other)
+            })
+            .max_by(|a, b| (a.1.share() - a.2.share()).total_cmp(&(b.1.share() - b.2.share())))
+            .unwrap_or_default()
     }
 }
 
