@@ -1,4 +1,4 @@
-//! The search's convergence like the paper's Figure 7: the best success rate found so far
+//! The search's convergence like the paper's Figure 7: the best verified success rate found so far
 //! against the evaluation count, one line per search, and each search's sweep best as a
 //! dashed line of the same colour.
 
@@ -48,7 +48,7 @@ impl Plot for Convergence {
         chart
             .configure_mesh()
             .x_desc("evaluation")
-            .y_desc("success rate, %")
+            .y_desc("verified success rate, %")
             .label_style((FAMILY, 13))
             .axis_desc_style((FAMILY, 15))
             .draw()

@@ -10,6 +10,7 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use crate::study::optimize::recheck_seed;
 use crate::study::placement_study::{Preset, Recommendation};
+use crate::study::tray_set::RANKED_BY;
 use crate::{Error, Result};
 
 /// What a study recommends, as `recommended.json` holds it (docs/formats.md). The fields
@@ -37,6 +38,11 @@ pub struct Recommended {
     pub preset: String,
     /// Distance from the world origin, mm (the placement's).
     pub r: f64,
+    /// The rate the placements were ranked by: `verified_success_rate` (the lowest tray's
+    /// `verification`), or `success_rate` in a file written before the study ranked by
+    /// what the robot is handed.
+    #[serde(default = "ranked_by_success")]
+    pub ranked_by: String,
     /// Fresh scenes it was judged on (its lowest tray's).
     pub scenes: usize,
     /// What breaks ties between placements of equal success.
@@ -62,6 +68,11 @@ pub struct Recommended {
     pub verification: Option<VerifiedSummary>,
     /// Where the rig's parts are in the world, mm.
     pub world_mm: RecommendedWorld,
+}
+
+/// `ranked_by` of a file that names none: the study then ranked by success.
+fn ranked_by_success() -> String {
+    "success_rate".to_string()
 }
 
 /// One tray's figures in `recommended.json`.
@@ -134,6 +145,7 @@ impl Recommended {
             placement: p,
             preset: preset.name.to_string(),
             r: p.r,
+            ranked_by: RANKED_BY.to_string(),
             scenes: s.scored,
             secondary_measure: "mean correct feature matches per scene".to_string(),
             seed: recheck_seed(seed),
@@ -275,6 +287,8 @@ mod tests {
         let r = Recommended::from_json(file(good, "phase-12", 605.0).as_bytes()).unwrap();
         assert_eq!(r.placement.r, 605.0);
         assert_eq!(r.method, Method::Phase12);
+        // A file written before the study ranked by verified success says what it ranked by.
+        assert_eq!(r.ranked_by, "success_rate");
         assert_eq!(Recommended::from_json(r.to_json().as_bytes()).unwrap(), r);
         let trailing = file(good, "one-shot", 605.0) + " 7";
         for (bad, key) in [

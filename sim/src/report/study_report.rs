@@ -20,6 +20,7 @@ use crate::scene::tray::TrayModel;
 use crate::study::findings::{compare_paired, Paired, Verdict};
 use crate::study::optimize::recheck_seed;
 use crate::study::placement_study::{tolerance_dir, Combination, Preset, Recommendation, StudyOutcome, StudyRequest};
+use crate::study::tray_set::ranked_rate;
 use crate::{Error, Result};
 use camplace_config::Axis;
 use camplace_config::{end_text, offset_text, WalkEnd};
@@ -352,6 +353,21 @@ fn answer(
         format!("{} ({} of {})", pct(s.success_rate), s.successes, s.scored),
     ));
     rows.push(("success_interval".into(), "95 % interval (Wilson)".into(), interval));
+    if let Some(v) = &s.verification {
+        rows.push((
+            "verified_success_rate".into(),
+            format!("correct and accepted (threshold {:.3}, set on these scenes)", v.threshold),
+            format!(
+                "{} ({} of {}; 95 % interval {}–{})",
+                pct(v.verified_success_rate),
+                v.verified_successes,
+                v.scored,
+                pct(v.verified_success_interval[0]),
+                pct(v.verified_success_interval[1])
+            ),
+        ));
+    }
+    rows.push(("ranked_by".into(), "placements ranked by".into(), rec.ranked_by.clone()));
     if r.per_tray.len() > 1 {
         for ((name, _), t) in r.cells.iter().zip(&r.per_tray) {
             rows.push((
@@ -597,14 +613,14 @@ fn findings(page: &mut HtmlPage, out: &Path, combos: &[Combination], preset: &Pr
             let s = c.search.as_ref()?;
             Some(Curve {
                 label: c.name(),
-                rates: s.history.iter().map(|e| e.summary.success_rate).collect(),
-                sweep_best: c.sweep.best.map(|b| c.sweep.rows[b].summary.success_rate),
+                rates: s.history.iter().map(|e| ranked_rate(&e.summary)).collect(),
+                sweep_best: c.sweep.best.map(|b| ranked_rate(&c.sweep.rows[b].summary)),
             })
         })
         .collect();
     if !curves.is_empty() {
         page.heading(3, "Search convergence (the paper's Figure 7)");
-        let conv = Convergence { title: "best success rate so far (dashed: the grid's best)".into(), curves };
+        let conv = Convergence { title: "best verified success rate so far (dashed: the grid's best)".into(), curves };
         if let Some(saved) = save_plot(&conv, out, "convergence")? {
             page.svg(&saved.svg)?;
         }

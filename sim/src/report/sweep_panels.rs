@@ -5,12 +5,13 @@
 
 use std::path::Path;
 
-use camplace_config::Placement;
+use camplace_config::{Cell, Placement};
 
 use super::heatmap::{ColourScale, HeatMap};
 use super::table::{write_summary_csv, write_summary_json, SummaryRow};
 use crate::render::Method;
 use crate::study::results::ResultsStore;
+use crate::study::tray_set::ranked_rate;
 use crate::Result;
 use camplace_config::Grid;
 use camplace_estimator::scoring::Summary;
@@ -23,14 +24,17 @@ pub struct SweepResult {
     pub rows: Vec<SummaryRow>,
     /// Whether every cell has all its scenes.
     pub complete: bool,
-    /// The cell of the highest success rate (first on ties), among cells with scenes.
+    /// The cell of the highest ranked rate (verified success; first on ties), among cells
+    /// with scenes.
     pub best: Option<usize>,
 }
 
 /// Sums up the grid's cells from `store` and writes the summaries and (when complete) the
 /// panels into `dir`.
+#[allow(clippy::too_many_arguments)]
 pub fn write_sweep_outputs(
     dir: &Path,
+    cell: &Cell,
     grid: &Grid,
     placements: &[Placement],
     store: &ResultsStore,
@@ -44,13 +48,16 @@ pub fn write_sweep_outputs(
             placement: p.to_string(),
             method: method.to_string(),
             seed,
-            summary: Summary::from_records(&store.records(p, method, seed, scenarios)),
+            summary: {
+                let records = store.records(p, method, seed, scenarios);
+                Summary::from_records(&records).verified(&records, cell.estimator.verify_max_wrong, &cell.metrics)
+            },
         })
         .collect();
     let complete = rows.iter().all(|r| r.summary.frames as u64 == scenarios);
     let mut best: Option<usize> = None;
     for (i, r) in rows.iter().enumerate() {
-        if r.summary.scored > 0 && best.is_none_or(|b| r.summary.success_rate > rows[b].summary.success_rate) {
+        if r.summary.scored > 0 && best.is_none_or(|b| ranked_rate(&r.summary) > ranked_rate(&rows[b].summary)) {
             best = Some(i);
         }
     }

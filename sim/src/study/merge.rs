@@ -192,7 +192,7 @@ fn merge_leaf(dirs: &[PathBuf], out: &Path) -> Result<usize> {
         let text = serde_json::to_string_pretty(&(&grid, n, base)).expect("plain data");
         camplace_config::write_atomic(&out.join("sweep.json"), text.as_bytes())?;
         let placements = grid.placements(&base)?;
-        write_sweep_outputs(out, &grid, &placements, &store, method, settings.seed, n)?;
+        write_sweep_outputs(out, &settings.cell, &grid, &placements, &store, method, settings.seed, n)?;
     } else {
         // One row per placement and seed, over every scene found.
         let mut groups: BTreeMap<(String, u64), Vec<_>> = BTreeMap::new();

@@ -11,6 +11,7 @@ use std::str::FromStr;
 use camplace_config::{Placement, PlacementParam};
 use serde::{Deserialize, Serialize};
 
+use super::tray_set::ranked_rate;
 use crate::search::{RbfOptimizer, RbfSettings};
 use crate::Result;
 use camplace_estimator::scoring::Summary;
@@ -144,7 +145,7 @@ pub fn search_placement(
         let x = opt.ask();
         let p = placement_of(&x)?;
         let summary = evaluate(&p, study_seed, plan.scenarios)?;
-        opt.tell(&x, -summary.success_rate);
+        opt.tell(&x, -ranked_rate(&summary));
         history.push(Evaluation { placement: p.to_string(), summary });
     }
     let (wx, wv) = opt.best_by_surrogate().expect("the budget is at least one evaluation");
@@ -158,7 +159,7 @@ pub fn search_placement(
         let summary = evaluate(&p, recheck_seed(study_seed), plan.recheck_scenarios)?;
         rechecks.push(Evaluation { placement: p.to_string(), summary });
     }
-    // Best rate first; the surrogate's order (the order evaluated) breaks ties.
-    rechecks.sort_by(|a, b| b.summary.success_rate.total_cmp(&a.summary.success_rate));
+    // Best ranked rate first; the surrogate's order (the order evaluated) breaks ties.
+    rechecks.sort_by(|a, b| ranked_rate(&b.summary).total_cmp(&ranked_rate(&a.summary)));
     Ok(SearchOutcome { history, surrogate_winner: surrogate_winner.to_string(), surrogate_success_rate: -wv, rechecks })
 }

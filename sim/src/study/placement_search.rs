@@ -9,7 +9,7 @@ use camplace_config::{Cell, Placement};
 
 use super::optimize::{search_placement, SearchOutcome, SearchPlan};
 use super::sweep::load_sweep;
-use super::tray_set::{lowest, TraySet};
+use super::tray_set::{lowest, ranked_rate, TraySet};
 use crate::render::Method;
 use crate::report::convergence::{Convergence, Curve};
 use crate::report::table::{write_summary_csv, SummaryRow};
@@ -63,7 +63,7 @@ pub fn optimize_set(
     write_summary_csv(&dir.join("optimize.csv"), &rows)?;
     let curve = Curve {
         label: format!("{method}"),
-        rates: outcome.history.iter().map(|e| e.summary.success_rate).collect(),
+        rates: outcome.history.iter().map(|e| ranked_rate(&e.summary)).collect(),
         sweep_best: sweep_best(set, seed)?,
     };
     let plot = Convergence { title: format!("search over {} parameters", plan.parameters.len()), curves: vec![curve] };
@@ -82,7 +82,7 @@ pub fn sweep_best(set: &TraySet, seed: u64) -> Result<Option<f64>> {
         if summaries.iter().any(|s| s.frames as u64 != n) {
             return Ok(None);
         }
-        let rate = lowest(&summaries).success_rate;
+        let rate = ranked_rate(&lowest(&summaries));
         best = Some(best.map_or(rate, |b: f64| b.max(rate)));
     }
     Ok(best)

@@ -20,7 +20,7 @@ use super::placement_search::optimize_set;
 use super::shard::Shard;
 use super::sweep::sweep;
 use super::tolerance::{measure_tolerance, ToleranceRequest};
-use super::tray_set::{lowest, margin_order, TraySet};
+use super::tray_set::{lowest, margin_order, ranked_rate, TraySet};
 use crate::render::{Frame, Method, Simulator};
 use crate::report::sweep_panels::SweepResult;
 use crate::report::table::{write_summary_csv, SummaryRow};
@@ -353,12 +353,14 @@ fn run_combination(
     say(&format!(
         "{trays_label} {method}: sweep best {}; {} (sweep {swept}, search {searched}, re-check {checked})",
         sweep.best.map_or("n/a".into(), |b| format!(
-            "{} at {}",
+            "{} verified ({} success) at {}",
+            pct(ranked_rate(&sweep.rows[b].summary)),
             pct(sweep.rows[b].summary.success_rate),
             sweep.rows[b].placement
         )),
         candidates.first().map_or("no placement checked".into(), |c| format!(
-            "best on fresh scenes {} at {}",
+            "best on fresh scenes {} verified ({} success) at {}",
+            pct(ranked_rate(&c.summary)),
             pct(c.summary.success_rate),
             c.placement
         ))
@@ -387,13 +389,14 @@ fn joint_sweep(sweeps: &[SweepResult]) -> SweepResult {
         .iter()
         .enumerate()
         .filter(|(_, r)| r.summary.scored > 0)
-        .max_by(|a, b| a.1.summary.success_rate.total_cmp(&b.1.summary.success_rate).then(b.0.cmp(&a.0)))
+        .max_by(|a, b| ranked_rate(&a.1.summary).total_cmp(&ranked_rate(&b.1.summary)).then(b.0.cmp(&a.0)))
         .map(|(i, _)| i);
     SweepResult { rows, complete: sweeps.iter().all(|s| s.complete), best }
 }
 
-/// The placement to mount: the best candidate on fresh scenes over every method, by
-/// success and then by the secondary measure; the first method studied wins a full tie.
+/// The placement to mount: the best candidate on fresh scenes over every method, by the
+/// ranked rate (verified success), then success, then the secondary measure; the first
+/// method studied wins a full tie.
 /// Only the first group of trays counts (the paper's experiment studies two trays each on
 /// its own, and a placement found for one says nothing of the other).
 fn recommend(combos: &[Combination]) -> Option<Recommendation> {
@@ -410,7 +413,7 @@ fn recommend(combos: &[Combination]) -> Option<Recommendation> {
     // Distinct (method, placement) pairs: the grid's best may also be a search candidate.
     let mut tied: Vec<(Method, Placement)> = Vec::new();
     for c in &combos {
-        for k in c.candidates.iter().filter(|k| k.summary.success_rate == top.summary.success_rate) {
+        for k in c.candidates.iter().filter(|k| ranked_rate(&k.summary) == ranked_rate(&top.summary)) {
             if !tied.contains(&(c.method, k.placement)) {
                 tied.push((c.method, k.placement));
             }

@@ -33,7 +33,7 @@ pub fn sweep(
     write_atomic(&dir.join("sweep.json"), grid_text.as_bytes())?;
     let jobs = shard_jobs(&placements, seed, scenarios, shard);
     JobEvaluator::new(cell, method, &store).evaluate(&jobs, label)?;
-    write_sweep_outputs(dir, grid, &placements, &store, method, seed, scenarios)
+    write_sweep_outputs(dir, cell, grid, &placements, &store, method, seed, scenarios)
 }
 
 /// The grid, scenario count and base placement of a sweep folder, if it holds one.

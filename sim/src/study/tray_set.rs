@@ -116,18 +116,31 @@ impl TraySet {
     }
 }
 
-/// The summary that decides a placement over several trays: the tray of the lowest success
-/// rate (of two equally low, the one with fewer correct matches).
+/// The summary that decides a placement over several trays: the tray of the lowest ranked
+/// rate (of two equally low, the one of lower success, then of fewer correct matches).
 pub fn lowest(summaries: &[Summary]) -> Summary {
     summaries.iter().min_by(|a, b| margin_order(a, b)).cloned().unwrap_or_else(|| Summary::from_records(&[]))
 }
 
-/// Orders two summaries by success rate, then by the secondary measure of margin that
-/// breaks ties at the same rate (most often at 100 %): the mean number of correct feature
-/// matches per scene. More correct matches leave RANSAC more room before a scene fails.
+/// What the study ranks placements by, as `recommended.json`'s `ranked_by` names it.
+pub const RANKED_BY: &str = "verified_success_rate";
+
+/// The rate a placement is ranked by ([`RANKED_BY`]): its verified success, the share of
+/// scenes whose pose is correct and accepted at the threshold its own scenes set (what the
+/// robot is handed), where the summary carries the verification's figures; its success
+/// rate where it carries none (no scene scored).
+pub fn ranked_rate(s: &Summary) -> f64 {
+    s.verification.as_ref().map_or(s.success_rate, |v| v.verified_success_rate)
+}
+
+/// Orders two summaries by the ranked rate ([`ranked_rate`]), then by success rate, then by
+/// the secondary measure of margin that breaks ties at the same rates (most often at
+/// 100 %): the mean number of correct feature matches per scene. More correct matches
+/// leave RANSAC more room before a scene fails.
 pub fn margin_order(a: &Summary, b: &Summary) -> Ordering {
-    a.success_rate
-        .total_cmp(&b.success_rate)
+    ranked_rate(a)
+        .total_cmp(&ranked_rate(b))
+        .then(a.success_rate.total_cmp(&b.success_rate))
         .then(a.mean_correct_matches.unwrap_or(0.0).total_cmp(&b.mean_correct_matches.unwrap_or(0.0)))
 }
 
@@ -142,6 +155,42 @@ mod tests {
         s.success_rate = k as f64 / n as f64;
         s.mean_correct_matches = Some(matches);
         s
+    }
+
+    /// A summary of `k` correct of `n` whose first `verified` correct poses score 0.9 and
+    /// the rest 0.1 (wrong poses 0.05): the verification's figures at the threshold 0.5.
+    fn verified_summary(k: usize, n: usize, verified: usize) -> Summary {
+        use camplace_estimator::scoring::{Scored, VerifiedSummary};
+        let frames: Vec<Scored> = (0..n)
+            .map(|i| Scored {
+                score: if i < verified {
+                    0.9
+                } else if i < k {
+                    0.1
+                } else {
+                    0.05
+                },
+                eligible: true,
+                correct: i < k,
+                gross: false,
+            })
+            .collect();
+        Summary { verification: Some(VerifiedSummary::at(&frames, 0.5, 0.01)), ..summary(k, n, 100.0) }
+    }
+
+    /// Placements rank by verified success, not raw success: a placement whose poses are
+    /// found more often but handed on less often ranks lower; at equal verified success,
+    /// success decides; without the verification's figures, success alone.
+    #[test]
+    fn placements_rank_by_verified_success() {
+        let found_often = verified_summary(95, 100, 40);
+        let handed_on = verified_summary(90, 100, 88);
+        assert_eq!((ranked_rate(&found_often), ranked_rate(&handed_on)), (0.40, 0.88));
+        assert_eq!(margin_order(&found_often, &handed_on), Ordering::Less);
+        assert_eq!(lowest(&[handed_on.clone(), found_often.clone()]).successes, 95);
+        let same_verified = verified_summary(97, 100, 88);
+        assert_eq!(margin_order(&same_verified, &handed_on), Ordering::Greater);
+        assert_eq!(ranked_rate(&summary(7, 10, 1.0)), 0.7);
     }
 
     #[test]
