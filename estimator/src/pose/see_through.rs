@@ -35,9 +35,6 @@ const ITEM_FLOOR_MM: f32 = 2.0;
 /// the count's deviation far below the gap between a pose and its neighbour a pitch away,
 /// and a pass a few tens of microseconds on one core.
 const SEE_THROUGH_POINTS: usize = 4000;
-/// A model point is the tray's surface when another view captured a point within this many
-/// surface resolutions of it.
-const SUPPORT_CELLS: f32 = 1.5;
 /// The points of a view where the tray and one turn of it differ, tested at most.
 const TURN_POINTS: usize = 3000;
 
@@ -80,8 +77,9 @@ pub fn tray_points(model: &Model) -> Vec<Vec<u32>> {
         .collect()
 }
 
-/// The tray's surface, every view's tray points merged (one a surface-resolution cell),
-/// split per quarter turn `q` of 1 to 3 (at `q - 1`) into the points that the whole tray
+/// The tray's surface, every view's tray points merged (one a surface-resolution cell, kept
+/// where two views captured the cell or a neighbour of it), split per quarter turn `q` of
+/// 1 to 3 (at `q - 1`) into the points that the whole tray
 /// turned by `q` quarter turns about its z axis has nothing within `margin` of, mm: the
 /// parts (a tab, a chamfer, a whole end) where the tray and that turn of it differ. Merged
 /// from every view because a view captured close up may miss a part another view shows.
@@ -98,11 +96,30 @@ pub type SurfacePoints = (Vec<Point3<f32>>, Vec<Vector3<f32>>);
 impl TurnParts {
     /// The distinct parts of `model`'s tray for each quarter turn (see [`TurnParts`]).
     pub fn of(model: &Model, margin: f32) -> TurnParts {
-        let whole: Vec<Point3<f32>> = model.views.iter().flat_map(|v| v.points.iter().copied()).collect();
-        if whole.is_empty() {
+        let resolution = model.surface_resolution.max(0.1);
+        let key = |m: &Point3<f32>| (m.coords / resolution).map(|c| c.floor() as i32);
+        // Every view's points, one a cell of the surface resolution (the first view's first,
+        // in view order): the point, its normal, whether it is the tray's (not an item's)
+        // and the views that captured a point in the cell (view k as bit k mod 64).
+        let mut index = std::collections::HashMap::new();
+        let mut cells: Vec<(Point3<f32>, Vector3<f32>, bool, u64)> = Vec::new();
+        for (k, (view, tray)) in model.views.iter().zip(all_tray_points(model)).enumerate() {
+            let mut is_tray = vec![false; view.points.len()];
+            for i in tray {
+                is_tray[i as usize] = true;
+            }
+            for (i, (m, n)) in view.points.iter().zip(&view.normals).enumerate() {
+                let at = *index.entry(key(m)).or_insert_with(|| {
+                    cells.push((*m, *n, is_tray[i], 0));
+                    cells.len() - 1
+                });
+                cells[at].3 |= 1 << (k % 64);
+            }
+        }
+        if cells.is_empty() {
             return TurnParts::default();
         }
-        let resolution = model.surface_resolution.max(0.1);
+        let whole: Vec<Point3<f32>> = cells.iter().map(|c| c.0).collect();
         let grid = NearestGrid::new(&whole, resolution, margin);
         let margin2 = margin * margin;
         // Whether the tray turned by q has a point within the margin of m: m turned back by
@@ -115,32 +132,24 @@ impl TurnParts {
             };
             grid.lookup(&back).is_some_and(|i| (back - whole[i as usize]).norm_squared() <= margin2)
         };
-        // The tray's points of every view that another view also captured (within
-        // `SUPPORT_CELLS` surface resolutions: a captured model's stereo smear beside a wall
-        // differs from view to view, the surface does not), one per cell of the surface
-        // resolution (the first view's first), in view order.
-        let support = SUPPORT_CELLS * resolution;
-        let view_grids: Vec<NearestGrid> =
-            model.views.iter().map(|v| NearestGrid::new(&v.points, resolution, support)).collect();
-        let seen_by_another = |k: usize, m: &Point3<f32>| {
-            model.views.iter().zip(&view_grids).enumerate().any(|(j, (view, grid))| {
-                j != k && grid.lookup(m).is_some_and(|i| (m - view.points[i as usize]).norm() <= support)
-            })
-        };
-        let mut cells = std::collections::HashSet::new();
-        let mut merged: Vec<(Point3<f32>, Vector3<f32>)> = Vec::new();
-        for (k, (view, tray)) in model.views.iter().zip(all_tray_points(model)).enumerate() {
-            for i in tray {
-                let (m, n) = (view.points[i as usize], view.normals[i as usize]);
-                if !seen_by_another(k, &m) {
-                    continue;
-                }
-                let key = (m.coords / resolution).map(|c| c.floor() as i32);
-                if cells.insert((key.x, key.y, key.z)) {
-                    merged.push((m, n));
+        // The tray's cells that two views captured (in the cell or a neighbour): a captured
+        // model's stereo smear beside a wall differs from view to view, the surface does not.
+        let supported = |m: &Point3<f32>| {
+            let c = key(m);
+            let mut views = 0u64;
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        if let Some(&at) = index.get(&(c + nalgebra::Vector3::new(dx, dy, dz))) {
+                            views |= cells[at].3;
+                        }
+                    }
                 }
             }
-        }
+            views.count_ones() >= 2
+        };
+        let merged: Vec<(Point3<f32>, Vector3<f32>)> =
+            cells.iter().filter(|c| c.2 && supported(&c.0)).map(|c| (c.0, c.1)).collect();
         let parts = [1, 2, 3].map(|q| {
             let apart: Vec<&(Point3<f32>, Vector3<f32>)> = merged.iter().filter(|(m, _)| !turn_has(m, q)).collect();
             camplace_config::thinned(&apart, TURN_POINTS).map(|&&(m, n)| (m, n)).unzip()
@@ -296,8 +305,8 @@ mod tests {
     use crate::testing;
 
     /// The turn parts of the synthetic tray against a search over every point of every
-    /// view: each part point has no point of the turned tray within the margin (up to the
-    /// grid's half-cell approximation) and another view's point near it; the half turn's
+    /// view: each part point has no point of the turned tray within the margin (up to a
+    /// cell's diagonal) and a point of two views within two cells' diagonals; the half turn's
     /// parts lie on the tab and nowhere else, and the symmetric tray has none.
     #[test]
     fn turn_parts_are_where_the_turned_tray_has_nothing() {
@@ -307,7 +316,8 @@ mod tests {
             let parts = TurnParts::of(&model, margin);
             let whole: Vec<(usize, Point3<f32>)> =
                 model.views.iter().enumerate().flat_map(|(k, v)| v.points.iter().map(move |p| (k, *p))).collect();
-            let slack = model.surface_resolution;
+            // A cell's first point stands for the cell: up to a cell's diagonal from another.
+            let slack = model.surface_resolution * 3f32.sqrt();
             for (q, (points, normals)) in (1..4u32).zip(&parts.parts) {
                 assert_eq!(points.len(), normals.len());
                 assert!(points.len() <= TURN_POINTS);
@@ -318,7 +328,7 @@ mod tests {
                     let nearest = whole.iter().map(|(_, w)| (w - back).norm()).fold(f32::INFINITY, f32::min);
                     assert!(nearest > margin - slack, "q {q}: {p} has a turned point {nearest} away");
                     let views_near =
-                        model.views.iter().filter(|v| v.points.iter().any(|w| (w - p).norm() <= 1.5 * slack)).count();
+                        model.views.iter().filter(|v| v.points.iter().any(|w| (w - p).norm() <= 2.0 * slack)).count();
                     assert!(views_near >= 2, "q {q}: {p} captured by {views_near} view");
                 }
                 if q == 2 {
