@@ -444,7 +444,6 @@ impl Stages {
             let counts = self.icp.explained_near_and_apart(self.features.cloud(), &pose, &[1, 2, 3], reach);
             counted = Some(counts);
             let lead = |(own, theirs): (u32, u32)| (theirs as f32 - own as f32) / ((own + theirs).max(1) as f32).sqrt();
-            // The turn the scene's distinct parts favour most over the pose, if any.
             // A turn whose distinct parts the camera saw past, where it did not past the
             // pose's, is no candidate however the few points on either's parts fall.
             let seen_past_turn = |q: u32| {
@@ -453,6 +452,7 @@ impl Stages {
                     turn_favoured(theirs, own)
                 })
             };
+            // The turn the scene's distinct parts favour most over the pose, if any.
             let favoured = (1..4u32)
                 .zip(counts.apart)
                 .filter(|&(q, c)| lead(c) >= AMBIGUOUS_TURN_SIGMAS && !seen_past_turn(q))
