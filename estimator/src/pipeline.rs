@@ -21,7 +21,7 @@ use std::time::Instant;
 use camplace_config::{AsImageView, EstimatorParams};
 use nalgebra::{Isometry3, Point3};
 
-use crate::pose::{on_table, quarter_turns, turn_favoured, turn_see_through};
+use crate::pose::{most_favoured_turn, on_table, quarter_turns, turn_favoured, turn_see_through};
 use crate::{
     Correspondence, DepthEvidence, Error, ErrorKind, EstimatorConfig, FeatureExtractor, FeatureMatcher, Icp, IcpResult,
     Method, Model, Ransac, RansacResult, Reconstruction, Reconstructor, Result, Rig, SlotJudge, SlotReading, Verdict,
@@ -444,11 +444,17 @@ impl Stages {
             let counts = self.icp.explained_near_and_apart(self.features.cloud(), &pose, &[1, 2, 3], reach);
             counted = Some(counts);
             let lead = |(own, theirs): (u32, u32)| (theirs as f32 - own as f32) / ((own + theirs).max(1) as f32).sqrt();
-            // A turn whose distinct parts the camera saw past, where it did not past the
-            // pose's, is no candidate however the few points on either's parts fall.
+            // What the camera saw past of the pose's and each turn's distinct parts, taken
+            // once. A turn whose parts it saw past, where it did not past the pose's, is no
+            // candidate however the few points on either's parts fall.
+            let evidence = depth.map(|d| self.verifier.turn_evidences(&self.model, d, &self.sensor_position, &pose));
             let seen_past_turn = |q: u32| {
-                depth.is_some_and(|d| {
-                    let (own, theirs) = turn_see_through(&self.verifier.turn_parts, d, &self.sensor_position, &pose, q);
+                depth.zip(evidence).is_some_and(|(d, e)| {
+                    // A listed turn is not in the evidence: counted here when the scene's
+                    // points favour it.
+                    let (own, theirs) = e[q as usize - 1].unwrap_or_else(|| {
+                        turn_see_through(&self.verifier.turn_parts, d, &self.sensor_position, &pose, q)
+                    });
                     turn_favoured(theirs, own)
                 })
             };
@@ -482,9 +488,9 @@ impl Stages {
             // what the camera saw past can: a turn whose distinct parts it saw past less
             // than the pose's, by the verification's measure, is refined and kept when the
             // evidence still favours it from there.
-            if let (Some(depth), false) = (depth, refined_turn) {
+            if let (Some(depth), Some(evidence), false) = (depth, &evidence, refined_turn) {
                 let model = &self.model;
-                let (quarters, own, theirs) = self.verifier.turn_evidence(model, depth, &self.sensor_position, &pose);
+                let (quarters, own, theirs) = most_favoured_turn(evidence);
                 if quarters > 0 && turn_favoured(own, theirs) {
                     let turned = pose * quarter_turns(quarters);
                     let turned_view = model.closest_view(&turned, &self.sensor_position);

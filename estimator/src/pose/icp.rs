@@ -410,6 +410,16 @@ pub(crate) fn quarter_turns(quarters: u32) -> UnitQuaternion<f64> {
     UnitQuaternion::from_axis_angle(&Vector3::z_axis(), f64::from(quarters) * std::f64::consts::FRAC_PI_2)
 }
 
+/// `p` turned back by `quarters` (1 to 3) quarter turns about z: (x, y) -> (y, -x) per
+/// quarter.
+pub(crate) fn turned_back(p: &Point3<f32>, quarters: u32) -> Point3<f32> {
+    match quarters {
+        1 => Point3::new(p.y, -p.x, p.z),
+        2 => Point3::new(-p.x, -p.y, p.z),
+        _ => Point3::new(-p.y, p.x, p.z),
+    }
+}
+
 /// [`Icp`]'s `distinct` bits of `points` (the whole tray, tray frame): bit `q - 1` of a point
 /// set when no point lies within `margin` of it turned back by `q` quarter turns about z,
 /// that is when the tray turned by `q` has nothing near it.
@@ -421,12 +431,7 @@ fn distinct_parts(points: &[Point3<f32>], resolution: f32, margin: f32) -> Vec<u
         .map(|p| {
             let mut bits = 0u8;
             for q in 1..4u8 {
-                // p turned back by q quarter turns about z: (x, y) -> (y, -x) per quarter.
-                let back = match q {
-                    1 => Point3::new(p.y, -p.x, p.z),
-                    2 => Point3::new(-p.x, -p.y, p.z),
-                    _ => Point3::new(-p.y, p.x, p.z),
-                };
+                let back = turned_back(p, u32::from(q));
                 let near = grid.lookup(&back).is_some_and(|i| (back - points[i as usize]).norm_squared() <= margin2);
                 bits |= u8::from(!near) << (q - 1);
             }

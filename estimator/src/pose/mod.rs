@@ -14,7 +14,7 @@ mod see_through;
 mod slots;
 mod verify;
 
-pub(crate) use icp::{on_table, quarter_turns};
+pub(crate) use icp::{on_table, quarter_turns, turned_back};
 pub use icp::{Icp, IcpResult};
 pub use metrics::{correct_matches, pose_errors, PoseErrors};
 pub use model::{Model, ModelOrigin, ModelVerification, ModelView};
@@ -26,7 +26,7 @@ pub use slots::{
     slot_letters, SlotJudge, SlotLayout, SlotReading, SlotState, EDGE_CELL, FLOOR_TOLERANCE_MM, MAX_FOOTPRINT_CELLS,
     MAX_MISMATCH_SHARE, MIN_SEEN_SHARE,
 };
-pub(crate) use verify::turn_favoured;
+pub(crate) use verify::{most_favoured_turn, turn_favoured};
 pub use verify::{
     Verdict, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS, RESTING_HEIGHT_MM, RESTING_TILT_DEG,
     SEE_THROUGH_MIN_EXCESS, SEE_THROUGH_MIN_TESTED, SEE_THROUGH_SIGMAS,

@@ -14,7 +14,7 @@
 
 use nalgebra::{Isometry3, Point3, Vector3};
 
-use crate::pose::quarter_turns;
+use crate::pose::{quarter_turns, turned_back};
 use crate::spatial::NearestGrid;
 use crate::{FloatImage, Model, RectifiedCamera};
 
@@ -123,13 +123,9 @@ impl TurnParts {
         let grid = NearestGrid::new(&whole, resolution, margin);
         let margin2 = margin * margin;
         // Whether the tray turned by q has a point within the margin of m: m turned back by
-        // q quarter turns, (x, y) -> (y, -x) per quarter, looked up in the untouched tray.
+        // q quarter turns, looked up in the untouched tray.
         let turn_has = |m: &Point3<f32>, q: u32| {
-            let back = match q {
-                1 => Point3::new(m.y, -m.x, m.z),
-                2 => Point3::new(-m.x, -m.y, m.z),
-                _ => Point3::new(-m.y, m.x, m.z),
-            };
+            let back = turned_back(m, q);
             grid.lookup(&back).is_some_and(|i| (back - whole[i as usize]).norm_squared() <= margin2)
         };
         // The tray's cells that two views captured (in the cell or a neighbour): a captured

@@ -354,10 +354,11 @@ impl Verifier {
                 .min_by(|a, b| a.share().total_cmp(&b.share()))
                 .unwrap_or_default();
         }
-        // The quarter turns the symmetries do not list, weighed by what the camera saw past.
-        if let Some(depth) = depth {
-            (v.turn_seen_quarters, v.turn_see_through, v.turn_see_through_other) =
-                self.turn_evidence(model, depth, sensor, pose);
+        // The quarter turns the symmetries do not list, weighed by what the camera saw past:
+        // each turn's counts taken once, for the turn they favour most and for the closest.
+        let evidence = depth.map(|depth| self.turn_evidences(model, depth, sensor, pose));
+        if let Some(e) = &evidence {
+            (v.turn_seen_quarters, v.turn_see_through, v.turn_see_through_other) = most_favoured_turn(e);
         }
         // The quarter turns weighed against the pose in the same pass over the scene as the
         // explained share.
@@ -376,8 +377,7 @@ impl Verifier {
                 (v.turn_margin, v.turn_own, v.turn_other, closest) = (margin, own, other, q);
             }
         }
-        if let (Some(depth), true) = (depth, closest > 0) {
-            let (own, other) = turn_see_through(&self.turn_parts, depth, sensor, pose, closest);
+        if let Some(Some((own, other))) = evidence.filter(|_| closest > 0).map(|e| e[closest as usize - 1]) {
             v.turn_confirmed = turn_favoured(other, own);
         }
         v.verdict = if !self.enabled {
@@ -398,25 +398,33 @@ impl Verifier {
 }
 
 impl Verifier {
-    /// Of the quarter turns the model's symmetries do not list, the one whose distinct parts the camera
-    /// saw past least against the pose's own (the largest excess of the pose's share over
-    /// the turn's), with both counts; `(0, none, none)` when every turn is listed.
-    pub(crate) fn turn_evidence(
+    /// Per quarter turn `q` of 1 to 3 (at `q - 1`) that the model's symmetries do not list,
+    /// the see-through counts of the pose's distinct parts and of the turn's
+    /// ([`turn_see_through`]); `None` for a listed turn.
+    pub(crate) fn turn_evidences(
         &self,
         model: &Model,
         depth: &DepthEvidence,
         sensor: &Point3<f32>,
         pose: &Isometry3<f64>,
-    ) -> (u32, SeeThroughCounts, SeeThroughCounts) {
-        (1..4u32)
-            .filter(|&q| !listed_turn(model, q))
-            .map(|q| {
-                let (own, other) = turn_see_through(&self.turn_parts, depth, sensor, pose, q);
-                (q, own, other)
-            })
-            .max_by(|a, b| (a.1.share() - a.2.share()).total_cmp(&(b.1.share() - b.2.share())))
-            .unwrap_or_default()
+    ) -> TurnEvidence {
+        [1, 2, 3].map(|q| (!listed_turn(model, q)).then(|| turn_see_through(&self.turn_parts, depth, sensor, pose, q)))
     }
+}
+
+/// Per quarter turn of 1 to 3, the see-through counts of the pose's distinct parts and of
+/// the turn's; `None` for a turn the symmetries list.
+pub(crate) type TurnEvidence = [Option<(SeeThroughCounts, SeeThroughCounts)>; 3];
+
+/// Of the turns weighed in `evidence`, the one whose distinct parts the camera saw past
+/// least against the pose's own (the largest excess of the pose's share over the turn's),
+/// with both counts; `(0, none, none)` when every turn is listed.
+pub(crate) fn most_favoured_turn(evidence: &TurnEvidence) -> (u32, SeeThroughCounts, SeeThroughCounts) {
+    (1..4u32)
+        .zip(evidence)
+        .filter_map(|(q, e)| e.map(|(own, other)| (q, own, other)))
+        .max_by(|a, b| (a.1.share() - a.2.share()).total_cmp(&(b.1.share() - b.2.share())))
+        .unwrap_or_default()
 }
 
 /// Share of the closest view's points facing the sensor, at `pose`, with a scene point
