@@ -2,11 +2,16 @@
 //! at the paper's optimum, with the model built at that placement; and the pose stages alone
 //! (down-sampling, normals, features, matching, RANSAC, ICP) on that frame's world cloud;
 //! and the verification of that frame's pose alone (`pose/verify`); and `serve`'s drift
-//! watch on that frame's disparity (`serve/drift_check`).
+//! watch on that frame's disparity (`serve/drift_check`); and the frame's reconstruction
+//! alone, with its disparity in the region that differs from the background
+//! (`reconstruct/one_shot_in_foreground`), against the whole image
+//! (`reconstruct/one_shot_whole_image`), and the finding of that region
+//! (`reconstruct/foreground_region`).
 
 use std::hint::black_box;
 
 use camplace_config::Cell;
+use camplace_estimator::depth::{Foreground, Reconstruction, Reconstructor};
 use camplace_estimator::{Estimator, EstimatorConfig};
 use camplace_serve::{DriftLimits, DriftWatch};
 use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
@@ -46,7 +51,32 @@ pub fn benches(c: &mut Criterion) {
     estimator.process(&frame.shots.left, &frame.shots.right).expect("the frame is valid");
     let limits = DriftLimits { rotation_deg: 1.0, translation_mm: 5.0, from: "bench".into() };
     let mut watch = DriftWatch::new(limits);
-    let (disparity, camera) = (&estimator.reconstruction().disparity, estimator.rectified_camera());
+    let (disparity, camera) = estimator.whole_disparity().expect("the frame matches whole");
     eprintln!("serve/drift_check: {:?}", watch.check(disparity, camera));
     c.bench_function("serve/drift_check", |b| b.iter(|| watch.check(black_box(disparity), camera).warning));
+
+    // Reconstruction alone: with the background's region, and without a background.
+    let config = EstimatorConfig::from(&cell);
+    let mut with = Reconstructor::new(&config, sim.rig(), Method::OneShot).expect("the rig rectifies");
+    with.set_background(&background.shots.left, &background.shots.right).expect("the background reconstructs");
+    let mut whole = Reconstructor::new(&config, sim.rig(), Method::OneShot).expect("the rig rectifies");
+    let mut out = Reconstruction::default();
+    with.process(&frame.shots.left, &frame.shots.right, &mut out).expect("the frame is valid");
+    let region = with.last_region();
+    let (w, h) = (with.rectification().camera.width, with.rectification().camera.height);
+    eprintln!("reconstruct: region {region:?}, {:.1} % of the image", 100.0 * region.area() as f64 / (w * h) as f64);
+    let mut group = c.benchmark_group("reconstruct");
+    group.bench_function("one_shot_in_foreground", |b| {
+        b.iter(|| with.process(black_box(&frame.shots.left), &frame.shots.right, &mut out).expect("valid"))
+    });
+    group.bench_function("one_shot_whole_image", |b| {
+        b.iter(|| whole.process(black_box(&frame.shots.left), &frame.shots.right, &mut out).expect("valid"))
+    });
+    let mut empty = Reconstructor::new(&config, sim.rig(), Method::OneShot).expect("the rig rectifies");
+    empty.process(&background.shots.left, &background.shots.right, &mut out).expect("the background is valid");
+    let mut finder = Foreground::new(empty.rectified().0[0].clone());
+    with.process(&frame.shots.left, &frame.shots.right, &mut out).expect("the frame is valid");
+    let rectified = with.rectified().0[0].clone();
+    group.bench_function("foreground_region", |b| b.iter(|| finder.region(black_box(&rectified))));
+    group.finish();
 }

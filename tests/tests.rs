@@ -14,6 +14,7 @@ mod deploy;
 mod estimate;
 mod export;
 mod fit_sensor;
+mod foreground;
 mod hand_eye;
 mod installed_rig;
 mod integrity;

@@ -342,6 +342,19 @@ impl Estimator {
         &self.reconstructor.rectification().camera
     }
 
+    /// The last stereo frame's disparity over the whole image, with the camera it is in: the
+    /// frame's own map, or, when a one-shot frame was matched only where it differs from the
+    /// background, the pair matched again whole (a one-shot match's time; what `serve`'s
+    /// drift watch reads after the reply, since it needs the table far from the tray).
+    pub fn whole_disparity(&mut self) -> Result<(&crate::FloatImage, &crate::RectifiedCamera)> {
+        let map = if self.reconstructor.match_whole()? {
+            self.reconstructor.whole_map()
+        } else {
+            &self.reconstruction.disparity
+        };
+        Ok((map, &self.reconstructor.rectification().camera))
+    }
+
     /// The last frame's slots, judged under its pose from the scene cloud (one reading per
     /// slot, each with its frame in the world); empty when the model carries no slots or the
     /// frame found no pose. Only an accepted pose's readings may be handed on.

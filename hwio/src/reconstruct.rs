@@ -41,6 +41,8 @@ pub fn reconstruct_dataset(cell: &Cell, dir: &Path) -> Result<DatasetDepth> {
         if has_background {
             rec.set_background(&background.left, &background.right)?;
         }
+        // The disparity and depth written are read by people and other tools: whole.
+        rec.set_whole_image(true);
         Ok(rec)
     };
     let first = make()?;

@@ -118,7 +118,13 @@ impl DriftWatch {
         }
     }
 
-    /// Checks the frame whose rectified-left `disparity` the estimator just computed.
+    /// What the watch last found.
+    pub fn state(&self) -> &DriftState {
+        &self.state
+    }
+
+    /// Checks the frame whose rectified-left `disparity` (over the whole image: the table
+    /// around the tray, not only the tray's region) the estimator just computed.
     pub fn check(&mut self, disparity: &FloatImage, camera: &RectifiedCamera) -> &DriftState {
         let Some((rotation_deg, translation_mm)) = self.implied_motion(disparity, camera) else {
             return &self.state;

@@ -192,8 +192,13 @@ impl Worker {
                 }
             }
         }
-        let drift =
-            self.drift.check(&self.estimator.reconstruction().disparity, self.estimator.rectified_camera()).clone();
+        let drift = match self.estimator.whole_disparity() {
+            Ok((disparity, camera)) => self.drift.check(disparity, camera).clone(),
+            Err(e) => {
+                (self.log)(&format!("drift watch: {e}"));
+                self.drift.state().clone()
+            }
+        };
         {
             let mut s = self.shared.lock();
             s.camera_error = None;

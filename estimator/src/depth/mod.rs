@@ -6,6 +6,7 @@ mod background;
 mod cloud;
 #[cfg(test)]
 mod fixture;
+mod foreground;
 mod pattern;
 mod phase;
 mod reconstruct;
@@ -14,6 +15,7 @@ mod stereo;
 
 pub use background::Background;
 pub use cloud::{Cloud, CloudBuilder};
+pub use foreground::{Foreground, PixelRegion};
 pub use pattern::{fringe, fringe_set, one_shot, random_dots, PHASE_STEPS};
 pub use phase::PhaseDecoder;
 pub use reconstruct::{ReconstructTimings, Reconstruction, Reconstructor};

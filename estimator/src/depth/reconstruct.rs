@@ -6,10 +6,9 @@ use std::time::Instant;
 
 use camplace_config::{AsImageView, ImageView};
 
-use super::stereo::DisparityMatcher;
 use crate::{
-    Background, Cloud, CloudBuilder, Elas, Error, ErrorKind, EstimatorConfig, FloatImage, GrayImage, Method,
-    PhaseDecoder, Rectification, Result, Rig,
+    Background, Cloud, CloudBuilder, Elas, Error, ErrorKind, EstimatorConfig, FloatImage, Foreground, GrayImage,
+    Method, PhaseDecoder, PixelRegion, Rectification, Result, Rig,
 };
 
 /// Time spent in each reconstruction stage of the last frame, ms.
@@ -44,6 +43,14 @@ pub struct Reconstructor {
     decoder: Decoder,
     builder: CloudBuilder,
     background: Option<Background>,
+    /// Where the tray can be in a one-shot frame, against the background capture's rectified
+    /// left image (none before a background, and for phase-12).
+    foreground: Option<Foreground>,
+    /// The region the last frame's disparity was computed in.
+    region: PixelRegion,
+    /// Match every frame whole, background or not (what a depth map written for a person
+    /// to read needs).
+    whole_image: bool,
     reconstruction: camplace_config::ReconstructionParams,
     raw_left: (usize, usize),
     raw_right: (usize, usize),
@@ -110,6 +117,9 @@ impl Reconstructor {
             builder: CloudBuilder::new(cam, &config.work_volume, &config.reconstruction),
             decoder,
             background: None,
+            foreground: None,
+            region: PixelRegion::whole(w, h),
+            whole_image: false,
             reconstruction: config.reconstruction.clone(),
             raw_left: (rig.left.width, rig.left.height),
             raw_right: (rig.right.width, rig.right.height),
@@ -137,6 +147,7 @@ impl Reconstructor {
         }
         self.builder = CloudBuilder::new(&rectification.camera, &config.work_volume, &config.reconstruction);
         self.background = None;
+        self.foreground = None;
         self.reconstruction = config.reconstruction.clone();
         self.raw_left = (rig.left.width, rig.left.height);
         self.raw_right = (rig.right.width, rig.right.height);
@@ -171,14 +182,50 @@ impl Reconstructor {
 
     /// Reconstructs the background capture (the cell without tray and items) and keeps it,
     /// dilated, for background removal in every later frame.
+    /// A one-shot background also sets where later frames are matched: the box of the
+    /// rectified left image that differs from this capture ([`Foreground`]).
     pub fn set_background<S: AsImageView<u8>>(&mut self, left: &[S], right: &[S]) -> Result<()> {
+        self.foreground = None;
         let mut disparity = std::mem::take(&mut self.scratch);
         let result = self.disparity(left, right, &mut disparity, &mut ReconstructTimings::default());
         let background = result
             .and_then(|_| Background::from_disparity(&self.rectification.camera, &disparity, &self.reconstruction));
         self.scratch = disparity;
         self.background = Some(background?);
+        if self.method == Method::OneShot {
+            self.foreground = Some(Foreground::new(self.rect_left[0].clone()));
+        }
         Ok(())
+    }
+
+    /// Matches every later frame over the whole image (`true`), or only where it differs
+    /// from a one-shot background (`false`, the default: the estimator's way).
+    pub fn set_whole_image(&mut self, whole: bool) {
+        self.whole_image = whole;
+    }
+
+    /// The region of the rectified left image the last frame's disparity was computed in.
+    pub fn last_region(&self) -> PixelRegion {
+        self.region
+    }
+
+    /// Matches the last one-shot frame again over the whole image when it was matched in a
+    /// region only, into a map of its own ([`Reconstructor::whole_map`]); returns whether it
+    /// did. A frame already matched whole (or a 12-shot frame) is left as it is.
+    pub fn match_whole(&mut self) -> Result<bool> {
+        let (w, h) = (self.rectification.camera.width, self.rectification.camera.height);
+        let Decoder::Stereo(elas) = &mut self.decoder else { return Ok(false) };
+        if self.region == PixelRegion::whole(w, h) {
+            return Ok(false);
+        }
+        let range = self.rectification.disparity_range();
+        elas.compute_in(&self.rect_left[0], &self.rect_right[0], range, PixelRegion::whole(w, h), &mut self.scratch)?;
+        Ok(true)
+    }
+
+    /// The map of the last [`Reconstructor::match_whole`] that matched.
+    pub fn whole_map(&self) -> &FloatImage {
+        &self.scratch
     }
 
     /// Reconstructs one frame into `out`.
@@ -225,8 +272,18 @@ impl Reconstructor {
         let t = Instant::now();
         let range = self.rectification.disparity_range();
         match &mut self.decoder {
-            Decoder::Stereo(elas) => elas.compute(&self.rect_left[0], &self.rect_right[0], range, out)?,
-            Decoder::Phase(phase) => phase.decode(&self.rect_left, &self.rect_right, range, out)?,
+            Decoder::Stereo(elas) => {
+                let (w, h) = (self.rect_left[0].width, self.rect_left[0].height);
+                self.region = match &mut self.foreground {
+                    Some(f) if !self.whole_image => f.region(&self.rect_left[0]),
+                    _ => PixelRegion::whole(w, h),
+                };
+                elas.compute_in(&self.rect_left[0], &self.rect_right[0], range, self.region, out)?
+            }
+            Decoder::Phase(phase) => {
+                self.region = PixelRegion::whole(self.rect_left[0].width, self.rect_left[0].height);
+                phase.decode(&self.rect_left, &self.rect_right, range, out)?
+            }
         }
         timings.disparity_ms = ms(t);
         Ok(())

@@ -32,6 +32,9 @@ pub struct Side<'a> {
     pub other: &'a DescriptorImage,
     pub prior: &'a [f32],
     pub grid: &'a CandidateGrid,
+    /// The columns of each row to match, from the first to one past the last (`(0, width)`
+    /// for all); the others are left as they were.
+    pub columns: (usize, usize),
 }
 
 /// What every pixel of one matching pass shares.
@@ -113,10 +116,20 @@ pub fn match_row<const LEFT: bool>(s: &Side<'_>, q: &Search<'_>, y: usize, out: 
     match_row_scalar::<LEFT>(s, q, y, out);
 }
 
-/// The cells of row `y` in order: the pixel columns each covers and its padded list.
+/// The cells of row `y` in order that overlap `columns` (within a `w`-wide row): the
+/// columns of each inside `columns` and its padded list.
 #[inline(always)]
-fn cells(grid: &CandidateGrid, w: usize, y: usize) -> impl Iterator<Item = (std::ops::Range<usize>, &[u16])> {
-    (0..w).step_by(grid.cell).map(move |start| (start..(start + grid.cell).min(w), grid.padded_at(start, y)))
+fn cells(
+    grid: &CandidateGrid,
+    w: usize,
+    (lo, hi): (usize, usize),
+    y: usize,
+) -> impl Iterator<Item = (std::ops::Range<usize>, &[u16])> {
+    let hi = hi.min(w);
+    let first = lo / grid.cell * grid.cell;
+    (first..hi)
+        .step_by(grid.cell)
+        .map(move |start| (start.max(lo)..(start + grid.cell).min(hi), grid.padded_at(start, y)))
 }
 
 /// [`match_row`] with the scalar kernel; the reference the vector kernel is tested against.
@@ -124,7 +137,7 @@ pub fn match_row_scalar<const LEFT: bool>(s: &Side<'_>, q: &Search<'_>, y: usize
     let w = s.own.width;
     let row = y * w;
     let (own, other, prior) = (&s.own.data[row..row + w], &s.other.data[row..row + w], &s.prior[row..row + w]);
-    for (columns, padded) in cells(s.grid, w, y) {
+    for (columns, padded) in cells(s.grid, w, s.columns, y) {
         let list = &padded[..padded.len() - LIST_PAD];
         for x in columns {
             out[x] = match_pixel::<LEFT>(own, other, prior[x], list, x, q);
@@ -272,7 +285,7 @@ mod avx2 {
         let (own, prior) = (&s.own.data[row..row + w], &s.prior[row..row + w]);
         // SAFETY: an unaligned 32-byte read of an [i32; 8].
         let table = unsafe { _mm256_loadu_si256(table.as_ptr().cast()) };
-        for (columns, padded) in cells(s.grid, w, y) {
+        for (columns, padded) in cells(s.grid, w, s.columns, y) {
             // The wide kernel's membership bits: bit d - d_min for each list entry d. A plain
             // array, so that the AVX2 kernel never touches a 512-bit register.
             let mut member = [0u32; 16];
@@ -638,7 +651,7 @@ mod tests {
                 vector: VectorPrior::new(&energy, span as usize + 1),
             };
             assert!(q.vector.0.is_some(), "table {energy:?} should fit the vector kernel");
-            let side = Side { own: &left, other: &right, prior: &prior, grid: &grid };
+            let side = Side { own: &left, other: &right, prior: &prior, grid: &grid, columns: (0, w) };
             let left_image = trial % 2 == 0;
             for y in BORDER..h - BORDER {
                 let mut slow = vec![0.0; w];
@@ -691,7 +704,7 @@ mod tests {
                         prior_energy: &energy,
                         vector: VectorPrior::new(&energy, span as usize + 1),
                     };
-                    let side = Side { own: &left, other: &right, prior: &prior, grid: &grid };
+                    let side = Side { own: &left, other: &right, prior: &prior, grid: &grid, columns: (0, w) };
                     let left_image = trial % 2 == 0;
                     for y in BORDER..h - BORDER {
                         let mut slow = vec![0.0; w];

@@ -144,26 +144,47 @@ impl DescriptorImage {
 
     /// Fills the descriptors of `img` (same size as the buffers) on the rows `wanted`
     /// accepts; the other rows keep what they held (zeros until first computed, and no
-    /// memory: see [`DescriptorBuffer`]).
+    /// memory: see [`DescriptorBuffer`]). The matcher calls [`DescriptorImage::compute_rows`].
+    #[cfg(test)]
     pub fn compute(&mut self, img: &GrayImage, wanted: impl Fn(usize) -> bool + Sync) {
+        self.compute_rows(img, (0, self.height), wanted);
+    }
+
+    /// [`DescriptorImage::compute`] on the rows from `rows.0` to before `rows.1` alone: the
+    /// Sobel and normalisation planes are formed only as far as those rows' descriptors
+    /// read them.
+    pub fn compute_rows(&mut self, img: &GrayImage, rows: (usize, usize), wanted: impl Fn(usize) -> bool + Sync) {
         let (w, h) = (self.width, self.height);
         debug_assert!(img.width == w && img.height == h);
         if w < 2 * BORDER + 1 || h < 2 * BORDER + 1 {
             self.data.iter_mut().for_each(|d| *d = [NEUTRAL; LEN]);
             return;
         }
+        let (lo, hi) = (rows.0.min(h), rows.1.min(h));
+        if lo >= hi {
+            return;
+        }
+        // A descriptor reads the planes 4 rows either side; a band of the planes reads the
+        // Sobel rows NORM_RADIUS + 1 beyond it.
+        let bands = (lo.saturating_sub(4) / BAND, (hi + 4).min(h).div_ceil(BAND));
+        let sobel_rows = ((bands.0 * BAND).saturating_sub(NORM_RADIUS + 1), (bands.1 * BAND + NORM_RADIUS + 1).min(h));
         let src = &img.data;
         let sobel = self.gx.par_chunks_mut(w).zip(self.gy.par_chunks_mut(w)).zip(self.mag.par_chunks_mut(w));
         sobel.zip(self.row_sum.par_chunks_mut(w)).enumerate().for_each(|(y, (((gxr, gyr), magr), sumr))| {
-            sobel_row(src, w, h, y, gxr, gyr, magr, sumr);
+            if (sobel_rows.0..sobel_rows.1).contains(&y) {
+                sobel_row(src, w, h, y, gxr, gyr, magr, sumr);
+            }
         });
         let (gx, gy) = (&self.gx, &self.gy);
         let (row_sum, inv_cols) = (&self.row_sum, &self.inv_cols[..]);
-        let bands = self.du.par_chunks_mut(BAND * w).zip(self.dv.par_chunks_mut(BAND * w));
-        bands.enumerate().for_each(|(band, (du, dv))| {
-            normalise_band(gx, gy, row_sum, inv_cols, w, h, band * BAND, du, dv);
+        let planes = self.du.par_chunks_mut(BAND * w).zip(self.dv.par_chunks_mut(BAND * w));
+        planes.enumerate().for_each(|(band, (du, dv))| {
+            if (bands.0..bands.1).contains(&band) {
+                normalise_band(gx, gy, row_sum, inv_cols, w, h, band * BAND, du, dv);
+            }
         });
         let (du, dv) = (&self.du, &self.dv);
+        let wanted = |y: usize| (lo..hi).contains(&y) && wanted(y);
         self.data.par_chunks_mut(w).enumerate().filter(|(y, _)| wanted(*y)).for_each(|(y, row)| {
             if y < BORDER || y + BORDER >= h {
                 row.fill([NEUTRAL; LEN]);
@@ -642,6 +663,21 @@ mod tests {
                     assert_eq!(got, all, "row {y}");
                 } else {
                     assert!(got.iter().all(|g| *g == marker), "row {y} written");
+                }
+            }
+            // A span of rows only (a foreground region), with stale planes from another
+            // image: those rows as in the whole image, the others untouched.
+            for span in [(0, h / 3), (h / 4, h / 2 + 3), (h / 2, h), (h - 1, h + 5), (3, 3)] {
+                let mut part = DescriptorImage::new(w, h);
+                part.compute(&GrayImage::from_vec(w, h, vec![99; w * h]).unwrap(), |_| true);
+                part.data.fill(marker);
+                part.compute_rows(&img, span, |y| y % 2 == 0);
+                for (y, (got, all)) in part.data.chunks_exact(w).zip(d.data.chunks_exact(w)).enumerate() {
+                    if (span.0..span.1).contains(&y) && y % 2 == 0 {
+                        assert_eq!(got, all, "row {y} of span {span:?}");
+                    } else {
+                        assert!(got.iter().all(|g| *g == marker), "row {y} written, span {span:?}");
+                    }
                 }
             }
         }

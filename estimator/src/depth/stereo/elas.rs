@@ -19,6 +19,7 @@ use super::subpixel::{refine_subpixel, SubpixelScratch};
 use super::support::{SupportGrid, SupportParams, SupportPoint};
 use super::triangulation::{CandidateGrid, Prior};
 use super::DisparityMatcher;
+use crate::depth::PixelRegion;
 use crate::error::{Error, ErrorKind, Result};
 use crate::{FloatImage, GrayImage};
 
@@ -127,6 +128,22 @@ impl DisparityMatcher for Elas {
     /// window (2 BORDER + 1 = 11 px across and down), down to none at all, are not an
     /// error: no pixel matches, so the map is all +inf.
     fn compute(&mut self, left: &GrayImage, right: &GrayImage, range: (f32, f32), out: &mut FloatImage) -> Result<()> {
+        self.compute_in(left, right, range, PixelRegion::whole(self.width, self.height), out)
+    }
+}
+
+impl Elas {
+    /// [`DisparityMatcher::compute`] on the left pixels of `region` only (where the tray can
+    /// be, see [`crate::depth::Foreground`]): support points and dense matching there, the
+    /// right image's columns those pixels can match; every other pixel of the map is +inf.
+    pub fn compute_in(
+        &mut self,
+        left: &GrayImage,
+        right: &GrayImage,
+        range: (f32, f32),
+        region: PixelRegion,
+        out: &mut FloatImage,
+    ) -> Result<()> {
         let (w, h) = (self.width, self.height);
         if left.width != w
             || left.height != h
@@ -173,19 +190,36 @@ impl DisparityMatcher for Elas {
         };
         // Descriptors are read on the support grid's rows and the matched rows only.
         let (step, support_step) = (self.row_step, self.support.step);
+        let rows = region.y0..region.y1.min(h);
         let wanted = |y: usize| y.is_multiple_of(step) || y.is_multiple_of(support_step);
-        self.desc_left.compute(left, wanted);
-        self.desc_right.compute(right, wanted);
-        self.support.compute(&self.desc_left, &self.desc_right, &sp);
+        self.desc_left.compute_rows(left, (rows.start, rows.end), wanted);
+        self.desc_right.compute_rows(right, (rows.start, rows.end), wanted);
+        self.support.compute(&self.desc_left, &self.desc_right, &sp, region);
         self.support.points(&mut self.points);
         self.grid_left.compute(&self.points, disparities, false);
         self.grid_right.compute(&self.points, disparities, true);
-        self.prior.compute(&self.support, step);
+        self.prior.compute(&self.support, step, (rows.start, rows.end));
 
-        let left_side =
-            Side { own: &self.desc_left, other: &self.desc_right, prior: &self.prior.left, grid: &self.grid_left };
-        let right_side =
-            Side { own: &self.desc_right, other: &self.desc_left, prior: &self.prior.right, grid: &self.grid_right };
+        // A left pixel x matches right pixels x - d_max ..= x - d_min, which the left-right
+        // check reads back.
+        let left_columns = (region.x0.min(w), region.x1.min(w));
+        let right_columns =
+            (region.x0.saturating_sub(d_max as usize).min(w), region.x1.saturating_sub(d_min as usize).min(w));
+        let whole_rows = left_columns == (0, w);
+        let left_side = Side {
+            own: &self.desc_left,
+            other: &self.desc_right,
+            prior: &self.prior.left,
+            grid: &self.grid_left,
+            columns: left_columns,
+        };
+        let right_side = Side {
+            own: &self.desc_right,
+            other: &self.desc_left,
+            prior: &self.prior.right,
+            grid: &self.grid_right,
+            columns: right_columns,
+        };
         let q = Search {
             range: disparities,
             radius: self.prior_radius,
@@ -198,10 +232,14 @@ impl DisparityMatcher for Elas {
         let (dense, dense_right) = (&mut self.dense_left[..matched], &mut self.dense_right[..matched]);
         dense.par_chunks_mut(w).zip(dense_right.par_chunks_mut(w)).enumerate().for_each(|(j, (dl, dr))| {
             let y = j * step;
-            if y < BORDER || y + BORDER >= h {
+            if y < BORDER || y + BORDER >= h || !rows.contains(&y) {
                 dl.fill(INVALID);
                 dr.fill(INVALID);
                 return;
+            }
+            if !whole_rows {
+                dl.fill(INVALID);
+                dr.fill(INVALID);
             }
             match_row::<false>(&right_side, &q, y, dr, kernel);
             match_row::<true>(&left_side, &q, y, dl, kernel);
@@ -215,7 +253,7 @@ impl DisparityMatcher for Elas {
         // A region of n pixels holds about n / step matched ones.
         let speckle_size = self.speckle_size.div_ceil(step);
         remove_speckles(dense, w, speckle_size, self.speckle_similarity, &mut self.speckles);
-        refine_subpixel(left, right, dense, step, self.subpixel_radius, &mut self.subpixel);
+        refine_subpixel(left, right, dense, step, self.subpixel_radius, (rows.start, rows.end), &mut self.subpixel);
         interpolate_gaps(dense, w, self.gap_width, self.gap_width / step);
         // The matched rows into their places; the rows between stay INVALID.
         for (j, row) in dense.chunks_exact(w).enumerate() {

@@ -35,7 +35,7 @@ impl SubpixelScratch {
 }
 
 /// Intensities as f32 and half the central difference along the row (0 at the row ends).
-fn float_planes(img: &GrayImage, value: &mut Vec<f32>, grad: &mut Vec<f32>) {
+fn float_planes(img: &GrayImage, rows: (usize, usize), value: &mut Vec<f32>, grad: &mut Vec<f32>) {
     let (w, n) = (img.width, img.width * img.height);
     value.resize(n, 0.0);
     grad.resize(n, 0.0);
@@ -43,7 +43,9 @@ fn float_planes(img: &GrayImage, value: &mut Vec<f32>, grad: &mut Vec<f32>) {
         return;
     }
     value.par_chunks_mut(w).zip(grad.par_chunks_mut(w)).enumerate().for_each(|(y, (v, g))| {
-        float_row(img.row(y), v, g);
+        if (rows.0..rows.1).contains(&y) {
+            float_row(img.row(y), v, g);
+        }
     });
 }
 
@@ -91,16 +93,18 @@ pub fn refine_subpixel(
     disp: &mut [f32],
     row_step: usize,
     radius: usize,
+    rows: (usize, usize),
     s: &mut SubpixelScratch,
 ) {
     let (w, h) = (left.width, left.height);
-    float_planes(left, &mut s.left, &mut s.left_grad);
-    float_planes(right, &mut s.right, &mut s.right_grad);
+    let planes = (rows.0.saturating_sub(radius), rows.1.saturating_add(radius + 1).min(h));
+    float_planes(left, planes, &mut s.left, &mut s.left_grad);
+    float_planes(right, planes, &mut s.right, &mut s.right_grad);
     let p = Planes { lf: &s.left, lg: &s.left_grad, rf: &s.right, rg: &s.right_grad, width: w, radius };
     let (x_lo, x_hi) = (radius + 1, w.saturating_sub(radius + 1));
     disp.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
         let y = j * row_step;
-        if y < radius || y + radius >= h || x_lo >= x_hi {
+        if y < radius || y + radius >= h || x_lo >= x_hi || !(rows.0..rows.1).contains(&y) {
             return;
         }
         refine_row_best(&p, y, row, x_lo, x_hi);
@@ -355,7 +359,7 @@ mod tests {
         let shift = 7.3f32;
         let (left, right) = shifted_pair(11, w, h, shift);
         let mut d = vec![7.0f32; w * h];
-        refine_subpixel(&left, &right, &mut d, 1, 2, &mut SubpixelScratch::new(0));
+        refine_subpixel(&left, &right, &mut d, 1, 2, (0, usize::MAX), &mut SubpixelScratch::new(0));
         let mut errs: Vec<f32> = (4..h - 4)
             .flat_map(|y| (14..w - 6).map(move |x| (y, x)))
             .map(|(y, x)| (d[y * w + x] - shift).abs())
@@ -387,8 +391,8 @@ mod tests {
                     }
                 }
                 let planes_of = |s: &mut SubpixelScratch| {
-                    float_planes(&l, &mut s.left, &mut s.left_grad);
-                    float_planes(&r, &mut s.right, &mut s.right_grad);
+                    float_planes(&l, (0, usize::MAX), &mut s.left, &mut s.left_grad);
+                    float_planes(&r, (0, usize::MAX), &mut s.right, &mut s.right_grad);
                 };
                 let mut scratch = SubpixelScratch::new(0);
                 planes_of(&mut scratch);
@@ -411,7 +415,7 @@ mod tests {
                     })
                     .collect();
                 let mut fast = d.clone();
-                refine_subpixel(&l, &r, &mut fast, 1, radius, &mut SubpixelScratch::new(0));
+                refine_subpixel(&l, &r, &mut fast, 1, radius, (0, usize::MAX), &mut SubpixelScratch::new(0));
                 let refined = slow.iter().zip(&d).filter(|(s, d)| s.is_finite() && s != d).count();
                 assert!(refined > w * h / 4, "only {refined} pixels refined");
                 for i in 0..w * h {
@@ -421,7 +425,7 @@ mod tests {
                 // them: each refined as in the whole map.
                 for row_step in [2, 3] {
                     let mut rows: Vec<f32> = d.chunks_exact(w).step_by(row_step).flatten().copied().collect();
-                    refine_subpixel(&l, &r, &mut rows, row_step, radius, &mut SubpixelScratch::new(0));
+                    refine_subpixel(&l, &r, &mut rows, row_step, radius, (0, usize::MAX), &mut SubpixelScratch::new(0));
                     for (j, row) in rows.chunks_exact(w).enumerate() {
                         let y = j * row_step;
                         for (x, v) in row.iter().enumerate() {

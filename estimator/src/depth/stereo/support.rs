@@ -6,6 +6,7 @@ use rayon::prelude::*;
 
 use super::cost::{run_costs, DisparityRange, Kernel};
 use super::descriptor::{sad, texture, DescriptorImage, BORDER};
+use crate::depth::PixelRegion;
 
 /// Marks a grid node without a support point.
 pub const NONE: i16 = -1;
@@ -53,12 +54,18 @@ impl SupportGrid {
         SupportGrid { step, cols, rows, d: vec![NONE; cols * rows], scratch: vec![NONE; cols * rows] }
     }
 
-    /// Matches every grid node and drops the points that disagree with their neighbourhood.
-    pub fn compute(&mut self, left: &DescriptorImage, right: &DescriptorImage, p: &SupportParams) {
+    /// Matches every grid node inside `region` (the others have none) and drops the points
+    /// that disagree with their neighbourhood.
+    pub fn compute(&mut self, left: &DescriptorImage, right: &DescriptorImage, p: &SupportParams, region: PixelRegion) {
         let step = self.step;
         self.d.par_chunks_mut(self.cols).enumerate().for_each(|(gy, row)| {
             for (gx, out) in row.iter_mut().enumerate() {
-                *out = support_match(left, right, gx * step, gy * step, p).map_or(NONE, |d| d as i16);
+                let (u, v) = (gx * step, gy * step);
+                *out = if region.contains(u, v) {
+                    support_match(left, right, u, v, p).map_or(NONE, |d| d as i16)
+                } else {
+                    NONE
+                };
             }
         });
         self.remove_inconsistent();

@@ -465,3 +465,40 @@ fn a_range_below_zero_is_searched_from_zero() {
         assert_eq!(map_bits(&params(), kernel, &left, &right, (-0.5, 120.0)), clipped, "{kernel:?}");
     }
 }
+
+/// Matching in a region (the box around the block, as the foreground would give it):
+/// nothing outside it, and inside it the block and the plane around it as the whole-image
+/// map has them, against the truth with the same accuracy.
+#[test]
+fn a_region_is_matched_as_the_whole_image_is_there() {
+    for row_step in ROW_STEPS {
+        let scene = box_scene(4);
+        let range = (85.0, 135.0);
+        let (whole, truth, left, right) = run(&scene, 300, range, row_step);
+        let region = crate::depth::PixelRegion { x0: 126, x1: 275, y0: 46, y1: 195 };
+        let mut elas = Elas::new(&StereoParams { row_step, ..params() }, scene.width, scene.height, 128);
+        let mut part = FloatImage::default();
+        elas.compute_in(&left, &right, range, region, &mut part).unwrap();
+        let (mut inside, mut agree, mut right_part, mut right_whole) = (0, 0, 0, 0);
+        for y in 0..scene.height {
+            for x in 0..scene.width {
+                let (p, q, t) = (part.get(x, y), whole.get(x, y), truth.get(x, y));
+                if !region.contains(x, y) {
+                    assert_eq!(p, INVALID, "({x}, {y}) outside the region matched");
+                    continue;
+                }
+                if !q.is_finite() {
+                    continue;
+                }
+                inside += 1;
+                agree += usize::from(p.is_finite() && (p - q).abs() <= 0.5);
+                right_part += usize::from(p.is_finite() && (p - t).abs() < 1.0);
+                right_whole += usize::from((q - t).abs() < 1.0);
+            }
+        }
+        eprintln!("row step {row_step}: {agree} of {inside} pixels agree, right {right_part} against {right_whole}");
+        assert!(inside > 5000, "{inside} pixels matched in the region");
+        assert!(agree as f64 >= 0.97 * inside as f64, "{agree} of {inside} agree");
+        assert!(right_part as f64 >= 0.99 * right_whole as f64, "right {right_part} against {right_whole}");
+    }
+}

@@ -89,11 +89,12 @@ impl Prior {
     }
 
     /// Fills the grid from `support` (same size and step as at construction) and
-    /// rasterises both priors on every `row_step`-th row from row 0 (the rows dense
-    /// matching reads; the others keep what they held). Fewer than three support points
-    /// give no prior.
-    pub fn compute(&mut self, support: &SupportGrid, row_step: usize) {
+    /// rasterises both priors on every `row_step`-th row from row 0 within `rows` (first,
+    /// one past the last: the rows dense matching reads; the others keep what they held).
+    /// Fewer than three support points give no prior.
+    pub fn compute(&mut self, support: &SupportGrid, row_step: usize, rows: (usize, usize)) {
         debug_assert_eq!(support.step, self.step);
+        let pixel_rows = rows;
         let (cols, rows) = (self.cols, self.rows);
         let valid = support.d.iter().filter(|&&d| d != NONE).count();
         if valid < 3 || self.width == 0 || self.height == 0 {
@@ -248,6 +249,7 @@ impl Prior {
             .zip(self.right.par_chunks_mut(width))
             .enumerate()
             .step_by(row_step.max(1))
+            .filter(|(y, _)| (pixel_rows.0..pixel_rows.1).contains(y))
             .for_each(|(y, (left, right))| rasterise_row(node, tx, moved, grid, y, left, right));
     }
 
@@ -680,14 +682,14 @@ mod tests {
                         g.d[gy * g.cols + gx] = if rng.random_bool(hole) { NONE } else { d.max(0.0) as i16 };
                     }
                 }
-                prior.compute(&g, 1);
+                prior.compute(&g, 1, (0, usize::MAX));
                 let (left, right) = serial_views(&prior, &g);
                 assert!(same_bits(&prior.left, &left), "left view differs at {w}x{h}/{step}, trial {trial}");
                 assert!(same_bits(&prior.right, &right), "right view differs at {w}x{h}/{step}, trial {trial}");
                 // With a row step the rasterised rows are those rows of the full views.
                 let row_step = 2 + trial % 3;
                 let mut stepped = Prior::new(w, h, step);
-                stepped.compute(&g, row_step);
+                stepped.compute(&g, row_step, (0, usize::MAX));
                 for y in (0..h).step_by(row_step) {
                     let row = y * w..(y + 1) * w;
                     assert!(same_bits(&stepped.left[row.clone()], &left[row.clone()]), "left row {y} / {row_step}");
@@ -714,7 +716,7 @@ mod tests {
         };
         let g = grid_of(w, h, step, plane, keep);
         let mut prior = Prior::new(w, h, step);
-        prior.compute(&g, 1);
+        prior.compute(&g, 1, (0, usize::MAX));
         for y in 0..h {
             for x in 0..w {
                 let expect = plane(x as f64, y as f64);
@@ -748,17 +750,17 @@ mod tests {
         let d = |u: f64, _v: f64| if u < 60.0 { 50.0 } else { 30.0 };
         let g = grid_of(w, h, step, d, |_, _| true);
         let mut prior = Prior::new(w, h, step);
-        prior.compute(&g, 1);
+        prior.compute(&g, 1, (0, usize::MAX));
         // Right column 5 sees the box (left column 55, disparity 50) and the background
         // (left column 35 is box territory, so only the box).
         assert!((prior.right[20 * w + 5] - 50.0).abs() < 1e-4, "{}", prior.right[20 * w + 5]);
         // Three support points in one corner cover the whole image.
         let g = grid_of(w, h, step, |_, _| 33.0, |gx, gy| gx + gy <= 1);
-        prior.compute(&g, 1);
+        prior.compute(&g, 1, (0, usize::MAX));
         assert!(prior.left.iter().all(|&p| (p - 33.0).abs() < 1e-4));
         // Two are not enough for a plane.
         let g = grid_of(w, h, step, |_, _| 33.0, |gx, gy| gx + gy == 0 || (gx, gy) == (3, 3));
-        prior.compute(&g, 1);
+        prior.compute(&g, 1, (0, usize::MAX));
         assert!(prior.left.iter().all(|p| p.is_nan()));
     }
 }
