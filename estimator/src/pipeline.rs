@@ -342,6 +342,13 @@ impl Estimator {
         &self.reconstructor.rectification().camera
     }
 
+    /// Whether the last stereo frame was matched over the whole image (a 12-shot frame, a
+    /// frame without a background, or one that differs from the background everywhere).
+    pub fn matched_whole(&self) -> bool {
+        let camera = &self.reconstructor.rectification().camera;
+        self.reconstructor.last_region() == crate::PixelRegion::whole(camera.width, camera.height)
+    }
+
     /// The last stereo frame's disparity over the whole image, with the camera it is in: the
     /// frame's own map, or, when a one-shot frame was matched only where it differs from the
     /// background, the pair matched again whole (a one-shot match's time; what `serve`'s

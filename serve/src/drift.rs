@@ -22,6 +22,14 @@ use crate::{Error, ErrorKind, Result};
 /// a real move warns by the third trigger after it.
 pub const DRIFT_WINDOW: usize = 5;
 
+/// A frame matched only around the tray (it looks as the background elsewhere, so the rig has
+/// not moved since the background was captured) is matched again whole for the watch, after
+/// the reply, on the first [`DRIFT_WINDOW`] triggers and on every this many after: a move made
+/// before the background capture is slow news, and the re-match costs a whole-image match.
+/// A frame that differs from the background everywhere (a move since) is matched whole
+/// anyway and checked on every trigger.
+pub const REMATCH_EVERY: u64 = 10;
+
 /// Disparity samples per check (a grid over the image), so a check costs well under 1 ms.
 const SAMPLES: usize = 6000;
 
@@ -102,6 +110,8 @@ pub struct DriftState {
 /// The drift watch over the frames of one rig.
 pub struct DriftWatch {
     limits: DriftLimits,
+    /// Triggers seen ([`DriftWatch::due`]).
+    triggers: u64,
     recent: VecDeque<(f64, f64)>,
     points: Vec<Point3<f64>>,
     state: DriftState,
@@ -112,10 +122,20 @@ impl DriftWatch {
     pub fn new(limits: DriftLimits) -> DriftWatch {
         DriftWatch {
             limits,
+            triggers: 0,
             recent: VecDeque::with_capacity(DRIFT_WINDOW),
             points: Vec::with_capacity(SAMPLES),
             state: DriftState::default(),
         }
+    }
+
+    /// Counts a trigger and says whether its frame is to be checked: always when it was
+    /// `matched_whole`, else on the first [`DRIFT_WINDOW`] triggers and every
+    /// [`REMATCH_EVERY`]-th after (the frame then matched again whole).
+    pub fn due(&mut self, matched_whole: bool) -> bool {
+        let n = self.triggers;
+        self.triggers += 1;
+        matched_whole || n < DRIFT_WINDOW as u64 || n.is_multiple_of(REMATCH_EVERY)
     }
 
     /// What the watch last found.
@@ -124,7 +144,7 @@ impl DriftWatch {
     }
 
     /// Checks the frame whose rectified-left `disparity` (over the whole image: the table
-    /// around the tray, not only the tray's region) the estimator just computed.
+    /// far from the tray) the estimator just computed.
     pub fn check(&mut self, disparity: &FloatImage, camera: &RectifiedCamera) -> &DriftState {
         let Some((rotation_deg, translation_mm)) = self.implied_motion(disparity, camera) else {
             return &self.state;
@@ -240,6 +260,16 @@ mod tests {
     /// A tolerance report with `(parameter, minus, plus)` measured.
     fn tolerances(axes: &[(PlacementParam, f64, f64)]) -> ToleranceReport {
         camplace_testing::tolerance_report("r=605,alpha=32,baseline=81,vergence=3.5", axes)
+    }
+
+    #[test]
+    fn frames_matched_around_the_tray_are_checked_at_first_then_every_tenth() {
+        let limits = DriftLimits::given(None, None).unwrap();
+        let mut watch = DriftWatch::new(limits.clone());
+        let due: Vec<u64> = (0..40).filter(|_| watch.due(false)).collect();
+        assert_eq!(due, [0, 1, 2, 3, 4, 10, 20, 30]);
+        let mut watch = DriftWatch::new(limits);
+        assert!((0..40).all(|_| watch.due(true)), "a frame matched whole is always checked");
     }
 
     #[test]

@@ -192,12 +192,16 @@ impl Worker {
                 }
             }
         }
-        let drift = match self.estimator.whole_disparity() {
-            Ok((disparity, camera)) => self.drift.check(disparity, camera).clone(),
-            Err(e) => {
-                (self.log)(&format!("drift watch: {e}"));
-                self.drift.state().clone()
+        let drift = if self.drift.due(self.estimator.matched_whole()) {
+            match self.estimator.whole_disparity() {
+                Ok((disparity, camera)) => self.drift.check(disparity, camera).clone(),
+                Err(e) => {
+                    (self.log)(&format!("drift watch: {e}"));
+                    self.drift.state().clone()
+                }
             }
+        } else {
+            self.drift.state().clone()
         };
         {
             let mut s = self.shared.lock();
