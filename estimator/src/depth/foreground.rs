@@ -157,7 +157,7 @@ mod tests {
                 let sx = x + shift(x, y);
                 let hash = (sx as u32).wrapping_mul(2_654_435_761) ^ (y as u32).wrapping_mul(40_503);
                 let noise = (x as u32 * 31 + y as u32 * 17 + seed).wrapping_mul(2_246_822_519) >> 30;
-                img.data[y * w + x] = if hash % 7 == 0 { 200 } else { 40 } + noise as u8;
+                img.data[y * w + x] = if hash.is_multiple_of(7) { 200 } else { 40 } + noise as u8;
             }
         }
         img

@@ -182,6 +182,7 @@ impl Reconstructor {
 
     /// Reconstructs the background capture (the cell without tray and items) and keeps it,
     /// dilated, for background removal in every later frame.
+    ///
     /// A one-shot background also sets where later frames are matched: the box of the
     /// rectified left image that differs from this capture ([`Foreground`]).
     pub fn set_background<S: AsImageView<u8>>(&mut self, left: &[S], right: &[S]) -> Result<()> {
