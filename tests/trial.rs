@@ -306,7 +306,7 @@ fn the_review_page_driven_by_key_presses_in_chromium_saves_the_scripted_marks_an
     let posed: Value = serde_json::from_str(&crate::browser::dom_attr(&dom, "data-posed").unwrap()).unwrap();
     if poses[k]["found"].as_bool().unwrap() {
         assert_eq!(counts["model"], data["tray_points"].as_array().unwrap().len(), "{counts}");
-        let t = &poses[k]["t_world_tray"];
+        let t = &poses[k]["T_world_tray"];
         for r in 0..3 {
             let want: f64 = (0..3).map(|c| t[r][c].as_f64().unwrap() * tray[c].as_f64().unwrap()).sum::<f64>()
                 + t[r][3].as_f64().unwrap();
