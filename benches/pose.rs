@@ -29,14 +29,53 @@ fn pose(c: &mut Criterion) {
     let mut ransac = Ransac::new(&params, model.clone()).expect("the synthetic model is usable");
     let mut icp = Icp::new(&params, model.clone()).expect("the synthetic model is usable");
     let mut coarse = ransac
-        .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position)
+        .estimate(
+            &scene.points,
+            &scene.keypoints,
+            &scene.keypoint_normals,
+            &scene.correspondences,
+            &scene.sensor_position,
+        )
         .expect("valid inputs");
     assert!(coarse.found, "the bench scene must be solvable");
 
     c.bench_function("pose/ransac", |b| {
         b.iter(|| {
             coarse = ransac
-                .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position)
+                .estimate(
+                    &scene.points,
+                    &scene.keypoints,
+                    &scene.keypoint_normals,
+                    &scene.correspondences,
+                    &scene.sensor_position,
+                )
+                .expect("valid inputs")
+        })
+    });
+    // The same scene with 1-match samples (`ransac_sample = 1`), the turn from the normals.
+    let mut one_params = params.clone();
+    one_params.ransac_sample = 1;
+    let mut one = Ransac::new(&one_params, model.clone()).expect("the synthetic model is usable");
+    let mut one_coarse = one
+        .estimate(
+            &scene.points,
+            &scene.keypoints,
+            &scene.keypoint_normals,
+            &scene.correspondences,
+            &scene.sensor_position,
+        )
+        .expect("valid inputs");
+    assert!(one_coarse.found, "the bench scene must be solvable with 1-match samples");
+    c.bench_function("pose/ransac_one_match", |b| {
+        b.iter(|| {
+            one_coarse = one
+                .estimate(
+                    &scene.points,
+                    &scene.keypoints,
+                    &scene.keypoint_normals,
+                    &scene.correspondences,
+                    &scene.sensor_position,
+                )
                 .expect("valid inputs")
         })
     });
@@ -52,8 +91,8 @@ fn pose(c: &mut Criterion) {
         })
     });
     eprintln!(
-        "pose: RANSAC {} inliers in {} iterations; ICP {} iterations",
-        coarse.inliers, coarse.iterations, fine.iterations
+        "pose: RANSAC {} inliers in {} iterations (1-match samples: {} in {}); ICP {} iterations",
+        coarse.inliers, coarse.iterations, one_coarse.inliers, one_coarse.iterations, fine.iterations
     );
 }
 

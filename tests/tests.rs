@@ -30,6 +30,7 @@ mod served;
 mod slots;
 mod study;
 mod study_folder;
+mod table_hypothesis;
 mod tolerance;
 mod transforms;
 mod trial;

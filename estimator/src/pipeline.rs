@@ -428,6 +428,7 @@ impl Stages {
         let t = Instant::now();
         out.ransac = self.ransac.estimate_indexed(
             self.features.keypoint_points(),
+            self.features.keypoint_normals(),
             &self.correspondences,
             &self.sensor_position,
         )?;

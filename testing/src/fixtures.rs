@@ -203,6 +203,8 @@ pub struct Scene {
     pub points: Vec<Point3<f32>>,
     /// Feature key points, world frame.
     pub keypoints: Vec<Point3<f32>>,
+    /// Their unit normals, world frame: the surface's, turned by up to about 2°.
+    pub keypoint_normals: Vec<Vector3<f32>>,
     /// Matches of key points to model features, most of them wrong.
     pub correspondences: Vec<Correspondence>,
     /// Correspondences that are right under the true pose.
@@ -225,6 +227,7 @@ impl Scene {
         let pose = t_world_tray.cast::<f32>();
 
         let mut points = Vec::new();
+        let mut normals = Vec::new();
         if spec.with_tray {
             let cuboids = tray_cuboids(symmetric);
             let (surface_points, surface_normals) = surface(&cuboids, SPACING);
@@ -240,17 +243,25 @@ impl Scene {
             let keep = ((1.0 - spec.cut_share.clamp(0.0, 1.0)) * order.len() as f32) as usize;
             for &(_, i) in &order[..keep] {
                 points.push(pose * surface_points[i]);
+                normals.push(pose.rotation * surface_normals[i]);
             }
         }
         // A box-shaped item lying on the table beside the tray.
         let centre = Vector3::new(x + 190.0 * (yaw + 1.0).cos(), y + 190.0 * (yaw + 1.0).sin(), 0.0);
         for _ in 0..spec.clutter_points {
-            let mut p = Vector3::new(rng.random_range(-25.0..25.0), rng.random_range(-25.0..25.0), 35.0);
-            match rng.random_range(0..3) {
-                0 => {}
-                1 => p.x = if p.x > 0.0 { 25.0 } else { -25.0 },
-                _ => p.y = if p.y > 0.0 { 25.0 } else { -25.0 },
-            }
+            let mut p: Vector3<f32> = Vector3::new(rng.random_range(-25.0..25.0), rng.random_range(-25.0..25.0), 35.0);
+            let normal = match rng.random_range(0..3) {
+                0 => Vector3::z(),
+                1 => {
+                    p.x = if p.x > 0.0 { 25.0 } else { -25.0 };
+                    Vector3::x() * p.x.signum()
+                }
+                _ => {
+                    p.y = if p.y > 0.0 { 25.0 } else { -25.0 };
+                    Vector3::y() * p.y.signum()
+                }
+            };
+            normals.push(normal);
             if p.z != 35.0 || rng.random_range(0..2) == 0 {
                 p.z = rng.random_range(0.0..35.0);
             }
@@ -262,8 +273,17 @@ impl Scene {
             }
         }
 
-        let keypoints: Vec<Point3<f32>> =
-            voxel_subsample(&points, spec.keypoint_spacing_mm).into_iter().map(|i| points[i]).collect();
+        let keys = voxel_subsample(&points, spec.keypoint_spacing_mm);
+        let keypoints: Vec<Point3<f32>> = keys.iter().map(|&i| points[i]).collect();
+        // The normals' noise has a stream of its own, so the scene's other draws do not move.
+        let mut normal_rng = ChaCha8Rng::seed_from_u64(spec.seed ^ 0x6e6f_726d);
+        let keypoint_normals = keys
+            .iter()
+            .map(|&i| {
+                let n = normals[i] + Vector3::from_fn(|_, _| normal_rng.random_range(-0.02..=0.02));
+                n.normalize()
+            })
+            .collect();
         let mut correspondences = Vec::new();
         let mut correct = 0;
         let n_model = model.feature_points.len() as u32;
@@ -290,7 +310,7 @@ impl Scene {
                 correspondences.push(Correspondence { scene: si as u32, model: model_index, distance2 });
             }
         }
-        Scene { t_world_tray, sensor_position, points, keypoints, correspondences, correct }
+        Scene { t_world_tray, sensor_position, points, keypoints, keypoint_normals, correspondences, correct }
     }
 }
 

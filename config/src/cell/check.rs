@@ -365,10 +365,10 @@ impl Cell {
                 format!("expected 0 to 10000 iterations, got {}", e.icp_iterations),
             ));
         }
-        if !(2..=3).contains(&e.ransac_sample) {
+        if !(1..=3).contains(&e.ransac_sample) {
             return Err(Error::value(
                 "estimator.ransac_sample",
-                format!("expected 2 or 3 matches per sample, got {}", e.ransac_sample),
+                format!("expected 1, 2 or 3 matches per sample, got {}", e.ransac_sample),
             ));
         }
         unit("estimator.edge_similarity", e.edge_similarity)?;

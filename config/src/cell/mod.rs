@@ -66,6 +66,8 @@ mod tests {
             ("[estimator]\nheight_band = 1e308\n", "estimator.height_band"),
             ("[estimator]\nicp_max_distance = 1e308\n", "estimator.icp_max_distance"),
             ("[estimator]\ninlier_distance = 4294967296\n", "estimator.inlier_distance"),
+            ("[estimator]\nransac_sample = 0\n", "estimator.ransac_sample"),
+            ("[estimator]\nransac_sample = 4\n", "estimator.ransac_sample"),
             ("[metrics]\nsuccess_rotation = 1e9\n", "metrics.success_rotation"),
             ("[stereo]\nlr_tolerance = 4294967296\n", "stereo.lr_tolerance"),
             ("[stereo]\nprior_sigma = 1e308\n", "stereo.prior_sigma"),

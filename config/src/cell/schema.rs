@@ -293,7 +293,8 @@ pub struct EstimatorParams {
     pub k: u32,
     pub height_band: f64,
     pub ransac_iterations: u32,
-    /// Matches per RANSAC sample: 3 (a free pose) or 2 (a tray resting on the table).
+    /// Matches per RANSAC sample: 3 (a free pose), 2 (a tray resting on the table) or 1 (a
+    /// tray resting on the table, its turn from the match's normals).
     pub ransac_sample: u32,
     pub edge_similarity: f64,
     pub table_height: f64,

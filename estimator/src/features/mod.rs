@@ -55,6 +55,7 @@ pub struct FeatureExtractor {
     selector: KeypointSelector,
     keypoints: Vec<u32>,
     keypoint_points: Vec<Point3<f32>>,
+    keypoint_normals: Vec<Vector3<f32>>,
     ecsad: Ecsad,
     descriptors: Vec<Descriptor>,
 }
@@ -79,6 +80,7 @@ impl FeatureExtractor {
             selector: KeypointSelector::new(),
             keypoints: Vec::with_capacity(keypoints),
             keypoint_points: Vec::with_capacity(keypoints),
+            keypoint_normals: Vec::with_capacity(keypoints),
             ecsad: Ecsad::new(params.feature_radius as f32)?,
             descriptors: Vec::with_capacity(keypoints),
         })
@@ -90,6 +92,7 @@ impl FeatureExtractor {
         let mut timings = FeatureTimings::default();
         self.keypoints.clear();
         self.keypoint_points.clear();
+        self.keypoint_normals.clear();
         self.descriptors.clear();
 
         let t = Instant::now();
@@ -107,6 +110,7 @@ impl FeatureExtractor {
         self.ecsad.compute(&self.cloud, &self.normals, &self.neighbours, &self.keypoints, &mut self.descriptors)?;
         keep_distinctive(&mut self.keypoints, &mut self.descriptors, self.min_relief);
         self.keypoint_points.extend(self.keypoints.iter().map(|&i| self.cloud[i as usize]));
+        self.keypoint_normals.extend(self.keypoints.iter().map(|&i| self.normals[i as usize]));
         timings.features_ms = ms(t);
         Ok(timings)
     }
@@ -129,6 +133,12 @@ impl FeatureExtractor {
     /// The described key points' positions.
     pub fn keypoint_points(&self) -> &[Point3<f32>] {
         &self.keypoint_points
+    }
+
+    /// The described key points' normals (each valid: key points are chosen among points
+    /// with one).
+    pub fn keypoint_normals(&self) -> &[Vector3<f32>] {
+        &self.keypoint_normals
     }
 
     /// One descriptor per key point.

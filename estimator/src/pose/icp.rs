@@ -532,7 +532,13 @@ mod tests {
                 SceneSpec { seed, noise_mm: 0.5, correct_share: 0.5, matches_per_keypoint: 5, ..SceneSpec::default() };
             let scene = Scene::generate(&model, false, &spec);
             let coarse = ransac
-                .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position)
+                .estimate(
+                    &scene.points,
+                    &scene.keypoints,
+                    &scene.keypoint_normals,
+                    &scene.correspondences,
+                    &scene.sensor_position,
+                )
                 .unwrap();
             assert!(coarse.found);
             let fine = icp.refine(&scene.points, coarse.view, &scene.sensor_position, &coarse.t_world_tray).unwrap();

@@ -1,12 +1,20 @@
 //! The pre-rejection checks (Buch et al.'s "prerejective" step): tests a sample must pass
 //! before its pose is scored, each a named unit applied at the stage where its inputs exist
 //! (the scene key points drawn, then their model features, then the fitted pose). RANSAC
-//! takes them as a list; [`RansacCheck::paper`] is the paper's list for 3-match samples and
-//! [`RansacCheck::table_pair`] the list for 2-match samples of a level tray. Drawing the samples
-//! is `sampling.rs`'s, scoring them `scoring.rs`'s.
+//! takes them as a list; [`RansacCheck::paper`] is the paper's list for 3-match samples,
+//! [`RansacCheck::table_pair`] the list for 2-match samples of a level tray and
+//! [`RansacCheck::table_point`] the one for 1-match samples with normals. Drawing the
+//! samples is `sampling.rs`'s, scoring them `scoring.rs`'s.
 
 use camplace_config::EstimatorParams;
 use nalgebra::{Isometry3, Point3, Vector3};
+
+/// The least horizontal length of a unit normal that fixes a level tray's turn (sin 30°): a
+/// normal error of e turns the tray by about e over this.
+pub const MIN_NORMAL_LEAN: f32 = 0.5;
+/// The largest difference of the vertical parts of a match's two unit normals: about 11.5°
+/// of lean at a wall, where the parts are near 0.
+pub const MAX_LEAN_DIFFERENCE: f32 = 0.2;
 
 /// Samples whose scene triangle is thinner than this (twice its area over its longest edge
 /// squared) fix the rotation about their long side poorly.
@@ -42,6 +50,18 @@ pub enum RansacCheck {
         /// The largest disagreement, mm.
         max_mm: f32,
     },
+    /// The scene key point's normal, and its model feature's, each have a horizontal part at
+    /// least `min_lean` long (unit normals), enough to fix the turn about z (1 match).
+    SteepNormal {
+        /// The least horizontal length.
+        min_lean: f32,
+    },
+    /// The match's scene and model normals lean alike from vertical: their vertical parts
+    /// differ by at most `max_difference`, as a level tray's would (1 match).
+    NormalLean {
+        /// The largest difference.
+        max_difference: f32,
+    },
     /// The paper's table check on the fitted pose: the tray's bottom within `table_height`
     /// of the table and its z axis within the tilt whose cosine is `cos_tilt` of world z.
     OnTable {
@@ -53,13 +73,29 @@ pub enum RansacCheck {
 }
 
 impl RansacCheck {
-    /// The checks of `params`' sample size: [`RansacCheck::table_pair`] for 2, else [`RansacCheck::paper`].
+    /// The checks of `params`' sample size: [`RansacCheck::table_point`] for 1,
+    /// [`RansacCheck::table_pair`] for 2, else [`RansacCheck::paper`].
     pub fn for_params(params: &EstimatorParams) -> Vec<RansacCheck> {
-        if params.ransac_sample == 2 {
-            RansacCheck::table_pair(params).to_vec()
-        } else {
-            RansacCheck::paper(params).to_vec()
+        match params.ransac_sample {
+            1 => RansacCheck::table_point(params).to_vec(),
+            2 => RansacCheck::table_pair(params).to_vec(),
+            _ => RansacCheck::paper(params).to_vec(),
         }
+    }
+
+    /// The checks of a 1-match sample of a tray lying level on the table: normals that fix
+    /// the turn and lean alike, and a pose that rests on the table; for the 2-match sample
+    /// a key point whose normal does not fix the turn starts, [`RansacCheck::table_pair`]'s.
+    pub fn table_point(params: &EstimatorParams) -> [RansacCheck; 6] {
+        let [span, ratio, height, on_table] = RansacCheck::table_pair(params);
+        [
+            RansacCheck::SteepNormal { min_lean: MIN_NORMAL_LEAN },
+            RansacCheck::NormalLean { max_difference: MAX_LEAN_DIFFERENCE },
+            span,
+            ratio,
+            height,
+            on_table,
+        ]
     }
 
     /// The paper's checks of a 3-match sample: a good scene triangle, edges that agree in
@@ -114,6 +150,26 @@ impl RansacCheck {
                 ls2.min(lm2) >= similarity * similarity * ls2.max(lm2)
             }
             RansacCheck::HeightDifference { max_mm } => ((s[1].z - s[0].z) - (m[1].z - m[0].z)).abs() <= max_mm,
+            _ => true,
+        }
+    }
+
+    /// Whether the scene key point's unit normal `ns` passes (1 match).
+    #[inline]
+    pub fn scene_normal(&self, ns: &Vector3<f32>) -> bool {
+        match *self {
+            RansacCheck::SteepNormal { min_lean } => ns.x * ns.x + ns.y * ns.y >= min_lean * min_lean,
+            _ => true,
+        }
+    }
+
+    /// Whether the scene key point's unit normal `ns` and its model feature's `nm` pass
+    /// (1 match).
+    #[inline]
+    pub fn matched_normal(&self, ns: &Vector3<f32>, nm: &Vector3<f32>) -> bool {
+        match *self {
+            RansacCheck::SteepNormal { min_lean } => nm.x * nm.x + nm.y * nm.y >= min_lean * min_lean,
+            RansacCheck::NormalLean { max_difference } => (ns.z - nm.z).abs() <= max_difference,
             _ => true,
         }
     }
@@ -218,5 +274,29 @@ mod tests {
         assert!(!table.pose(&tilted));
         // Checks of other stages pass everything.
         assert!(span.matched(&s, &m) && ratio.scene(&s) && span.pose(&lifted));
+    }
+
+    /// A match's normals pass when both lean enough to fix a turn and lean alike.
+    #[test]
+    fn point_checks_follow_the_normals_lean() {
+        let p = camplace_config::Cell::default().estimator;
+        let [steep, lean, ..] = RansacCheck::table_point(&p);
+        let wall = Vector3::new(0.0, -1.0, 0.0);
+        let flat = Vector3::new(0.2, 0.0, 0.98).normalize();
+        assert!(steep.scene_normal(&wall) && !steep.scene_normal(&flat));
+        let chamfer = Vector3::new(0.7, 0.0, 0.7).normalize();
+        let turned = Vector3::new(0.0, 0.7, 0.7).normalize();
+        assert!(steep.matched_normal(&chamfer, &turned) && lean.matched_normal(&chamfer, &turned));
+        assert!(!steep.matched_normal(&chamfer, &flat));
+        assert!(!lean.matched_normal(&chamfer, &wall));
+        // At the limits.
+        let leaning = |h: f32| Vector3::new(h, 0.0, (1.0 - h * h).sqrt());
+        assert!(steep.scene_normal(&leaning(MIN_NORMAL_LEAN + 1e-3)));
+        assert!(!steep.scene_normal(&leaning(MIN_NORMAL_LEAN - 1e-3)));
+        let (a, b) = (Vector3::new(1.0, 0.0, 0.0), Vector3::new(0.0, 1.0, MAX_LEAN_DIFFERENCE - 1e-3));
+        assert!(lean.matched_normal(&a, &b));
+        assert!(!lean.matched_normal(&a, &Vector3::new(0.0, 1.0, MAX_LEAN_DIFFERENCE + 1e-3)));
+        // Checks of other stages pass everything.
+        assert!(lean.scene_normal(&flat) && RansacCheck::on_table(&p).matched_normal(&a, &flat));
     }
 }

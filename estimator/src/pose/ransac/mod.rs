@@ -10,7 +10,13 @@
 //! table from them: the horizontal edge fixes yaw, the mean offset x, y and z, and the pair
 //! is rejected unless its edge lengths and height differences agree. A share p of right
 //! matches then gives an all-right sample with probability p^2 rather than p^3; the
-//! consensus re-fit and ICP free the tilt again.
+//! consensus re-fit and ICP free the tilt again. With `ransac_sample = 1` it draws one match
+//! with the two normals: a level tray's turn about z is the one that brings the model
+//! normal's horizontal direction onto the scene normal's, and the match's offset is x, y
+//! and z. The match is rejected unless both normals lean far enough from vertical to fix
+//! that turn and lean alike; a key point whose normal does not (on a floor, or under a
+//! camera looking straight down) starts a 2-match sample instead. An all-right sample then
+//! comes with probability about p where normals fix the turn and p^2 elsewhere.
 //!
 //! Either way the hypotheses are scored by the inliers of the closest viewpoint's ICP cloud
 //! against the scene. The view's points are kept in a fixed random order, so every prefix is
@@ -61,6 +67,9 @@ const STREAMS: usize = 8;
 /// against the tens of thousands of samples a scene needs (so little is drawn past the
 /// stopping rule's count).
 const STREAM_DRAWS: usize = 512;
+/// A 1-match sample counts as right for the stopping rule when the turn its normals give
+/// is within this of the pose's, deg.
+const TURN_AGREEMENT_DEG: f64 = 5.0;
 
 /// The outcome of [`Ransac::estimate`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -116,6 +125,8 @@ pub struct Ransac {
     match_model: Vec<u32>,
     /// Key points with at least one match.
     matched: Vec<u32>,
+    /// The scene key points' normals of the current call (1-match samples only).
+    scene_normals: Vec<Vector3<f32>>,
     ranks: RankWeights,
     /// Each stream's hypotheses of the current round.
     streams: Vec<Vec<Hypothesis>>,
@@ -162,6 +173,7 @@ impl Ransac {
             match_start: Vec::with_capacity(1 << 13),
             match_model: Vec::with_capacity(1 << 17),
             matched: Vec::with_capacity(1 << 13),
+            scene_normals: Vec::with_capacity(1 << 13),
             ranks: RankWeights::new(),
             streams: (0..STREAMS).map(|_| Vec::with_capacity(STREAM_DRAWS)).collect(),
             consensus_parts: Vec::with_capacity(max_view.min(SCORE_SAMPLE).div_ceil(CONSENSUS_CHUNK)),
@@ -169,18 +181,19 @@ impl Ransac {
     }
 
     /// Finds the tray's pose from matches of `scene_keypoints` (indexed by
-    /// `Correspondence::scene`) to the model's features, scoring against the scene cloud
-    /// `scene_points` (world frame): [`Ransac::index_scene`], then
-    /// [`Ransac::estimate_indexed`].
+    /// `Correspondence::scene`, their normals `scene_normals`) to the model's features,
+    /// scoring against the scene cloud `scene_points` (world frame): [`Ransac::index_scene`],
+    /// then [`Ransac::estimate_indexed`].
     pub fn estimate(
         &mut self,
         scene_points: &[Point3<f32>],
         scene_keypoints: &[Point3<f32>],
+        scene_normals: &[Vector3<f32>],
         correspondences: &[Correspondence],
         sensor_position_world: &Point3<f32>,
     ) -> Result<RansacResult> {
         self.index_scene(scene_points);
-        self.estimate_indexed(scene_keypoints, correspondences, sensor_position_world)
+        self.estimate_indexed(scene_keypoints, scene_normals, correspondences, sensor_position_world)
     }
 
     /// Indexes the scene cloud (world frame) hypotheses are scored against. It needs only the
@@ -195,14 +208,16 @@ impl Ransac {
     }
 
     /// Finds the tray's pose from matches of `scene_keypoints` (indexed by
-    /// `Correspondence::scene`) to the model's features, scoring against the scene cloud of
-    /// the last [`Ransac::index_scene`]. The result's `found` is false when no hypothesis
+    /// `Correspondence::scene`, their normals `scene_normals`, which only 1-match samples
+    /// read) to the model's features, scoring against the scene cloud of the last
+    /// [`Ransac::index_scene`]. The result's `found` is false when no hypothesis
     /// passes the checks with `min_inlier_share` of its view's points as inliers; it then
     /// holds the best hypothesis seen, if any, for diagnosis only.
     /// The same inputs give the same result: sampling restarts from `seed` on every call.
     pub fn estimate_indexed(
         &mut self,
         scene_keypoints: &[Point3<f32>],
+        scene_normals: &[Vector3<f32>],
         correspondences: &[Correspondence],
         sensor_position_world: &Point3<f32>,
     ) -> Result<RansacResult> {
@@ -221,6 +236,20 @@ impl Ransac {
                     c.model
                 ),
             ));
+        }
+        self.scene_normals.clear();
+        if self.sample == 1 {
+            if scene_normals.len() != scene_keypoints.len() {
+                return Err(Error::new(
+                    ErrorKind::Input,
+                    format!(
+                        "ransac: expected a normal per key point for 1-match samples, found {} for {} key points",
+                        scene_normals.len(),
+                        scene_keypoints.len()
+                    ),
+                ));
+            }
+            self.scene_normals.extend_from_slice(scene_normals);
         }
         self.group_matches(scene_keypoints.len(), correspondences);
         if let Some(k) =
@@ -368,10 +397,10 @@ impl Ransac {
         scene_keypoints: &[Point3<f32>],
         model: &Model,
     ) -> Option<Isometry3<f64>> {
-        if self.sample == 2 {
-            self.table_pair(rng, scene_keypoints, model)
-        } else {
-            self.triple(rng, scene_keypoints, model)
+        match self.sample {
+            1 => self.table_point(rng, scene_keypoints, model),
+            2 => self.table_pair(rng, scene_keypoints, model),
+            _ => self.triple(rng, scene_keypoints, model),
         }
     }
 
@@ -387,9 +416,7 @@ impl Ransac {
     /// stop later than it could, never earlier.
     fn iterations_needed(&self, pose: &Isometry3<f64>, scene_keypoints: &[Point3<f32>], model: &Model) -> u32 {
         let turned = pose * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI);
-        let share =
-            self.right_share(pose, scene_keypoints, model).max(self.right_share(&turned, scene_keypoints, model));
-        let p = share.powi(self.sample as i32);
+        let p = self.right_chance(pose, scene_keypoints, model).max(self.right_chance(&turned, scene_keypoints, model));
         if p <= 0.0 {
             return self.iterations;
         }
@@ -404,25 +431,60 @@ impl Ransac {
         }
     }
 
-    /// The chance that a key point drawn at random, then one of its matches as
-    /// [`Ransac::draw_match`] draws it, is a match `pose` confirms (its model feature within
-    /// twice the inlier distance).
-    fn right_share(&self, pose: &Isometry3<f64>, scene_keypoints: &[Point3<f32>], model: &Model) -> f64 {
+    /// The chance that a draw of the sampler is an all-right sample if `pose` is right. A
+    /// match is right when `pose` puts its model feature within twice the inlier distance
+    /// of its key point; a key point is drawn at random, then one of its matches as
+    /// [`Ransac::draw_match`] draws it. For 3- and 2-match samples that is the share of
+    /// right matches to the sample's power. A 1-match sample whose key point's normal fixes
+    /// the turn is right when its match is and passes the normal checks with the turn
+    /// `pose` gives, to [`TURN_AGREEMENT_DEG`]; one whose normal does not is a 2-match
+    /// sample, right when both matches are.
+    fn right_chance(&self, pose: &Isometry3<f64>, scene_keypoints: &[Point3<f32>], model: &Model) -> f64 {
         let (r, t) = split(pose);
         let reach2 = 4.0 * self.inlier_distance * self.inlier_distance;
-        let mut share = 0.0f64;
+        let min_cos = TURN_AGREEMENT_DEG.to_radians().cos() as f32;
+        // Per key point: the weighted share of its right matches, and of those a 1-match
+        // sample takes.
+        let (mut share, mut alone, mut paired) = (0.0f64, 0.0f64, 0.0f64);
         for &k in &self.matched {
             let (lo, hi) = (self.match_start[k as usize] as usize, self.match_start[k as usize + 1] as usize);
             let s = scene_keypoints[k as usize];
-            let right: u64 = self.match_model[lo..hi]
-                .iter()
-                .enumerate()
-                .filter(|(_, &f)| (r * model.feature_points[f as usize] + t - s.coords).coords.norm_squared() <= reach2)
-                .map(|(rank, _)| u64::from(self.ranks.weight(rank)))
-                .sum();
-            share += right as f64 / self.ranks.total(hi - lo) as f64;
+            let (mut right, mut right_alone) = (0u64, 0u64);
+            for (rank, &f) in self.match_model[lo..hi].iter().enumerate() {
+                let f = f as usize;
+                if (r * model.feature_points[f] + t - s.coords).coords.norm_squared() > reach2 {
+                    continue;
+                }
+                let weight = u64::from(self.ranks.weight(rank));
+                right += weight;
+                if self.sample == 1 {
+                    let (ns, nm) = (self.scene_normals[k as usize], model.feature_normals[f]);
+                    let (hs, hm) = (ns.xy(), (r * nm).xy());
+                    if self.checks.iter().all(|c| c.matched_normal(&ns, &nm))
+                        && hs.dot(&hm) >= min_cos * hs.norm() * hm.norm()
+                    {
+                        right_alone += weight;
+                    }
+                }
+            }
+            let total = self.ranks.total(hi - lo) as f64;
+            share += right as f64 / total;
+            if self.sample == 1 {
+                if self.checks.iter().all(|c| c.scene_normal(&self.scene_normals[k as usize])) {
+                    alone += right_alone as f64 / total;
+                } else {
+                    paired += right as f64 / total;
+                }
+            }
         }
-        share / self.matched.len() as f64
+        let n = self.matched.len() as f64;
+        if self.sample == 1 {
+            // A key point whose normal does not fix the turn is paired with a second key
+            // point drawn as the first was.
+            (alone + paired * share / n) / n
+        } else {
+            (share / n).powi(self.sample as i32)
+        }
     }
 
     /// Whether `pose` passes the pose checks (the table check).
@@ -478,7 +540,7 @@ mod tests {
     #[test]
     fn recovers_the_pose_through_mostly_wrong_matches() {
         let model = Arc::new(testing::tray(false, 1));
-        for (seed, sample) in (0..4).flat_map(|seed| [(seed, 2), (seed, 3)]) {
+        for (seed, sample) in (0..4).flat_map(|seed| [(seed, 1), (seed, 2), (seed, 3)]) {
             let mut p = params();
             p.ransac_sample = sample;
             let mut ransac = Ransac::new(&p, model.clone()).unwrap();
@@ -487,15 +549,27 @@ mod tests {
             let wrong = 1.0 - scene.correct as f64 / scene.correspondences.len() as f64;
             assert!(wrong > 0.85, "{wrong}");
             let out = ransac
-                .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position)
+                .estimate(
+                    &scene.points,
+                    &scene.keypoints,
+                    &scene.keypoint_normals,
+                    &scene.correspondences,
+                    &scene.sensor_position,
+                )
                 .unwrap();
             assert!(out.found, "seed {seed}, sample {sample}: {out:?}");
             let (dt, dr) = pose_error(&out.t_world_tray, &scene.t_world_tray);
-            // A coarse pose: ICP refines it; a 2-match hypothesis is re-fitted once only.
+            // A coarse pose: ICP refines it; a 1- or 2-match hypothesis is re-fitted once only.
             assert!(dt < 4.0 && dr < 2.0, "seed {seed}, sample {sample}: {dt} mm {dr} deg");
             assert_eq!(out.view, model.closest_view(&out.t_world_tray, &scene.sensor_position));
             let again = ransac
-                .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position)
+                .estimate(
+                    &scene.points,
+                    &scene.keypoints,
+                    &scene.keypoint_normals,
+                    &scene.correspondences,
+                    &scene.sensor_position,
+                )
                 .unwrap();
             assert_eq!(out, again);
         }
@@ -514,16 +588,68 @@ mod tests {
         // A 2-match sample assumes a level tray and would not even propose this pose.
         p.ransac_sample = 3;
         let mut strict = Ransac::new(&p, model.clone()).unwrap();
-        let out =
-            strict.estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position).unwrap();
+        let out = strict
+            .estimate(
+                &scene.points,
+                &scene.keypoints,
+                &scene.keypoint_normals,
+                &scene.correspondences,
+                &scene.sensor_position,
+            )
+            .unwrap();
         assert!(!out.found && out.inliers == 0, "{out:?}");
         p.table_tilt = 40.0;
         p.table_height = 60.0;
         let mut loose = Ransac::new(&p, model.clone()).unwrap();
-        let out =
-            loose.estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position).unwrap();
+        let out = loose
+            .estimate(
+                &scene.points,
+                &scene.keypoints,
+                &scene.keypoint_normals,
+                &scene.correspondences,
+                &scene.sensor_position,
+            )
+            .unwrap();
         let (dt, dr) = pose_error(&out.t_world_tray, &scene.t_world_tray);
         assert!(out.found && dt < 3.0 && dr < 2.0, "{out:?} {dt} {dr}");
+    }
+
+    /// The level pose of a right match with its normals is the true pose: the key point
+    /// lands on its model feature and the turn is the truth's to the normals' error (up to
+    /// about 2°). A match is right here when the truth puts the model feature within 3 mm
+    /// of the key point and its normal within 10° of the key point's, and its normals pass
+    /// the 1-match checks.
+    #[test]
+    fn a_right_match_with_its_normals_gives_the_level_pose() {
+        let model = Arc::new(testing::tray(false, 1));
+        let mut p = params();
+        p.ransac_sample = 1;
+        let checks = RansacCheck::table_point(&p);
+        for seed in 0..3 {
+            let spec = SceneSpec { seed, correct_share: 1.0, matches_per_keypoint: 1, ..SceneSpec::default() };
+            let scene = Scene::generate(&model, false, &spec);
+            let truth = scene.t_world_tray.cast::<f32>();
+            let (mut right, mut worst) = (0, (0.0f64, 0.0f64));
+            for c in &scene.correspondences {
+                let (s, ns) = (scene.keypoints[c.scene as usize], scene.keypoint_normals[c.scene as usize]);
+                let (m, nm) = (model.feature_points[c.model as usize], model.feature_normals[c.model as usize]);
+                let lands = (truth * m - s).norm() < 3.0 && (truth.rotation * nm).dot(&ns) > 10f32.to_radians().cos();
+                if !lands || !checks.iter().all(|k| k.scene_normal(&ns) && k.matched_normal(&ns, &nm)) {
+                    continue;
+                }
+                right += 1;
+                let pose = sampling::level_pose(&s, &ns, &m, &nm);
+                assert!((pose * m.cast::<f64>() - s.cast::<f64>()).norm() < 1e-3);
+                let (dt, dr) = pose_error(&pose, &scene.t_world_tray);
+                worst = (worst.0.max(dr), worst.1.max(dt));
+                assert!(checks.iter().all(|k| k.pose(&pose)), "seed {seed}: a right match's pose is off the table");
+            }
+            assert!(right > 20, "seed {seed}: {right} right matches");
+            // The turn is off by the normals' error (±0.02 a component) over their lean (at
+            // least 0.5); the offset by that turn about the tray's origin, within ~250 mm.
+            assert!(worst.0 < 3.5, "seed {seed}: a turn {} deg off", worst.0);
+            assert!(worst.1 < 15.0, "seed {seed}: an offset {} mm off", worst.1);
+        }
     }
 
     #[test]
@@ -536,7 +662,13 @@ mod tests {
             let spec = SceneSpec { seed, with_tray: false, clutter_points: 8000, ..SceneSpec::default() };
             let scene = Scene::generate(&model, false, &spec);
             let out = ransac
-                .estimate(&scene.points, &scene.keypoints, &scene.correspondences, &scene.sensor_position)
+                .estimate(
+                    &scene.points,
+                    &scene.keypoints,
+                    &scene.keypoint_normals,
+                    &scene.correspondences,
+                    &scene.sensor_position,
+                )
                 .unwrap();
             assert!(!out.found, "seed {seed}: {out:?}");
             assert!(out.inliers < ransac.required(out.view));
@@ -549,7 +681,7 @@ mod tests {
         let mut ransac = Ransac::new(&params(), model.clone()).unwrap();
         let scene = [Point3::origin(); 4];
         let bad = [Correspondence { scene: 9, model: 0, distance2: 0.0 }; 3];
-        let e = ransac.estimate(&scene, &scene, &bad, &Point3::new(0.0, 0.0, 800.0)).unwrap_err();
+        let e = ransac.estimate(&scene, &scene, &[], &bad, &Point3::new(0.0, 0.0, 800.0)).unwrap_err();
         assert_eq!(e.kind(), ErrorKind::Input);
         let empty = Model { surface_resolution: 2.0, ..Model::default() };
         assert_eq!(Ransac::new(&params(), Arc::new(empty)).unwrap_err().kind(), ErrorKind::Model);
@@ -563,8 +695,10 @@ mod tests {
         let model = Arc::new(testing::tray(false, 1));
         // Short limits end inside a round, where a better pose may raise the count again.
         let cases = (0..3)
-            .flat_map(|seed| [(seed, 2, 100_000, 0.3), (seed, 3, 100_000, 0.3)])
-            .chain((3..9).flat_map(|seed| [(seed, 2, 4_500, 0.1), (seed, 3, 5_000 + 300 * seed as u32, 0.15)]));
+            .flat_map(|seed| [(seed, 1, 100_000, 0.3), (seed, 2, 100_000, 0.3), (seed, 3, 100_000, 0.3)])
+            .chain((3..9).flat_map(|seed| {
+                [(seed, 1, 700, 0.05), (seed, 2, 4_500, 0.1), (seed, 3, 5_000 + 300 * seed as u32, 0.15)]
+            }));
         for (n, (seed, sample, iterations, correct_share)) in cases.enumerate() {
             let mut p = params();
             // Every third case with a minimum share too low for the bar's test to be
@@ -580,6 +714,7 @@ mod tests {
             let scene = Scene::generate(&model, false, &spec);
             ransac.group_matches(scene.keypoints.len(), &scene.correspondences);
             ransac.grid.rebuild(&scene.points);
+            ransac.scene_normals = scene.keypoint_normals.clone();
 
             // The oracle: every draw of every stream in order, each scored against the best
             // before it, stopping where the stopping rule says.

@@ -1,5 +1,5 @@
 //! Drawing RANSAC's samples: the matches grouped by scene key point, a key point's match
-//! drawn by its rank (nearer descriptors more often), and the 3-match and 2-match samples
+//! drawn by its rank (nearer descriptors more often), and the 3-, 2- and 1-match samples
 //! put through the pre-rejection checks (`checks.rs`) at each stage, the random draws in the
 //! same order whatever the checks reject.
 
@@ -68,8 +68,20 @@ impl Ransac {
         model: &Model,
     ) -> Option<Isometry3<f64>> {
         let n = self.matched.len() as u32;
-        let k = [self.matched[rng.random_range(0..n) as usize], self.matched[rng.random_range(0..n) as usize]]
-            .map(|k| k as usize);
+        let first = self.matched[rng.random_range(0..n) as usize] as usize;
+        self.pair_with(rng, first, scene_keypoints, model)
+    }
+
+    /// The 2-match hypothesis of [`Ransac::table_pair`] whose first key point is `first`.
+    fn pair_with(
+        &self,
+        rng: &mut ChaCha8Rng,
+        first: usize,
+        scene_keypoints: &[Point3<f32>],
+        model: &Model,
+    ) -> Option<Isometry3<f64>> {
+        let n = self.matched.len() as u32;
+        let k = [first, self.matched[rng.random_range(0..n) as usize] as usize];
         if k[0] == k[1] {
             return None;
         }
@@ -91,6 +103,35 @@ impl Ransac {
         let mean = |p: &[Point3<f32>; 2]| (p[0].coords.cast::<f64>() + p[1].coords.cast::<f64>()) * 0.5;
         let translation = mean(&s) - rotation * mean(&m);
         let pose = Isometry3::from_parts(Translation3::from(translation), rotation);
+        self.pose_passes(&pose).then_some(pose)
+    }
+
+    /// One 1-match hypothesis of a tray resting on the table, or `None` when the sample is
+    /// rejected before scoring. A key point whose normal leans far enough from vertical to
+    /// fix a turn, and one of its matches whose normal does too and leans alike
+    /// ([`RansacCheck::table_point`]'s normal checks). Yaw turns the model normal's
+    /// horizontal direction onto the scene normal's; the match's offset is x, y and z, which
+    /// the table check bounds. A key point whose normal does not fix the turn (a key point
+    /// on a floor, or every key point under a camera looking straight down) starts a 2-match
+    /// sample instead, through the pair checks of the same list.
+    pub(super) fn table_point(
+        &self,
+        rng: &mut ChaCha8Rng,
+        scene_keypoints: &[Point3<f32>],
+        model: &Model,
+    ) -> Option<Isometry3<f64>> {
+        let n = self.matched.len() as u32;
+        let k = self.matched[rng.random_range(0..n) as usize] as usize;
+        let ns = self.scene_normals[k];
+        if !self.checks.iter().all(|c| c.scene_normal(&ns)) {
+            return self.pair_with(rng, k, scene_keypoints, model);
+        }
+        let f = self.draw_match(rng, k) as usize;
+        let nm = model.feature_normals[f];
+        if !self.checks.iter().all(|c| c.matched_normal(&ns, &nm)) {
+            return None;
+        }
+        let pose = level_pose(&scene_keypoints[k], &ns, &model.feature_points[f], &nm);
         self.pose_passes(&pose).then_some(pose)
     }
 
@@ -127,6 +168,15 @@ impl Ransac {
         self.match_start.copy_within(1..keypoints + 1, 0);
         self.match_start[keypoints] = correspondences.len() as u32;
     }
+}
+
+/// The pose of a level tray that puts model point `m` on scene point `s` and turns the
+/// horizontal direction of model normal `nm` onto that of scene normal `ns`.
+pub(super) fn level_pose(s: &Point3<f32>, ns: &Vector3<f32>, m: &Point3<f32>, nm: &Vector3<f32>) -> Isometry3<f64> {
+    let yaw = (ns.y as f64).atan2(ns.x as f64) - (nm.y as f64).atan2(nm.x as f64);
+    let rotation = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw);
+    let translation = s.coords.cast::<f64>() - rotation * m.coords.cast::<f64>();
+    Isometry3::from_parts(Translation3::from(translation), rotation)
 }
 
 /// How often a key point's matches are drawn by their rank (0 = the nearest descriptor):
