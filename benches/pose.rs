@@ -3,7 +3,7 @@
 //! nearest-point grids are built once per model (per placement in a study).
 
 use camplace_config::Cell;
-use camplace_estimator::{pose::Icp, pose::IcpResult, pose::Ransac};
+use camplace_estimator::{pose::Icp, pose::IcpResult, pose::Ransac, pose::RansacResult};
 use camplace_testing::{self as testing, Scene, SceneSpec};
 use criterion::{criterion_group, Criterion};
 use std::sync::Arc;
@@ -26,59 +26,32 @@ fn pose(c: &mut Criterion) {
         scene.correspondences.len(),
         scene.correct
     );
-    let mut ransac = Ransac::new(&params, model.clone()).expect("the synthetic model is usable");
+    let estimate = |ransac: &mut Ransac| {
+        ransac
+            .estimate(
+                &scene.points,
+                &scene.keypoints,
+                &scene.keypoint_normals,
+                &scene.correspondences,
+                &scene.sensor_position,
+            )
+            .expect("valid inputs")
+    };
     let mut icp = Icp::new(&params, model.clone()).expect("the synthetic model is usable");
-    let mut coarse = ransac
-        .estimate(
-            &scene.points,
-            &scene.keypoints,
-            &scene.keypoint_normals,
-            &scene.correspondences,
-            &scene.sensor_position,
-        )
-        .expect("valid inputs");
-    assert!(coarse.found, "the bench scene must be solvable");
-
-    c.bench_function("pose/ransac", |b| {
-        b.iter(|| {
-            coarse = ransac
-                .estimate(
-                    &scene.points,
-                    &scene.keypoints,
-                    &scene.keypoint_normals,
-                    &scene.correspondences,
-                    &scene.sensor_position,
-                )
-                .expect("valid inputs")
-        })
-    });
-    // The same scene with 1-match samples (`ransac_sample = 1`), the turn from the normals.
+    // 2-match samples (the default), then 1-match samples (`ransac_sample = 1`), the turn
+    // from the normals, on the same scene.
     let mut one_params = params.clone();
     one_params.ransac_sample = 1;
-    let mut one = Ransac::new(&one_params, model.clone()).expect("the synthetic model is usable");
-    let mut one_coarse = one
-        .estimate(
-            &scene.points,
-            &scene.keypoints,
-            &scene.keypoint_normals,
-            &scene.correspondences,
-            &scene.sensor_position,
-        )
-        .expect("valid inputs");
-    assert!(one_coarse.found, "the bench scene must be solvable with 1-match samples");
-    c.bench_function("pose/ransac_one_match", |b| {
-        b.iter(|| {
-            one_coarse = one
-                .estimate(
-                    &scene.points,
-                    &scene.keypoints,
-                    &scene.keypoint_normals,
-                    &scene.correspondences,
-                    &scene.sensor_position,
-                )
-                .expect("valid inputs")
-        })
-    });
+    let mut found = [RansacResult::default(); 2];
+    for ((name, p), out) in
+        [("pose/ransac", &params), ("pose/ransac_one_match", &one_params)].into_iter().zip(&mut found)
+    {
+        let mut ransac = Ransac::new(p, model.clone()).expect("the synthetic model is usable");
+        *out = estimate(&mut ransac);
+        assert!(out.found, "{name}: the bench scene must be solvable");
+        c.bench_function(name, |b| b.iter(|| *out = estimate(&mut ransac)));
+    }
+    let [coarse, one_coarse] = found;
     c.bench_function("pose/icp_new", |b| {
         b.iter(|| Icp::new(&params, std::hint::black_box(model.clone())).expect("the synthetic model is usable"))
     });

@@ -504,6 +504,19 @@ mod tests {
         Cell::default().estimator
     }
 
+    /// `ransac`'s pose of `scene`.
+    fn estimate(ransac: &mut Ransac, scene: &Scene) -> RansacResult {
+        ransac
+            .estimate(
+                &scene.points,
+                &scene.keypoints,
+                &scene.keypoint_normals,
+                &scene.correspondences,
+                &scene.sensor_position,
+            )
+            .unwrap()
+    }
+
     fn pose_error(a: &Isometry3<f64>, b: &Isometry3<f64>) -> (f64, f64) {
         let d = a.inverse() * b;
         ((a.translation.vector - b.translation.vector).norm(), d.rotation.angle().to_degrees())
@@ -548,29 +561,13 @@ mod tests {
             let scene = Scene::generate(&model, false, &spec);
             let wrong = 1.0 - scene.correct as f64 / scene.correspondences.len() as f64;
             assert!(wrong > 0.85, "{wrong}");
-            let out = ransac
-                .estimate(
-                    &scene.points,
-                    &scene.keypoints,
-                    &scene.keypoint_normals,
-                    &scene.correspondences,
-                    &scene.sensor_position,
-                )
-                .unwrap();
+            let out = estimate(&mut ransac, &scene);
             assert!(out.found, "seed {seed}, sample {sample}: {out:?}");
             let (dt, dr) = pose_error(&out.t_world_tray, &scene.t_world_tray);
             // A coarse pose: ICP refines it; a 1- or 2-match hypothesis is re-fitted once only.
             assert!(dt < 4.0 && dr < 2.0, "seed {seed}, sample {sample}: {dt} mm {dr} deg");
             assert_eq!(out.view, model.closest_view(&out.t_world_tray, &scene.sensor_position));
-            let again = ransac
-                .estimate(
-                    &scene.points,
-                    &scene.keypoints,
-                    &scene.keypoint_normals,
-                    &scene.correspondences,
-                    &scene.sensor_position,
-                )
-                .unwrap();
+            let again = estimate(&mut ransac, &scene);
             assert_eq!(out, again);
         }
     }
@@ -588,28 +585,12 @@ mod tests {
         // A 2-match sample assumes a level tray and would not even propose this pose.
         p.ransac_sample = 3;
         let mut strict = Ransac::new(&p, model.clone()).unwrap();
-        let out = strict
-            .estimate(
-                &scene.points,
-                &scene.keypoints,
-                &scene.keypoint_normals,
-                &scene.correspondences,
-                &scene.sensor_position,
-            )
-            .unwrap();
+        let out = estimate(&mut strict, &scene);
         assert!(!out.found && out.inliers == 0, "{out:?}");
         p.table_tilt = 40.0;
         p.table_height = 60.0;
         let mut loose = Ransac::new(&p, model.clone()).unwrap();
-        let out = loose
-            .estimate(
-                &scene.points,
-                &scene.keypoints,
-                &scene.keypoint_normals,
-                &scene.correspondences,
-                &scene.sensor_position,
-            )
-            .unwrap();
+        let out = estimate(&mut loose, &scene);
         let (dt, dr) = pose_error(&out.t_world_tray, &scene.t_world_tray);
         assert!(out.found && dt < 3.0 && dr < 2.0, "{out:?} {dt} {dr}");
     }
@@ -661,15 +642,7 @@ mod tests {
         for seed in 0..3 {
             let spec = SceneSpec { seed, with_tray: false, clutter_points: 8000, ..SceneSpec::default() };
             let scene = Scene::generate(&model, false, &spec);
-            let out = ransac
-                .estimate(
-                    &scene.points,
-                    &scene.keypoints,
-                    &scene.keypoint_normals,
-                    &scene.correspondences,
-                    &scene.sensor_position,
-                )
-                .unwrap();
+            let out = estimate(&mut ransac, &scene);
             assert!(!out.found, "seed {seed}: {out:?}");
             assert!(out.inliers < ransac.required(out.view));
         }
