@@ -345,8 +345,7 @@ impl Estimator {
     /// Whether the last stereo frame was matched over the whole image (a 12-shot frame, a
     /// frame without a background, or one that differs from the background everywhere).
     pub fn matched_whole(&self) -> bool {
-        let camera = &self.reconstructor.rectification().camera;
-        self.reconstructor.last_region() == crate::PixelRegion::whole(camera.width, camera.height)
+        self.reconstructor.matched_whole()
     }
 
     /// The last stereo frame's disparity over the whole image, with the camera it is in: the

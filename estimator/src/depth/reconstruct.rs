@@ -210,15 +210,21 @@ impl Reconstructor {
         self.region
     }
 
+    /// Whether the last frame was matched over the whole image (a 12-shot frame, a frame
+    /// without a background, or one that differs from the background everywhere).
+    pub fn matched_whole(&self) -> bool {
+        self.region == PixelRegion::whole(self.rectification.camera.width, self.rectification.camera.height)
+    }
+
     /// Matches the last one-shot frame again over the whole image when it was matched in a
     /// region only, into a map of its own ([`Reconstructor::whole_map`]); returns whether it
     /// did. A frame already matched whole (or a 12-shot frame) is left as it is.
     pub fn match_whole(&mut self) -> Result<bool> {
         let (w, h) = (self.rectification.camera.width, self.rectification.camera.height);
-        let Decoder::Stereo(elas) = &mut self.decoder else { return Ok(false) };
-        if self.region == PixelRegion::whole(w, h) {
+        if self.matched_whole() {
             return Ok(false);
         }
+        let Decoder::Stereo(elas) = &mut self.decoder else { return Ok(false) };
         let range = self.rectification.disparity_range();
         elas.compute_in(&self.rect_left[0], &self.rect_right[0], range, PixelRegion::whole(w, h), &mut self.scratch)?;
         Ok(true)

@@ -71,6 +71,14 @@ const STREAM_DRAWS: usize = 512;
 /// is within this of the pose's, deg.
 const TURN_AGREEMENT_DEG: f64 = 5.0;
 
+/// The scene's key points as the sampler reads them: positions, and normals (read by 1-match
+/// samples only), world frame.
+#[derive(Debug, Clone, Copy)]
+struct Keys<'a> {
+    points: &'a [Point3<f32>],
+    normals: &'a [Vector3<f32>],
+}
+
 /// The outcome of [`Ransac::estimate`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RansacResult {
@@ -125,8 +133,6 @@ pub struct Ransac {
     match_model: Vec<u32>,
     /// Key points with at least one match.
     matched: Vec<u32>,
-    /// The scene key points' normals of the current call (1-match samples only).
-    scene_normals: Vec<Vector3<f32>>,
     ranks: RankWeights,
     /// Each stream's hypotheses of the current round.
     streams: Vec<Vec<Hypothesis>>,
@@ -173,7 +179,6 @@ impl Ransac {
             match_start: Vec::with_capacity(1 << 13),
             match_model: Vec::with_capacity(1 << 17),
             matched: Vec::with_capacity(1 << 13),
-            scene_normals: Vec::with_capacity(1 << 13),
             ranks: RankWeights::new(),
             streams: (0..STREAMS).map(|_| Vec::with_capacity(STREAM_DRAWS)).collect(),
             consensus_parts: Vec::with_capacity(max_view.min(SCORE_SAMPLE).div_ceil(CONSENSUS_CHUNK)),
@@ -237,19 +242,15 @@ impl Ransac {
                 ),
             ));
         }
-        self.scene_normals.clear();
-        if self.sample == 1 {
-            if scene_normals.len() != scene_keypoints.len() {
-                return Err(Error::new(
-                    ErrorKind::Input,
-                    format!(
-                        "ransac: expected a normal per key point for 1-match samples, found {} for {} key points",
-                        scene_normals.len(),
-                        scene_keypoints.len()
-                    ),
-                ));
-            }
-            self.scene_normals.extend_from_slice(scene_normals);
+        if self.sample == 1 && scene_normals.len() != scene_keypoints.len() {
+            return Err(Error::new(
+                ErrorKind::Input,
+                format!(
+                    "ransac: expected a normal per key point for 1-match samples, found {} for {} key points",
+                    scene_normals.len(),
+                    scene_keypoints.len()
+                ),
+            ));
         }
         self.group_matches(scene_keypoints.len(), correspondences);
         if let Some(k) =
@@ -264,7 +265,8 @@ impl Ransac {
             return Ok(RansacResult::default());
         }
 
-        let (best, iterations) = self.search(scene_keypoints, model, sensor_position_world);
+        let keys = Keys { points: scene_keypoints, normals: scene_normals };
+        let (best, iterations) = self.search(keys, model, sensor_position_world);
         let Some((mut pose, mut view)) = best else {
             return Ok(RansacResult { iterations, ..RansacResult::default() });
         };
@@ -289,7 +291,7 @@ impl Ransac {
     /// The sampling: the best hypothesis (pose and view scored) and the iterations run.
     fn search(
         &mut self,
-        scene_keypoints: &[Point3<f32>],
+        keys: Keys<'_>,
         model: &Model,
         sensor_position_world: &Point3<f32>,
     ) -> (Option<(Isometry3<f64>, usize)>, u32) {
@@ -312,16 +314,7 @@ impl Ransac {
                 // Draws past the count the stopping rule asks for now are not scored ahead:
                 // they are scored only if a better pose raises the count.
                 let score_below = round_needed.saturating_sub(first);
-                this.draw(
-                    stream,
-                    n,
-                    round_best,
-                    score_below,
-                    scene_keypoints,
-                    model,
-                    sensor_position_world,
-                    hypotheses,
-                );
+                this.draw(stream, n, round_best, score_below, keys, model, sensor_position_world, hypotheses);
             });
             for (lane, hypotheses) in streams.iter().enumerate() {
                 for h in hypotheses {
@@ -344,7 +337,7 @@ impl Ransac {
                         if inliers > best_inliers {
                             best_inliers = inliers;
                             best = Some((h.pose, h.view));
-                            needed = self.iterations_needed(&h.pose, scene_keypoints, model).max(drawn + 1);
+                            needed = self.iterations_needed(&h.pose, keys, model).max(drawn + 1);
                         }
                     }
                 }
@@ -368,7 +361,7 @@ impl Ransac {
         draws: u32,
         best_inliers: u32,
         score_below: u32,
-        scene_keypoints: &[Point3<f32>],
+        keys: Keys<'_>,
         model: &Model,
         sensor_position_world: &Point3<f32>,
         hypotheses: &mut Vec<Hypothesis>,
@@ -377,7 +370,7 @@ impl Ransac {
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
         rng.set_stream(stream);
         for draw in 0..draws {
-            if let Some(pose) = self.hypothesis(&mut rng, scene_keypoints, model) {
+            if let Some(pose) = self.hypothesis(&mut rng, keys, model) {
                 let view = model.closest_view(&pose, sensor_position_world);
                 // Before any hypothesis qualified, the bar is low and most samples would be
                 // scored far; the first hypotheses are scored in order instead, each raising
@@ -391,16 +384,11 @@ impl Ransac {
 
     /// One hypothesis of the configured sample size, or `None` when the sample is rejected
     /// before scoring.
-    fn hypothesis(
-        &self,
-        rng: &mut ChaCha8Rng,
-        scene_keypoints: &[Point3<f32>],
-        model: &Model,
-    ) -> Option<Isometry3<f64>> {
+    fn hypothesis(&self, rng: &mut ChaCha8Rng, keys: Keys<'_>, model: &Model) -> Option<Isometry3<f64>> {
         match self.sample {
-            1 => self.table_point(rng, scene_keypoints, model),
-            2 => self.table_pair(rng, scene_keypoints, model),
-            _ => self.triple(rng, scene_keypoints, model),
+            1 => self.table_point(rng, keys, model),
+            2 => self.table_pair(rng, keys, model),
+            _ => self.triple(rng, keys, model),
         }
     }
 
@@ -414,9 +402,9 @@ impl Ransac {
     /// symmetric tray); matches right under the half turn count here too, whichever of the
     /// two explains more. Quarter turns are not counted, so for a square tray the rule may
     /// stop later than it could, never earlier.
-    fn iterations_needed(&self, pose: &Isometry3<f64>, scene_keypoints: &[Point3<f32>], model: &Model) -> u32 {
+    fn iterations_needed(&self, pose: &Isometry3<f64>, keys: Keys<'_>, model: &Model) -> u32 {
         let turned = pose * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI);
-        let p = self.right_chance(pose, scene_keypoints, model).max(self.right_chance(&turned, scene_keypoints, model));
+        let p = self.right_chance(pose, keys, model).max(self.right_chance(&turned, keys, model));
         if p <= 0.0 {
             return self.iterations;
         }
@@ -439,7 +427,7 @@ impl Ransac {
     /// the turn is right when its match is and passes the normal checks with the turn
     /// `pose` gives, to [`TURN_AGREEMENT_DEG`]; one whose normal does not is a 2-match
     /// sample, right when both matches are.
-    fn right_chance(&self, pose: &Isometry3<f64>, scene_keypoints: &[Point3<f32>], model: &Model) -> f64 {
+    fn right_chance(&self, pose: &Isometry3<f64>, keys: Keys<'_>, model: &Model) -> f64 {
         let (r, t) = split(pose);
         let reach2 = 4.0 * self.inlier_distance * self.inlier_distance;
         let min_cos = TURN_AGREEMENT_DEG.to_radians().cos() as f32;
@@ -448,7 +436,7 @@ impl Ransac {
         let (mut share, mut alone, mut paired) = (0.0f64, 0.0f64, 0.0f64);
         for &k in &self.matched {
             let (lo, hi) = (self.match_start[k as usize] as usize, self.match_start[k as usize + 1] as usize);
-            let s = scene_keypoints[k as usize];
+            let s = keys.points[k as usize];
             let (mut right, mut right_alone) = (0u64, 0u64);
             for (rank, &f) in self.match_model[lo..hi].iter().enumerate() {
                 let f = f as usize;
@@ -458,7 +446,7 @@ impl Ransac {
                 let weight = u64::from(self.ranks.weight(rank));
                 right += weight;
                 if self.sample == 1 {
-                    let (ns, nm) = (self.scene_normals[k as usize], model.feature_normals[f]);
+                    let (ns, nm) = (keys.normals[k as usize], model.feature_normals[f]);
                     let (hs, hm) = (ns.xy(), (r * nm).xy());
                     if self.checks.iter().all(|c| c.matched_normal(&ns, &nm))
                         && hs.dot(&hm) >= min_cos * hs.norm() * hm.norm()
@@ -470,7 +458,7 @@ impl Ransac {
             let total = self.ranks.total(hi - lo) as f64;
             share += right as f64 / total;
             if self.sample == 1 {
-                if self.checks.iter().all(|c| c.scene_normal(&self.scene_normals[k as usize])) {
+                if self.checks.iter().all(|c| c.scene_normal(&keys.normals[k as usize])) {
                     alone += right_alone as f64 / total;
                 } else {
                     paired += right as f64 / total;
@@ -687,7 +675,7 @@ mod tests {
             let scene = Scene::generate(&model, false, &spec);
             ransac.group_matches(scene.keypoints.len(), &scene.correspondences);
             ransac.grid.rebuild(&scene.points);
-            ransac.scene_normals = scene.keypoint_normals.clone();
+            let keys = Keys { points: &scene.keypoints, normals: &scene.keypoint_normals };
 
             // The oracle: every draw of every stream in order, each scored against the best
             // before it, stopping where the stopping rule says.
@@ -700,12 +688,12 @@ mod tests {
                         break 'oracle;
                     }
                     drawn += 1;
-                    let Some(pose) = ransac.hypothesis(&mut rng, &scene.keypoints, &model) else { continue };
+                    let Some(pose) = ransac.hypothesis(&mut rng, keys, &model) else { continue };
                     let view = model.closest_view(&pose, &scene.sensor_position);
                     if let Some(inliers) = ransac.score(&pose, view, ransac.to_beat(best_inliers, view)) {
                         if inliers > best_inliers {
                             (best, best_inliers) = (Some((pose, view)), inliers);
-                            needed = ransac.iterations_needed(&pose, &scene.keypoints, &model).max(drawn);
+                            needed = ransac.iterations_needed(&pose, keys, &model).max(drawn);
                         }
                     }
                 }
@@ -715,7 +703,7 @@ mod tests {
             }
             for threads in [1, 2, 3] {
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-                let got = pool.install(|| ransac.search(&scene.keypoints, &model, &scene.sensor_position));
+                let got = pool.install(|| ransac.search(keys, &model, &scene.sensor_position));
                 assert_eq!(got, (best, drawn), "seed {seed}, sample {sample}, {threads} threads");
             }
         }

@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use super::super::kabsch::RigidFit;
 #[cfg(doc)]
 use super::checks::RansacCheck;
-use super::Ransac;
+use super::{Keys, Ransac};
 use crate::features::MAX_K;
 use crate::{Correspondence, Model};
 
@@ -19,12 +19,7 @@ impl Ransac {
     /// distinct key points that pass the scene checks, one match of each that pass the match
     /// checks, and a fitted pose that passes the pose checks ([`RansacCheck::paper`]'s: a good
     /// triangle, edges that agree in length, a pose that rests on the table).
-    pub(super) fn triple(
-        &self,
-        rng: &mut ChaCha8Rng,
-        scene_keypoints: &[Point3<f32>],
-        model: &Model,
-    ) -> Option<Isometry3<f64>> {
+    pub(super) fn triple(&self, rng: &mut ChaCha8Rng, keys: Keys<'_>, model: &Model) -> Option<Isometry3<f64>> {
         let n = self.matched.len() as u32;
         let k = [
             self.matched[rng.random_range(0..n) as usize] as usize,
@@ -34,7 +29,7 @@ impl Ransac {
         if k[0] == k[1] || k[0] == k[2] || k[1] == k[2] {
             return None;
         }
-        let s = k.map(|i| scene_keypoints[i]);
+        let s = k.map(|i| keys.points[i]);
         if !self.checks.iter().all(|c| c.scene(&s)) {
             return None;
         }
@@ -61,31 +56,20 @@ impl Ransac {
     /// distance, as a level tray's would). Yaw is the turn between the horizontal
     /// directions, x and y the mean offset, z the mean height offset, which the table check
     /// bounds.
-    pub(super) fn table_pair(
-        &self,
-        rng: &mut ChaCha8Rng,
-        scene_keypoints: &[Point3<f32>],
-        model: &Model,
-    ) -> Option<Isometry3<f64>> {
+    pub(super) fn table_pair(&self, rng: &mut ChaCha8Rng, keys: Keys<'_>, model: &Model) -> Option<Isometry3<f64>> {
         let n = self.matched.len() as u32;
         let first = self.matched[rng.random_range(0..n) as usize] as usize;
-        self.pair_with(rng, first, scene_keypoints, model)
+        self.pair_with(rng, first, keys, model)
     }
 
     /// The 2-match hypothesis of [`Ransac::table_pair`] whose first key point is `first`.
-    fn pair_with(
-        &self,
-        rng: &mut ChaCha8Rng,
-        first: usize,
-        scene_keypoints: &[Point3<f32>],
-        model: &Model,
-    ) -> Option<Isometry3<f64>> {
+    fn pair_with(&self, rng: &mut ChaCha8Rng, first: usize, keys: Keys<'_>, model: &Model) -> Option<Isometry3<f64>> {
         let n = self.matched.len() as u32;
         let k = [first, self.matched[rng.random_range(0..n) as usize] as usize];
         if k[0] == k[1] {
             return None;
         }
-        let s = k.map(|i| scene_keypoints[i]);
+        let s = k.map(|i| keys.points[i]);
         if !self.checks.iter().all(|c| c.scene(&s)) {
             return None;
         }
@@ -114,24 +98,19 @@ impl Ransac {
     /// the table check bounds. A key point whose normal does not fix the turn (a key point
     /// on a floor, or every key point under a camera looking straight down) starts a 2-match
     /// sample instead, through the pair checks of the same list.
-    pub(super) fn table_point(
-        &self,
-        rng: &mut ChaCha8Rng,
-        scene_keypoints: &[Point3<f32>],
-        model: &Model,
-    ) -> Option<Isometry3<f64>> {
+    pub(super) fn table_point(&self, rng: &mut ChaCha8Rng, keys: Keys<'_>, model: &Model) -> Option<Isometry3<f64>> {
         let n = self.matched.len() as u32;
         let k = self.matched[rng.random_range(0..n) as usize] as usize;
-        let ns = self.scene_normals[k];
+        let ns = keys.normals[k];
         if !self.checks.iter().all(|c| c.scene_normal(&ns)) {
-            return self.pair_with(rng, k, scene_keypoints, model);
+            return self.pair_with(rng, k, keys, model);
         }
         let f = self.draw_match(rng, k) as usize;
         let nm = model.feature_normals[f];
         if !self.checks.iter().all(|c| c.matched_normal(&ns, &nm)) {
             return None;
         }
-        let pose = level_pose(&scene_keypoints[k], &ns, &model.feature_points[f], &nm);
+        let pose = level_pose(&keys.points[k], &ns, &model.feature_points[f], &nm);
         self.pose_passes(&pose).then_some(pose)
     }
 
