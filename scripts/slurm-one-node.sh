@@ -18,7 +18,16 @@ wait_s=${SLURM_ONE_NODE_WAIT_S:-60}
 
 say() { echo "slurm-one-node: $*" >&2; }
 
-alive() { [ -s "$1" ] && kill -0 "$(cat "$1")" 2>/dev/null; }
+# A pid file names a live daemon only when that pid runs the daemon's program: where /run
+# is not a tmpfs the files outlive a reboot, and after one their pids often belong to
+# other processes (a boot starts the same programs in the same order). Such a file is
+# stale: the daemon is started anew, and `stop` never signals the stranger.
+alive() {
+  local pid
+  [ -s "$1" ] || return 1
+  pid=$(cat "$1")
+  [ "$(cat "/proc/$pid/comm" 2>/dev/null)" = "$(basename "$1" .pid)" ]
+}
 
 # Ends with the daemons' own words: their logs' tails, and what the controller thinks.
 fail() {
@@ -119,6 +128,7 @@ if [ ! -s /etc/munge/munge.key ]; then
 fi
 if ! alive $munge_pid; then
   install -d -o munge -g munge -m 0755 /run/munge
+  rm -f $munge_pid
   runuser -u munge -- munged || fail "munged did not start"
   started="$started munged"
 fi
@@ -126,10 +136,12 @@ munge -n | unmunge >/dev/null || fail "munge cannot encode and decode a credenti
 
 install -d -o slurm -g slurm /var/lib/slurm/slurmctld /var/lib/slurm/slurmd /var/log/slurm
 if ! alive $ctld_pid; then
+  rm -f $ctld_pid
   slurmctld || fail "slurmctld did not start"
   started="$started slurmctld"
 fi
 if ! alive $slurmd_pid; then
+  rm -f $slurmd_pid
   slurmd || fail "slurmd did not start"
   started="$started slurmd"
 fi
