@@ -26,6 +26,7 @@ mod pixels;
 mod reconstruct;
 mod recorded;
 mod replay;
+mod resident;
 mod spec;
 #[cfg(feature = "v4l")]
 mod v4l2;
@@ -53,4 +54,5 @@ pub use reconstruct::{
 };
 pub use recorded::RecordedSource;
 pub use replay::{estimate_dataset, estimator_for, record as frame_record, DatasetEstimate};
+pub use resident::keep_large_buffers_unbacked;
 pub use spec::{parse_source, SourceSpec, SOURCE_FORMS};

@@ -60,6 +60,8 @@ struct RunLine<'a> {
 
 /// Runs `camplace run`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    // Before anything large is read: the estimator's buffers commit only what frames touch.
+    camplace_hwio::keep_large_buffers_unbacked();
     let spec = parse_source(&a.deploy.source)?;
     let plot = a.latency_plot.as_deref().map(latency_plot_target).transpose()?;
     let cell = a.deploy.cell()?;

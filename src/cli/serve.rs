@@ -136,6 +136,8 @@ fn no_display() -> anyhow::Error {
 
 /// Runs `camplace serve`.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    // Before anything large is read: the estimator's buffers commit only what frames touch.
+    camplace_hwio::keep_large_buffers_unbacked();
     let listen = address(&a.listen, "--listen")?;
     let status = a.status.as_deref().map(|s| address(s, "--status")).transpose()?;
     let drift = drift_limits(&a)?;
