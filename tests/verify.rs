@@ -5,10 +5,13 @@
 //! and for a mesh tray of the test's own. A tray turned so that its tab stands behind its
 //! own far wall is found the right way round and its half turn rejected, the see-through
 //! evidence of the tab against the rendered scene's true depth; a tray whose symmetries
-//! list the half turn has it accepted.
+//! list the half turn has it accepted. A quarter turn reaching past the box a one-shot frame
+//! was matched in is judged on the background's depth as on the whole image's.
 
 use camplace_config::{Cell, TrayKind};
-use camplace_estimator::pose::{Verdict, SEE_THROUGH_MARGIN_MM, SEE_THROUGH_MIN_TESTED};
+use camplace_estimator::pose::{
+    see_through, tray_points, DepthEvidence, Verdict, SEE_THROUGH_MARGIN_MM, SEE_THROUGH_MIN_TESTED,
+};
 use camplace_estimator::{Estimator, EstimatorConfig, Model, PoseEstimate};
 use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -298,6 +301,60 @@ fn a_mesh_trays_half_turn_with_its_tab_hidden_is_rejected() {
 /// A tray truly symmetric under a half turn (a box tray without a tab) whose cell lists the
 /// half turn: the truth and its half turn are both accepted, the turn no evidence against
 /// either; with the symmetry not listed, the half turn is ambiguous or worse.
+/// A one-shot frame is matched only in the box where it differs from the background. The
+/// 8-slot tray turned a quarter turn about its centre stands out of that box at both ends;
+/// there the verification reads the background's depth. The turned pose's see-through
+/// evidence is that against the same frame matched over the whole image, to the matchers'
+/// noise, where the box's own map alone tests a fraction of its points.
+#[test]
+fn a_quarter_turn_reaching_past_the_matched_box_is_judged_on_the_background() {
+    let cell = Cell::default();
+    let seed = 4;
+    let (mut sim, mut estimator) = setup(&cell, seed);
+    let sensor = estimator.sensor_position();
+    let points = tray_points(estimator.model());
+    let quarter = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2);
+    let mut frame = Frame::default();
+    for i in 0..3 {
+        let mut scene = draw_scenario(&cell, seed, i).scene();
+        scene.occluder = None;
+        // The tray's length pointing away from the sensor, so that its quarter turn lies
+        // across the image, out of the box around the tray at both ends.
+        let t = scene.t_world_tray.translation.vector;
+        let yaw = (t.y - f64::from(sensor.y)).atan2(t.x - f64::from(sensor.x));
+        scene.t_world_tray = Isometry3::new(t, Vector3::z() * yaw);
+        sim.render(&scene, Method::OneShot, noise_key(seed, i, false), &mut frame);
+        estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
+        assert!(!estimator.matched_whole(), "scene {i}: matched whole");
+        let turned = scene.t_world_tray * quarter;
+        let judged = estimator.verify(&turned).see_through;
+        let camera = estimator.rectified_camera().clone();
+        let in_box = DepthEvidence { disparity: &estimator.reconstruction().disparity, camera: &camera, beyond: None };
+        let box_only = see_through(estimator.model(), &points, &in_box, &sensor, &turned);
+        let (whole, _) = estimator.whole_disparity().unwrap();
+        let whole = whole.clone();
+        let oracle = DepthEvidence { disparity: &whole, camera: &camera, beyond: None };
+        let oracle = see_through(estimator.model(), &points, &oracle, &sensor, &turned);
+        eprintln!(
+            "scene {i}: quarter turn tested {} seen past {:.3} (whole image: {} {:.3}; the box alone: {} {:.3})",
+            judged.tested,
+            judged.share(),
+            oracle.tested,
+            oracle.share(),
+            box_only.tested,
+            box_only.share()
+        );
+        // At least a twentieth of the points the whole image tests lie out of the box.
+        assert!(
+            box_only.tested * 20 < oracle.tested * 19,
+            "scene {i}: the turn stays in the box: {box_only:?} {oracle:?}"
+        );
+        let tested_off = judged.tested.abs_diff(oracle.tested) as f32 / oracle.tested as f32;
+        assert!(tested_off <= 0.03, "scene {i}: tested {judged:?} against the whole image's {oracle:?}");
+        assert!((judged.share() - oracle.share()).abs() <= 0.03, "scene {i}: {judged:?} against {oracle:?}");
+    }
+}
+
 #[test]
 fn a_listed_half_turn_is_accepted() {
     let dir = tempfile::tempdir().unwrap();

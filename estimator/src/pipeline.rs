@@ -168,9 +168,14 @@ impl std::fmt::Debug for Estimator {
     }
 }
 
-/// The last stereo frame's measured depth, as the verification reads it.
+/// The last stereo frame's measured depth, as the verification reads it: where the frame
+/// was matched in part only, the background's depth outside that part.
 fn depth_evidence<'a>(reconstruction: &'a Reconstruction, reconstructor: &'a Reconstructor) -> DepthEvidence<'a> {
-    DepthEvidence { disparity: &reconstruction.disparity, camera: &reconstructor.rectification().camera }
+    let beyond = match reconstructor.background() {
+        Some(background) if !reconstructor.matched_whole() => Some((reconstructor.last_region(), background.depth())),
+        _ => None,
+    };
+    DepthEvidence { disparity: &reconstruction.disparity, camera: &reconstructor.rectification().camera, beyond }
 }
 
 fn ms(t: Instant) -> f64 {

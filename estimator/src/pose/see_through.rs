@@ -7,13 +7,18 @@
 //! none, and is left to the turn check.
 //!
 //! The measured depth is the rectified left disparity map before the background was
-//! removed: a pixel that saw the table still holds the table's depth. The model's own
+//! removed: a pixel that saw the table still holds the table's depth. A one-shot frame is
+//! matched only in the box where it differs from the background capture; outside it the
+//! sensor saw the empty cell, and the background's depth stands in for the unmatched
+//! pixels, so a turned or shifted pose reaching past the box is judged as one inside it
+//! (a rectangular tray turned a quarter turn stands out of its own box). The model's own
 //! walls need no z-buffer: a model point hidden behind another part of the model is
 //! measured in front of it, never behind, so only a measurement clearly behind the model's
 //! surface counts against the pose.
 
 use nalgebra::{Isometry3, Point3, Vector3};
 
+use crate::depth::PixelRegion;
 use crate::pose::{quarter_turns, turned_back};
 use crate::spatial::NearestGrid;
 use crate::{FloatImage, Model, RectifiedCamera};
@@ -44,6 +49,42 @@ const TURN_POINTS: usize = 3000;
 pub struct DepthEvidence<'a> {
     pub disparity: &'a FloatImage,
     pub camera: &'a RectifiedCamera,
+    /// Where `disparity` was matched, when only part of the frame was, and the background's
+    /// depth (mm, [`crate::depth::Background::depth`]) that stands in outside it.
+    pub beyond: Option<(PixelRegion, &'a FloatImage)>,
+}
+
+impl DepthEvidence<'_> {
+    /// The largest disparity (the nearest surface) measured in columns `lo..hi` of row `y`,
+    /// or seen there as the background outside the matched region; 0 when none.
+    #[inline]
+    fn nearest_in_row(&self, y: usize, lo: usize, hi: usize, focal_baseline: f32) -> f32 {
+        let row = self.disparity.row(y);
+        let Some((region, background)) = self.beyond else { return nearest_measured(&row[lo..hi]) };
+        // The columns inside the region (none on a row outside it), and the background on
+        // either side of them.
+        let (mut a, mut b) = (lo, lo);
+        if (region.y0..region.y1).contains(&y) {
+            a = region.x0.clamp(lo, hi);
+            b = region.x1.clamp(a, hi);
+        }
+        let depth = background.row(y);
+        let background_nearest = depth[lo..a].iter().chain(&depth[b..hi]).copied().fold(f32::INFINITY, f32::min);
+        // Unmeasured background (+inf depth) gives 0.
+        nearest_measured(&row[a..b]).max(focal_baseline / background_nearest)
+    }
+}
+
+/// The largest finite disparity of `row`, 0 when none.
+#[inline]
+fn nearest_measured(row: &[f32]) -> f32 {
+    let mut nearest = 0.0f32;
+    for &d in row {
+        if d.is_finite() && d > nearest {
+            nearest = d;
+        }
+    }
+    nearest
 }
 
 /// Counts of one pose's see-through evidence.
@@ -251,15 +292,10 @@ fn count_seen_through<'a>(
             continue;
         }
         // The nearest measured surface around the projection: the largest disparity.
-        let mut nearest = 0.0f32;
-        for y in (v - WINDOW_PX).max(0)..=(v + WINDOW_PX).min(height - 1) {
-            let row = disparity.row(y as usize);
-            for &d in &row[(u - WINDOW_PX).max(0) as usize..=(u + WINDOW_PX).min(width - 1) as usize] {
-                if d.is_finite() && d > nearest {
-                    nearest = d;
-                }
-            }
-        }
+        let (lo, hi) = ((u - WINDOW_PX).max(0) as usize, (u + WINDOW_PX + 1).min(width) as usize);
+        let nearest = ((v - WINDOW_PX).max(0)..=(v + WINDOW_PX).min(height - 1))
+            .map(|y| depth.nearest_in_row(y as usize, lo, hi, focal_baseline))
+            .fold(0.0f32, f32::max);
         if nearest <= 0.0 {
             continue;
         }
