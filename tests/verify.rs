@@ -6,7 +6,8 @@
 //! own far wall is found the right way round and its half turn rejected, the see-through
 //! evidence of the tab against the rendered scene's true depth; a tray whose symmetries
 //! list the half turn has it accepted. A quarter turn reaching past the box a one-shot frame
-//! was matched in is judged on the background's depth as on the whole image's.
+//! was matched in is judged on the background's depth as on the whole image's, and a
+//! frame's verification is its pose's weighed afresh.
 
 use camplace_config::{Cell, TrayKind};
 use camplace_estimator::pose::{
@@ -352,6 +353,26 @@ fn a_quarter_turn_reaching_past_the_matched_box_is_judged_on_the_background() {
         let tested_off = judged.tested.abs_diff(oracle.tested) as f32 / oracle.tested as f32;
         assert!(tested_off <= 0.03, "scene {i}: tested {judged:?} against the whole image's {oracle:?}");
         assert!((judged.share() - oracle.share()).abs() <= 0.03, "scene {i}: {judged:?} against {oracle:?}");
+    }
+}
+
+/// A frame's verification reuses what the turn check weighed of its pose (its counts
+/// against its quarter turns, their see-through evidence); the pose weighed afresh gets the
+/// same verification, field for field. The fit is handed on as fitted, so the pose handed on
+/// is the one verified.
+#[test]
+fn a_frames_verification_is_its_pose_weighed_afresh() {
+    let mut cell = Cell::default();
+    cell.estimator.pose_on_table = false;
+    let seed = 5;
+    let (mut sim, mut estimator) = setup(&cell, seed);
+    let mut frame = Frame::default();
+    for i in 0..4 {
+        sim.render(&draw_scenario(&cell, seed, i).scene(), Method::OneShot, noise_key(seed, i, false), &mut frame);
+        let pose = estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
+        assert!(pose.found, "scene {i}");
+        assert!(pose.verification.turn_see_through.tested > 0, "scene {i}: no turn weighed: {:?}", pose.verification);
+        assert_eq!(estimator.verify(&pose.t_world_tray), pose.verification, "scene {i}");
     }
 }
 

@@ -21,7 +21,7 @@ use std::time::Instant;
 use camplace_config::{AsImageView, EstimatorParams};
 use nalgebra::{Isometry3, Point3};
 
-use crate::pose::{most_favoured_turn, on_table, quarter_turns, turn_favoured, turn_see_through};
+use crate::pose::{most_favoured_turn, on_table, quarter_turns, turn_favoured, turn_see_through, Weighed};
 use crate::{
     Correspondence, DepthEvidence, Error, ErrorKind, EstimatorConfig, FeatureExtractor, FeatureMatcher, Icp, IcpResult,
     Method, Model, Ransac, RansacResult, Reconstruction, Reconstructor, Result, Rig, SlotJudge, SlotReading, Verdict,
@@ -460,19 +460,19 @@ impl Stages {
         // turns against 28.)
         let reach = p.inlier_distance as f32;
         let pose = if refined { out.icp.t_world_tray } else { coarse };
-        // The pose's counts against its quarter turns, which the verification reuses while
-        // the pose stands.
-        let mut counted = None;
+        // The pose's counts against its quarter turns and its turns' see-through evidence,
+        // which the verification reuses while the pose stands.
+        let mut weighed = None;
         // Whether a turn of the pose was taken instead of it.
         let mut refined_turn = false;
         if p.turn_check {
             let counts = self.icp.explained_near_and_apart(self.features.cloud(), &pose, &[1, 2, 3], reach);
-            counted = Some(counts);
             let lead = |(own, theirs): (u32, u32)| (theirs as f32 - own as f32) / ((own + theirs).max(1) as f32).sqrt();
             // What the camera saw past of the pose's and each turn's distinct parts, taken
             // once. A turn whose parts it saw past, where it did not past the pose's, is no
             // candidate however the few points on either's parts fall.
             let evidence = depth.map(|d| self.verifier.turn_evidences(&self.model, d, &self.sensor_position, &pose));
+            weighed = Some(Weighed { counts, evidence });
             let seen_past_turn = |q: u32| {
                 depth.zip(evidence).is_some_and(|(d, e)| {
                     // A listed turn is not in the evidence: counted here when the scene's
@@ -504,7 +504,7 @@ impl Stages {
                     if theirs > own {
                         out.icp = other;
                         refined = true;
-                        counted = None;
+                        weighed = None;
                         refined_turn = true;
                     }
                 }
@@ -531,7 +531,7 @@ impl Stages {
                         if turn_favoured(back, theirs) {
                             out.icp = other;
                             refined = true;
-                            counted = None;
+                            weighed = None;
                         }
                     }
                 }
@@ -550,7 +550,7 @@ impl Stages {
             self.features.cloud(),
             &self.sensor_position,
             &out.t_world_tray,
-            counted.as_ref(),
+            weighed.as_ref(),
             depth,
         );
         // The rig's calibration error moves the whole measured cloud, table and tray alike,

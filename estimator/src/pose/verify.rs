@@ -316,9 +316,8 @@ impl Verifier {
     }
 
     /// Verifies `pose` against the scene cloud indexed in `grid` (the same cloud as
-    /// `scene_points`, world frame) seen from `sensor` (world frame). `counted` is
-    /// [`Icp::explained_near_and_apart`] of this pose against its three quarter turns when
-    /// the turn check has already counted them (the pass is then not made again). `depth`
+    /// `scene_points`, world frame) seen from `sensor` (world frame). `weighed` is what the
+    /// turn check already weighed of this pose (its passes are then not made again). `depth`
     /// is the frame's measured depth, when the pose came from a stereo frame.
     /// Allocates nothing.
     #[allow(clippy::too_many_arguments)]
@@ -330,7 +329,7 @@ impl Verifier {
         scene_points: &[Point3<f32>],
         sensor: &Point3<f32>,
         pose: &Isometry3<f64>,
-        counted: Option<&ExplainedCounts>,
+        weighed: Option<&Weighed>,
         depth: Option<&DepthEvidence>,
     ) -> Verification {
         let z_axis = pose.rotation * Vector3::z();
@@ -356,14 +355,17 @@ impl Verifier {
         }
         // The quarter turns the symmetries do not list, weighed by what the camera saw past:
         // each turn's counts taken once, for the turn they favour most and for the closest.
-        let evidence = depth.map(|depth| self.turn_evidences(model, depth, sensor, pose));
+        let evidence = match weighed {
+            Some(w) => w.evidence,
+            None => depth.map(|depth| self.turn_evidences(model, depth, sensor, pose)),
+        };
         if let Some(e) = &evidence {
             (v.turn_seen_quarters, v.turn_see_through, v.turn_see_through_other) = most_favoured_turn(e);
         }
         // The quarter turns weighed against the pose in the same pass over the scene as the
         // explained share.
-        let counts = match counted {
-            Some(c) => *c,
+        let counts = match weighed {
+            Some(w) => w.counts,
             None => icp.explained_near_and_apart(scene_points, pose, &[1, 2, 3], self.reach),
         };
         v.explained = if counts.inside == 0 { 0.0 } else { counts.explained as f32 / counts.inside as f32 };
@@ -415,6 +417,15 @@ impl Verifier {
 /// Per quarter turn of 1 to 3, the see-through counts of the pose's distinct parts and of
 /// the turn's; `None` for a turn the symmetries list.
 pub(crate) type TurnEvidence = [Option<(SeeThroughCounts, SeeThroughCounts)>; 3];
+
+/// What the turn check weighed of a pose, which the verification reuses while the pose
+/// stands: [`Icp::explained_near_and_apart`] of it against its three quarter turns and, from
+/// a stereo frame, each turn's see-through evidence ([`Verifier::turn_evidences`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Weighed {
+    pub(crate) counts: ExplainedCounts,
+    pub(crate) evidence: Option<TurnEvidence>,
+}
 
 /// Of the turns weighed in `evidence`, the one whose distinct parts the camera saw past
 /// least against the pose's own (the largest excess of the pose's share over the turn's),
