@@ -1,7 +1,8 @@
 //! Bench of the whole deployed pipeline, camera to pose: one rendered one-shot stereo frame
 //! at the paper's optimum, with the model built at that placement; and the pose stages alone
 //! (down-sampling, normals, features, matching, RANSAC, ICP) on that frame's world cloud;
-//! and the verification of that frame's pose alone (`pose/verify`); and `serve`'s drift
+//! and the verification of that frame's pose alone (`pose/verify`, from its cloud;
+//! `pose/verify_frame`, against the frame with its depth map); and `serve`'s drift
 //! watch on that frame's disparity (`serve/drift_check`); and the frame's reconstruction
 //! alone, with its disparity in the region that differs from the background
 //! (`reconstruct/one_shot_in_foreground`), against the whole image
@@ -47,8 +48,13 @@ pub fn benches(c: &mut Criterion) {
     eprintln!("pose/verify: {:?}", pose.verification);
     c.bench_function("pose/verify", |b| b.iter(|| estimator.verify(black_box(&pose.t_world_tray))));
 
+    // The one-shot frame's own pose verified against the frame, its depth map included: the
+    // see-through evidence of the pose, of its shifts by a slot's pitch and of its turns.
+    let framed = estimator.process(&frame.shots.left, &frame.shots.right).expect("the frame is valid");
+    eprintln!("pose/verify_frame: {:?}", framed.verification);
+    c.bench_function("pose/verify_frame", |b| b.iter(|| estimator.verify(black_box(&framed.t_world_tray))));
+
     // The drift watch after a trigger: the table plane from the frame's disparity.
-    estimator.process(&frame.shots.left, &frame.shots.right).expect("the frame is valid");
     let limits = DriftLimits { rotation_deg: 1.0, translation_mm: 5.0, from: "bench".into() };
     let mut watch = DriftWatch::new(limits);
     let (disparity, camera) = estimator.whole_disparity().expect("the frame matches whole");
