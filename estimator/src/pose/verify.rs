@@ -340,25 +340,39 @@ impl Verifier {
             ..Verification::default()
         };
         v.coverage = coverage(model, grid, sensor, pose, self.reach);
+        // The quarter turns the symmetries do not list, weighed by what the camera saw past:
+        // each turn's counts taken once (by the turn check, when it weighed this pose), for
+        // the turn they favour most and for the closest.
+        let mut evidence = weighed.and_then(|w| w.evidence);
         if let Some(depth) = depth {
             v.see_through = see_through(model, &self.tray_points, depth, sensor, pose);
             // The shifted pose the camera saw past least (by share), of those tested enough;
             // not looked for where the pose's own share is too small to exceed any by
             // SEE_THROUGH_MIN_EXCESS (most right poses of a phase-12 frame).
             let suspect = v.see_through.share() >= SEE_THROUGH_MIN_EXCESS;
-            let shifts = self.pitches.iter().flatten().filter(|_| suspect).flat_map(|d| [*d, -d]);
-            v.see_through_shifted = shifts
-                .map(|d| see_through(model, &self.tray_points, depth, sensor, &(pose * Translation3::from(d))))
+            let [a, b] = self.pitches.map(|d| d.filter(|_| suspect));
+            let shifts = [a, a.map(|d| -d), b, b.map(|d| -d)];
+            // The shifts' passes and the turns' are independent: taken side by side on the
+            // pool, each a whole count, so the verdict is the same whatever the threads.
+            let mut shifted = [None; 4];
+            let (_, fresh) = rayon::join(
+                || {
+                    shifted.par_iter_mut().zip(&shifts).for_each(|(out, d)| {
+                        *out = d.map(|d| {
+                            see_through(model, &self.tray_points, depth, sensor, &(pose * Translation3::from(d)))
+                        })
+                    })
+                },
+                || weighed.is_none().then(|| self.turn_evidences(model, depth, sensor, pose)),
+            );
+            v.see_through_shifted = shifted
+                .into_iter()
+                .flatten()
                 .filter(|c| c.tested >= SEE_THROUGH_MIN_TESTED)
                 .min_by(|a, b| a.share().total_cmp(&b.share()))
                 .unwrap_or_default();
+            evidence = evidence.or(fresh);
         }
-        // The quarter turns the symmetries do not list, weighed by what the camera saw past:
-        // each turn's counts taken once, for the turn they favour most and for the closest.
-        let evidence = match weighed {
-            Some(w) => w.evidence,
-            None => depth.map(|depth| self.turn_evidences(model, depth, sensor, pose)),
-        };
         if let Some(e) = &evidence {
             (v.turn_seen_quarters, v.turn_see_through, v.turn_see_through_other) = most_favoured_turn(e);
         }
