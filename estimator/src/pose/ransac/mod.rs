@@ -437,6 +437,11 @@ impl Ransac {
         for &k in &self.matched {
             let (lo, hi) = (self.match_start[k as usize] as usize, self.match_start[k as usize + 1] as usize);
             let s = keys.points[k as usize];
+            // Whether a 1-match sample starting here takes this key point's match alone.
+            let alone_here = self.sample == 1 && {
+                let ns = keys.normals[k as usize];
+                self.checks.iter().all(|c| c.scene_normal(&ns))
+            };
             let (mut right, mut right_alone) = (0u64, 0u64);
             for (rank, &f) in self.match_model[lo..hi].iter().enumerate() {
                 let f = f as usize;
@@ -445,7 +450,7 @@ impl Ransac {
                 }
                 let weight = u64::from(self.ranks.weight(rank));
                 right += weight;
-                if self.sample == 1 {
+                if alone_here {
                     let (ns, nm) = (keys.normals[k as usize], model.feature_normals[f]);
                     let (hs, hm) = (ns.xy(), (r * nm).xy());
                     if self.checks.iter().all(|c| c.matched_normal(&ns, &nm))
@@ -457,12 +462,10 @@ impl Ransac {
             }
             let total = self.ranks.total(hi - lo) as f64;
             share += right as f64 / total;
-            if self.sample == 1 {
-                if self.checks.iter().all(|c| c.scene_normal(&keys.normals[k as usize])) {
-                    alone += right_alone as f64 / total;
-                } else {
-                    paired += right as f64 / total;
-                }
+            if alone_here {
+                alone += right_alone as f64 / total;
+            } else if self.sample == 1 {
+                paired += right as f64 / total;
             }
         }
         let n = self.matched.len() as f64;
@@ -607,7 +610,7 @@ mod tests {
                     continue;
                 }
                 right += 1;
-                let pose = sampling::level_pose(&s, &ns, &m, &nm);
+                let pose = sampling::level_pose(&s.cast(), &ns, &m.cast(), &nm);
                 assert!((pose * m.cast::<f64>() - s.cast::<f64>()).norm() < 1e-3);
                 let (dt, dr) = pose_error(&pose, &scene.t_world_tray);
                 worst = (worst.0.max(dr), worst.1.max(dt));

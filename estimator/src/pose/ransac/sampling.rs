@@ -81,12 +81,8 @@ impl Ransac {
         if !self.checks.iter().all(|c| c.matched(&s, &m)) {
             return None;
         }
-        let (ds, dm) = (s[1] - s[0], m[1] - m[0]);
-        let yaw = (ds.y as f64).atan2(ds.x as f64) - (dm.y as f64).atan2(dm.x as f64);
-        let rotation = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw);
-        let mean = |p: &[Point3<f32>; 2]| (p[0].coords.cast::<f64>() + p[1].coords.cast::<f64>()) * 0.5;
-        let translation = mean(&s) - rotation * mean(&m);
-        let pose = Isometry3::from_parts(Translation3::from(translation), rotation);
+        let mean = |p: &[Point3<f32>; 2]| Point3::from((p[0].coords.cast::<f64>() + p[1].coords.cast::<f64>()) * 0.5);
+        let pose = level_pose(&mean(&s), &(s[1] - s[0]), &mean(&m), &(m[1] - m[0]));
         self.pose_passes(&pose).then_some(pose)
     }
 
@@ -110,7 +106,7 @@ impl Ransac {
         if !self.checks.iter().all(|c| c.matched_normal(&ns, &nm)) {
             return None;
         }
-        let pose = level_pose(&keys.points[k], &ns, &model.feature_points[f], &nm);
+        let pose = level_pose(&keys.points[k].cast(), &ns, &model.feature_points[f].cast(), &nm);
         self.pose_passes(&pose).then_some(pose)
     }
 
@@ -149,12 +145,13 @@ impl Ransac {
     }
 }
 
-/// The pose of a level tray that puts model point `m` on scene point `s` and turns the
-/// horizontal direction of model normal `nm` onto that of scene normal `ns`.
-pub(super) fn level_pose(s: &Point3<f32>, ns: &Vector3<f32>, m: &Point3<f32>, nm: &Vector3<f32>) -> Isometry3<f64> {
-    let yaw = (ns.y as f64).atan2(ns.x as f64) - (nm.y as f64).atan2(nm.x as f64);
+/// The pose of a level tray that turns the horizontal part of model direction `dm` onto that
+/// of scene direction `ds` and puts model point `m` on scene point `s`: a pair's offsets and
+/// midpoints, or one match's normals and points.
+pub(super) fn level_pose(s: &Point3<f64>, ds: &Vector3<f32>, m: &Point3<f64>, dm: &Vector3<f32>) -> Isometry3<f64> {
+    let yaw = (ds.y as f64).atan2(ds.x as f64) - (dm.y as f64).atan2(dm.x as f64);
     let rotation = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw);
-    let translation = s.coords.cast::<f64>() - rotation * m.coords.cast::<f64>();
+    let translation = s.coords - rotation * m.coords;
     Isometry3::from_parts(Translation3::from(translation), rotation)
 }
 
