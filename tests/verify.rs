@@ -11,7 +11,8 @@
 
 use camplace_config::{Cell, TrayKind};
 use camplace_estimator::pose::{
-    see_through, tray_points, DepthEvidence, Verdict, SEE_THROUGH_MARGIN_MM, SEE_THROUGH_MIN_TESTED,
+    see_through, tray_points, Alternative, DepthEvidence, Verdict, AMBIGUOUS_TURN_SIGMAS, SEE_THROUGH_MARGIN_MM,
+    SEE_THROUGH_MIN_TESTED,
 };
 use camplace_estimator::{Estimator, EstimatorConfig, Model, PoseEstimate};
 use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
@@ -409,11 +410,77 @@ fn a_listed_half_turn_is_accepted() {
             truth.verdict, truth.score, turned.verdict, turned.score
         );
         assert!(!turned.turned_wrong_way() && !truth.turned_wrong_way(), "scene {i}: {truth:?} {turned:?}");
-        assert_eq!(turned.turn_seen_quarters % 2, 1, "scene {i}: the listed half turn weighed: {turned:?}");
+        assert_eq!(
+            turned.turn_seen.map(|a| a.quarters % 2),
+            Some(1),
+            "scene {i}: the listed half turn weighed: {turned:?}"
+        );
         assert!(turned.verdict != Verdict::Ambiguous && truth.verdict != Verdict::Ambiguous, "scene {i}");
         accepted += usize::from(truth.verdict.accepted() && turned.verdict.accepted());
     }
     assert!(accepted >= 3, "{accepted} of 4 scenes had the truth and its listed half turn both accepted");
+}
+
+/// A tray of six slots, 3 x 2 at 80 mm both ways, with a low tab outside one end: turned a
+/// quarter turn and moved 40 mm along each axis, it lays four of its slots (and their items)
+/// onto four of the right pose's. Set against the right pose, such a pose is weighed
+/// against the turns that lay the slot grid onto itself (the model's alternatives), and
+/// the scene's points on the parts where it and the right pose differ speak for the right
+/// pose: the wrong pose is rejected, the right one accepted.
+#[test]
+fn a_turn_laying_four_of_six_slots_onto_slots_is_told_from_the_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let (hx, hy) = (130.0, 85.0);
+    let mut boxes = vec![
+        ([-hx, -hy, 0.0], [hx, hy, 6.0]),
+        ([-hx, -hy, 0.0], [-hx + 4.0, hy, 35.0]),
+        ([hx - 4.0, -hy, 0.0], [hx, hy, 35.0]),
+        ([-hx, -hy, 0.0], [hx, -hy + 4.0, 35.0]),
+        ([-hx, hy - 4.0, 0.0], [hx, hy, 35.0]),
+    ];
+    boxes.push(([hx, -20.0, 0.0], [hx + 12.0, 20.0, 15.0]));
+    std::fs::write(dir.path().join("six.stl"), crate::meshes::boxes_stl(&boxes)).unwrap();
+    let slots = "[[-80.0, -40.0, 6.0, 0.0], [0.0, -40.0, 6.0, 0.0], [80.0, -40.0, 6.0, 0.0], \
+                 [-80.0, 40.0, 6.0, 0.0], [0.0, 40.0, 6.0, 0.0], [80.0, 40.0, 6.0, 0.0]]";
+    let text = format!("[tray]\nkind = \"mesh\"\nmesh = \"six.stl\"\nslots = {slots}\n");
+    let cell = Cell::from_toml_str(&text, dir.path()).unwrap();
+    let seed = 3;
+    let (mut sim, mut estimator) = setup(&cell, seed);
+    // The model's own alternatives: the quarter turns 1 to 3, then the grid's.
+    let alternatives = estimator.verifier().turn_parts.alternatives.list().to_vec();
+    let lattice: Vec<Alternative> = alternatives[3..].to_vec();
+    assert_eq!(lattice.len(), 10, "{lattice:?}");
+    let quarter = Alternative { quarters: 1, shift: Vector3::new(40.0, 40.0, 0.0) };
+    assert!(lattice.iter().any(|a| a.quarters == 1 && (a.shift - quarter.shift).norm() < 1e-6), "{lattice:?}");
+    let mut frame = Frame::default();
+    let mut accepted = 0;
+    for i in 0..4 {
+        let mut scene = draw_scenario(&cell, seed, i).scene();
+        scene.occluder = None;
+        sim.render(&scene, Method::OneShot, noise_key(seed, i, false), &mut frame);
+        estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
+        let truth = estimator.verify(&scene.t_world_tray);
+        // The wrong pose W with W * quarter = truth: the truth is W's alternative.
+        let wrong_pose = scene.t_world_tray * quarter.inverse().transform();
+        let wrong = estimator.verify(&wrong_pose);
+        eprintln!(
+            "scene {i}: truth {} ({:.3}, {} / {} on the parts apart), turned and shifted {} ({:.3}, {} / {})",
+            truth.verdict,
+            truth.score,
+            truth.turn_own,
+            truth.turn_other,
+            wrong.verdict,
+            wrong.score,
+            wrong.turn_own,
+            wrong.turn_other
+        );
+        assert!(!wrong.verdict.accepted(), "scene {i}: {wrong:?}");
+        // Its closest alternative's parts hold more scene points than its own, by the
+        // deviations that make a pose ambiguous.
+        assert!(wrong.turn_sigmas() < -AMBIGUOUS_TURN_SIGMAS, "scene {i}: {wrong:?}");
+        accepted += usize::from(truth.verdict.accepted());
+    }
+    assert!(accepted >= 3, "{accepted} of 4 true poses accepted");
 }
 
 #[test]

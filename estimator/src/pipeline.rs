@@ -21,7 +21,7 @@ use std::time::Instant;
 use camplace_config::{AsImageView, EstimatorParams};
 use nalgebra::{Isometry3, Point3};
 
-use crate::pose::{most_favoured_turn, on_table, quarter_turns, turn_favoured, turn_see_through, Weighed};
+use crate::pose::{most_favoured_turn, on_table, turn_favoured, turn_see_through, Weighed};
 use crate::{
     Correspondence, DepthEvidence, Error, ErrorKind, EstimatorConfig, FeatureExtractor, FeatureMatcher, Icp, IcpResult,
     Method, Model, Ransac, RansacResult, Reconstruction, Reconstructor, Result, Rig, SlotJudge, SlotReading, Verdict,
@@ -466,38 +466,46 @@ impl Stages {
         // Whether a turn of the pose was taken instead of it.
         let mut refined_turn = false;
         if p.turn_check {
-            let counts = self.icp.explained_near_and_apart(self.features.cloud(), &pose, &[1, 2, 3], reach);
+            // The verifier's alternatives are the model's, as ICP's are.
+            let alternatives = &self.verifier.turn_parts.alternatives;
+            let every = alternatives.every();
+            let counts = self.icp.explained_near_and_apart(self.features.cloud(), &pose, every, reach);
             let lead = |(own, theirs): (u32, u32)| (theirs as f32 - own as f32) / ((own + theirs).max(1) as f32).sqrt();
             // What the camera saw past of the pose's and each turn's distinct parts, taken
             // once. A turn whose parts it saw past, where it did not past the pose's, is no
             // candidate however the few points on either's parts fall.
             let evidence = depth.map(|d| self.verifier.turn_evidences(&self.model, d, &self.sensor_position, &pose));
             weighed = Some(Weighed { counts, evidence });
-            let seen_past_turn = |q: u32| {
+            let seen_past_turn = |k: usize| {
                 depth.zip(evidence).is_some_and(|(d, e)| {
                     // A listed turn is not in the evidence: counted here when the scene's
                     // points favour it.
-                    let (own, theirs) = e[q as usize - 1].unwrap_or_else(|| {
-                        turn_see_through(&self.verifier.turn_parts, d, &self.sensor_position, &pose, q)
+                    let (own, theirs) = e[k].unwrap_or_else(|| {
+                        turn_see_through(&self.verifier.turn_parts, d, &self.sensor_position, &pose, k)
                     });
                     turn_favoured(theirs, own)
                 })
             };
-            // The turn the scene's distinct parts favour most over the pose, if any.
-            let favoured = (1..4u32)
-                .zip(counts.apart)
-                .filter(|&(q, c)| lead(c) >= AMBIGUOUS_TURN_SIGMAS && !seen_past_turn(q))
+            // The alternative (a quarter turn, or a turn laying the slot grid onto itself
+            // shifted) the scene's distinct parts favour most over the pose, if any.
+            let favoured = counts
+                .apart
+                .into_iter()
+                .enumerate()
+                .take(every.len())
+                .filter(|&(k, c)| lead(c) >= AMBIGUOUS_TURN_SIGMAS && !seen_past_turn(k))
                 .max_by(|a, b| lead(a.1).total_cmp(&lead(b.1)));
-            if let Some((quarters, _)) = favoured {
-                let turned = pose * quarter_turns(quarters);
+            if let Some((k, _)) = favoured {
+                let turned = pose * alternatives.list()[k].transform();
                 let turned_view = self.model.closest_view(&turned, &self.sensor_position);
                 let other = self.icp.refine(self.features.cloud(), turned_view, &self.sensor_position, &turned)?;
                 if other.refined {
-                    // Weighed again from the refined turn, against its turn back to the pose.
+                    // Weighed again from the refined alternative, against its way back to the
+                    // pose.
                     let again = self.icp.explained_near_and_apart(
                         self.features.cloud(),
                         &other.t_world_tray,
-                        &[4 - quarters],
+                        &[alternatives.inverse_of(k)],
                         reach,
                     );
                     let (theirs, own) = again.apart[0];
@@ -515,9 +523,9 @@ impl Stages {
             // evidence still favours it from there.
             if let (Some(depth), Some(evidence), false) = (depth, &evidence, refined_turn) {
                 let model = &self.model;
-                let (quarters, own, theirs) = most_favoured_turn(evidence);
-                if quarters > 0 && turn_favoured(own, theirs) {
-                    let turned = pose * quarter_turns(quarters);
+                let (seen, own, theirs) = most_favoured_turn(evidence);
+                if let Some(k) = seen.filter(|_| turn_favoured(own, theirs)) {
+                    let turned = pose * alternatives.list()[k].transform();
                     let turned_view = model.closest_view(&turned, &self.sensor_position);
                     let other = self.icp.refine(self.features.cloud(), turned_view, &self.sensor_position, &turned)?;
                     if other.refined {
@@ -526,7 +534,7 @@ impl Stages {
                             depth,
                             &self.sensor_position,
                             &other.t_world_tray,
-                            4 - quarters,
+                            alternatives.inverse_of(k),
                         );
                         if turn_favoured(back, theirs) {
                             out.icp = other;

@@ -67,7 +67,7 @@ fn main() {
                 pose.icp.correspondences,
                 v.see_through.share(),
                 v.see_through_shifted.share(),
-                v.turn_seen_quarters,
+                v.turn_seen.map_or(0, |a| a.quarters),
                 v.turn_see_through.share(),
                 v.turn_see_through_other.share(),
                 v.turn_see_through.tested,

@@ -12,10 +12,11 @@
 use std::sync::Arc;
 
 use camplace_config::EstimatorParams;
-use nalgebra::{Isometry3, Matrix6, Point3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Isometry3, Matrix6, Point3, Vector3, Vector6};
 use rayon::prelude::*;
 
 use crate::error::{Error, ErrorKind, Result};
+use crate::pose::alternatives::{Alternatives, MAX_ALTERNATIVES};
 use crate::spatial::NearestGrid;
 use crate::Model;
 
@@ -121,10 +122,13 @@ pub struct Icp {
     whole: NearestGrid,
     /// The bounding box of `whole_points`, tray frame.
     whole_bounds: (Point3<f32>, Point3<f32>),
-    /// Per whole-tray point, bit `q - 1` set when the tray turned by `q` quarter turns about
-    /// its z axis has no point within `DISTINCT_MARGIN` inlier distances of it: the
-    /// parts (a tab, a chamfer) where the tray and that turn of it differ.
-    distinct: Vec<u8>,
+    /// The poses the tray can be mistaken for: its quarter turns, and the turns that lay
+    /// its slot grid onto itself.
+    alternatives: Alternatives,
+    /// Per whole-tray point, bit `k` set when the tray at alternative `k` has no point
+    /// within `DISTINCT_MARGIN` inlier distances of it: the parts (a tab, a chamfer, a
+    /// whole end) where the tray and that alternative to it differ.
+    distinct: Vec<u16>,
 }
 
 /// How far, in inlier distances, a whole-tray point must lie from the turned tray to tell
@@ -177,10 +181,12 @@ impl Icp {
             || NearestGrid::new(&whole_points, model.surface_resolution, params.inlier_distance as f32),
         );
         let margin = DISTINCT_MARGIN * params.inlier_distance as f32;
-        let distinct = distinct_parts(&whole_points, model.surface_resolution, margin);
+        let alternatives = Alternatives::of(&model);
+        let distinct = distinct_parts(&whole_points, model.surface_resolution, margin, &alternatives);
         let capacity = 1 << 15;
         Ok(Icp {
             model,
+            alternatives,
             whole_points,
             whole,
             distinct,
@@ -344,9 +350,9 @@ impl Icp {
     /// In one pass over the scene cloud (world frame): whether the whole tray at
     /// `t_world_tray` explains each point, and from it (1) among the points inside the whole
     /// tray's bounding box at the pose grown by `reach`, how many the tray explains, and
-    /// (2) for each of the turns `quarters` about the tray's z axis (each 1 to 3 quarter
-    /// turns, at most `MAX_OTHER_POSES`), the points the pose's distinct parts explain
-    /// against those the turned pose's distinct parts explain.
+    /// (2) for each of the alternatives `which` (indices into [`Icp::alternatives`], at most
+    /// `MAX_ALTERNATIVES`), the points the pose's distinct parts explain against those the
+    /// alternative's distinct parts explain.
     ///
     /// Scene points beside the tray are no evidence either way; inside its box, each is
     /// either the tray's surface or something where the model says there is free space.
@@ -359,19 +365,21 @@ impl Icp {
         &self,
         scene_points: &[Point3<f32>],
         t_world_tray: &Isometry3<f64>,
-        quarters: &[u32],
+        which: &[usize],
         reach: f32,
     ) -> ExplainedCounts {
-        let quarters = &quarters[..quarters.len().min(MAX_OTHER_POSES)];
+        let which = &which[..which.len().min(MAX_ALTERNATIVES)];
         let pose = t_world_tray.inverse().cast::<f32>();
-        // Per turn: the turned pose's inverse, the bit of the pose's own distinct parts
-        // against it and the bit of the turned tray's parts against the pose (its turn back).
-        let mut turns = [(pose, 0u8, 0u8); MAX_OTHER_POSES];
-        for (slot, &q) in turns.iter_mut().zip(quarters) {
-            let q = q.clamp(1, 3);
-            *slot = ((t_world_tray * quarter_turns(q)).inverse().cast::<f32>(), 1 << (q - 1), 1 << (3 - q));
+        // Per alternative: its pose's inverse, the bit of the pose's own distinct parts
+        // against it and the bit of the alternative's parts against the pose (its inverse).
+        let mut others = [(pose, 0u16, 0u16); MAX_ALTERNATIVES];
+        let list = self.alternatives.list();
+        for (slot, &k) in others.iter_mut().zip(which) {
+            let k = k.min(list.len() - 1);
+            let back = self.alternatives.inverse_of(k);
+            *slot = ((t_world_tray * list[k].transform()).inverse().cast::<f32>(), 1 << k, 1 << back);
         }
-        let turns = &turns[..quarters.len()];
+        let others = &others[..which.len()];
         let reach2 = reach * reach;
         let grow = Vector3::repeat(reach);
         let (lo, hi) = (self.whole_bounds.0 - grow, self.whole_bounds.1 + grow);
@@ -393,7 +401,7 @@ impl Icp {
                         counts.inside += 1;
                         counts.explained += u32::from(own.is_some());
                     }
-                    for (apart, (other, own_bit, their_bit)) in counts.apart.iter_mut().zip(turns) {
+                    for (apart, (other, own_bit, their_bit)) in counts.apart.iter_mut().zip(others) {
                         apart.0 += u32::from(own.is_some_and(|i| self.distinct[i] & own_bit != 0));
                         let theirs = self.explainer(&(other * p), reach2);
                         apart.1 += u32::from(theirs.is_some_and(|i| self.distinct[i] & their_bit != 0));
@@ -403,45 +411,32 @@ impl Icp {
             })
             .reduce(ExplainedCounts::default, sum)
     }
-}
 
-/// A turn by `quarters` quarter turns about the tray's z axis.
-pub(crate) fn quarter_turns(quarters: u32) -> UnitQuaternion<f64> {
-    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), f64::from(quarters) * std::f64::consts::FRAC_PI_2)
-}
-
-/// `p` turned back by `quarters` (1 to 3) quarter turns about z: (x, y) -> (y, -x) per
-/// quarter.
-pub(crate) fn turned_back(p: &Point3<f32>, quarters: u32) -> Point3<f32> {
-    match quarters {
-        1 => Point3::new(p.y, -p.x, p.z),
-        2 => Point3::new(-p.x, -p.y, p.z),
-        _ => Point3::new(-p.y, p.x, p.z),
+    /// The poses the tray can be mistaken for ([`Alternatives::of`] its model).
+    pub fn alternatives(&self) -> &Alternatives {
+        &self.alternatives
     }
 }
 
-/// [`Icp`]'s `distinct` bits of `points` (the whole tray, tray frame): bit `q - 1` of a point
-/// set when no point lies within `margin` of it turned back by `q` quarter turns about z,
-/// that is when the tray turned by `q` has nothing near it.
-fn distinct_parts(points: &[Point3<f32>], resolution: f32, margin: f32) -> Vec<u8> {
+/// [`Icp`]'s `distinct` bits of `points` (the whole tray, tray frame): bit `k` of a point
+/// set when no point lies within `margin` of it taken back by alternative `k`, that is
+/// when the tray at that alternative has nothing near it.
+fn distinct_parts(points: &[Point3<f32>], resolution: f32, margin: f32, alternatives: &Alternatives) -> Vec<u16> {
     let grid = NearestGrid::new(points, resolution, margin);
     let margin2 = margin * margin;
     points
         .par_iter()
         .map(|p| {
-            let mut bits = 0u8;
-            for q in 1..4u8 {
-                let back = turned_back(p, u32::from(q));
+            let mut bits = 0u16;
+            for (k, a) in alternatives.list().iter().enumerate() {
+                let back = a.back(p);
                 let near = grid.lookup(&back).is_some_and(|i| (back - points[i as usize]).norm_squared() <= margin2);
-                bits |= u8::from(!near) << (q - 1);
+                bits |= u16::from(!near) << k;
             }
             bits
         })
         .collect()
 }
-
-/// Other poses [`Icp::explained_near_and_apart`] weighs against one pose in the same pass.
-pub const MAX_OTHER_POSES: usize = 3;
 
 /// The counts of [`Icp::explained_near_and_apart`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -450,9 +445,9 @@ pub struct ExplainedCounts {
     pub explained: u32,
     /// Points inside the tray's grown box at the pose.
     pub inside: u32,
-    /// Per turn: (points the pose's distinct parts explain, points the turned pose's
-    /// distinct parts explain).
-    pub apart: [(u32, u32); MAX_OTHER_POSES],
+    /// Per alternative weighed: (points the pose's distinct parts explain, points the
+    /// alternative's distinct parts explain).
+    pub apart: [(u32, u32); MAX_ALTERNATIVES],
 }
 
 /// `t_world_tray` laid on the table: the same x, y and turn about z (of the tray's x axis
@@ -592,29 +587,53 @@ mod tests {
         assert_eq!(icp.refine(&far, 6, &Point3::new(0.0, 0.0, 800.0), &start).unwrap_err().kind(), ErrorKind::Input);
     }
 
+    /// The half turn's index among the alternatives.
+    const HALF: usize = 1;
+
     /// The distinct bits as a search over every point finds them: set where the turned tray
-    /// has no point within the margin, clear where it has one, but for points whose nearest
-    /// turned neighbour lies within the grid's rounding (a cell's diagonal) of the margin.
+    /// (or the tray turned and shifted onto its own slot grid) has no point within the
+    /// margin, clear where it has one, but for points whose nearest turned neighbour lies
+    /// within the grid's rounding (a cell's diagonal) of the margin.
     #[test]
     fn distinct_parts_are_where_the_turned_tray_has_nothing() {
         let params = Cell::default().estimator;
         let margin = DISTINCT_MARGIN * params.inlier_distance as f32;
         for symmetric in [false, true] {
-            let model = Arc::new(testing::tray(symmetric, 1));
+            let mut model = testing::tray(symmetric, 1);
+            // Six slots, 3 x 2 at 60 mm both ways: a quarter turn moved (±30, ±30) mm and a
+            // half turn moved (±60, 0) mm lay four of them onto slots.
+            let slots = (0..6).map(|n| [-60.0 + 60.0 * (n % 3) as f64, -30.0 + 60.0 * (n / 3) as f64, 6.0, 0.0]);
+            model.slots = Some(crate::pose::SlotLayout {
+                slots: slots.collect(),
+                footprint_min_mm: [-20.0, -20.0],
+                cell_mm: [10.0, 10.0],
+                cols: 4,
+                rows: 4,
+                top_mm: vec![10.0; 16],
+            });
+            let model = Arc::new(model);
             let icp = Icp::new(&params, model.clone()).unwrap();
+            let alternatives = icp.alternatives().list();
+            // The symmetric tray lists its half turn: shifted, that is a shift, not weighed.
+            let shifted_half_turns = if symmetric { 0 } else { 2 };
+            assert_eq!(alternatives.len(), 3 + 8 + shifted_half_turns, "{alternatives:?}");
             let points = &icp.whole_points;
             let slack = model.surface_resolution * 3f32.sqrt();
-            let mut set = [0usize; 3];
+            let mut set = vec![0usize; alternatives.len()];
             for (p, &bits) in points.iter().zip(&icp.distinct) {
-                for q in 1..4u32 {
-                    let back = quarter_turn(q).inverse_transform_point(p);
+                for (k, a) in alternatives.iter().enumerate() {
+                    let back = a.transform().cast::<f32>().inverse_transform_point(p);
                     let nearest = points.iter().map(|w| (back - w).norm()).fold(f32::INFINITY, f32::min);
-                    let bit = bits & (1 << (q - 1)) != 0;
-                    set[q as usize - 1] += usize::from(bit);
+                    let bit = bits & (1 << k) != 0;
+                    set[k] += usize::from(bit);
                     if (nearest - margin).abs() > slack {
-                        assert_eq!(bit, nearest > margin, "{p:?} turned by {q}: nearest {nearest} mm");
+                        assert_eq!(bit, nearest > margin, "{p:?} at {a:?}: nearest {nearest} mm");
                     }
                 }
+            }
+            // The shifted alternatives leave whole ends and sides apart.
+            for (k, a) in alternatives.iter().enumerate().skip(3) {
+                assert!(set[k] * 10 > points.len(), "{a:?}: {} of {}", set[k], points.len());
             }
             // The half turn: only the tab differs, and a tray without one has nothing apart.
             // The quarter turns of a 200 x 130 mm tray leave whole ends apart.
@@ -625,10 +644,6 @@ mod tests {
             }
             assert!(set[0] * 5 > points.len() && set[2] * 5 > points.len(), "{set:?}");
         }
-    }
-
-    fn quarter_turn(q: u32) -> nalgebra::UnitQuaternion<f32> {
-        nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), q as f32 * std::f32::consts::FRAC_PI_2)
     }
 
     /// The scene's tab speaks for the pose that has it there and against its half turn,
@@ -644,9 +659,9 @@ mod tests {
             let model = Arc::new(testing::tray(false, 1));
             let icp = Icp::new(&params, model.clone()).unwrap();
             let scene = Scene::generate(&model, false, &SceneSpec { seed, ..SceneSpec::default() });
-            let right = icp.explained_near_and_apart(&scene.points, &scene.t_world_tray, &[2], reach).apart[0];
+            let right = icp.explained_near_and_apart(&scene.points, &scene.t_world_tray, &[HALF], reach).apart[0];
             let turned = scene.t_world_tray * half;
-            let wrong = icp.explained_near_and_apart(&scene.points, &turned, &[2], reach).apart[0];
+            let wrong = icp.explained_near_and_apart(&scene.points, &turned, &[HALF], reach).apart[0];
             // Counted from either side, the same points on the same parts.
             assert_eq!(right, (wrong.1, wrong.0), "seed {seed}");
             // The scene points on the tab's outer part (the tab spans x 100..116 mm, y 15..45
@@ -673,7 +688,7 @@ mod tests {
             let model = Arc::new(testing::tray(true, 1));
             let icp = Icp::new(&params, model.clone()).unwrap();
             let scene = Scene::generate(&model, true, &SceneSpec { seed, ..SceneSpec::default() });
-            let none = icp.explained_near_and_apart(&scene.points, &scene.t_world_tray, &[2], reach).apart[0];
+            let none = icp.explained_near_and_apart(&scene.points, &scene.t_world_tray, &[HALF], reach).apart[0];
             assert!(none.0 + none.1 <= 2, "seed {seed}: {none:?}");
         }
         // Not vacuous: most scenes show the tab.

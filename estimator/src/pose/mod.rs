@@ -3,6 +3,7 @@
 //! metrics of an estimate against the truth, and the verification of the pose found, and the states of the
 //! tray's slots under it.
 
+mod alternatives;
 mod icp;
 mod kabsch;
 mod metrics;
@@ -14,7 +15,8 @@ mod see_through;
 mod slots;
 mod verify;
 
-pub(crate) use icp::{on_table, quarter_turns, turned_back};
+pub use alternatives::{Alternative, Alternatives, MAX_ALTERNATIVES};
+pub(crate) use icp::on_table;
 pub use icp::{Icp, IcpResult};
 pub use metrics::{correct_matches, pose_errors, PoseErrors};
 pub use model::{Model, ModelOrigin, ModelVerification, ModelView};

@@ -19,7 +19,7 @@
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::depth::PixelRegion;
-use crate::pose::{quarter_turns, turned_back};
+use crate::pose::Alternatives;
 use crate::spatial::NearestGrid;
 use crate::{FloatImage, Model, RectifiedCamera};
 
@@ -127,16 +127,20 @@ pub fn tray_points(model: &Model) -> Vec<Vec<u32>> {
 /// Every k-th of them, at most `TURN_POINTS` a turn. Found once per model.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct TurnParts {
-    /// Per turn, the distinct points (tray frame, mm) and their outward normals.
-    pub parts: [SurfacePoints; 3],
+    /// The alternatives the parts are of ([`Alternatives::of`] the model).
+    pub alternatives: Alternatives,
+    /// Per alternative, the distinct points (tray frame, mm) and their outward normals.
+    pub parts: Vec<SurfacePoints>,
 }
 
 /// Surface points (tray frame, mm) and their outward normals, index for index.
 pub type SurfacePoints = (Vec<Point3<f32>>, Vec<Vector3<f32>>);
 
 impl TurnParts {
-    /// The distinct parts of `model`'s tray for each quarter turn (see [`TurnParts`]).
+    /// The distinct parts of `model`'s tray for each of its alternatives (see
+    /// [`TurnParts`]).
     pub fn of(model: &Model, margin: f32) -> TurnParts {
+        let alternatives = Alternatives::of(model);
         let resolution = model.surface_resolution.max(0.1);
         let key = |m: &Point3<f32>| (m.coords / resolution).map(|c| c.floor() as i32);
         // Every view's points, one a cell of the surface resolution (the first view's first,
@@ -158,15 +162,16 @@ impl TurnParts {
             }
         }
         if cells.is_empty() {
-            return TurnParts::default();
+            let parts = vec![SurfacePoints::default(); alternatives.list().len()];
+            return TurnParts { alternatives, parts };
         }
         let whole: Vec<Point3<f32>> = cells.iter().map(|c| c.0).collect();
         let grid = NearestGrid::new(&whole, resolution, margin);
         let margin2 = margin * margin;
-        // Whether the tray turned by q has a point within the margin of m: m turned back by
-        // q quarter turns, looked up in the untouched tray.
-        let turn_has = |m: &Point3<f32>, q: u32| {
-            let back = turned_back(m, q);
+        // Whether the tray at alternative a has a point within the margin of m: m taken
+        // back by a, looked up in the untouched tray.
+        let turn_has = |m: &Point3<f32>, a: &crate::pose::Alternative| {
+            let back = a.back(m);
             grid.lookup(&back).is_some_and(|i| (back - whole[i as usize]).norm_squared() <= margin2)
         };
         // The tray's cells that two views captured (in the cell or a neighbour): a captured
@@ -187,11 +192,15 @@ impl TurnParts {
         };
         let merged: Vec<(Point3<f32>, Vector3<f32>)> =
             cells.iter().filter(|c| c.2 && supported(&c.0)).map(|c| (c.0, c.1)).collect();
-        let parts = [1, 2, 3].map(|q| {
-            let apart: Vec<&(Point3<f32>, Vector3<f32>)> = merged.iter().filter(|(m, _)| !turn_has(m, q)).collect();
-            camplace_config::thinned(&apart, TURN_POINTS).map(|&&(m, n)| (m, n)).unzip()
-        });
-        TurnParts { parts }
+        let parts = alternatives
+            .list()
+            .iter()
+            .map(|a| {
+                let apart: Vec<&(Point3<f32>, Vector3<f32>)> = merged.iter().filter(|(m, _)| !turn_has(m, a)).collect();
+                camplace_config::thinned(&apart, TURN_POINTS).map(|&&(m, n)| (m, n)).unzip()
+            })
+            .collect();
+        TurnParts { alternatives, parts }
     }
 }
 
@@ -240,8 +249,8 @@ pub fn see_through(
     count_seen_through(points, depth, sensor, pose)
 }
 
-/// The see-through counts of the pose and of its turn by `quarters` quarter turns about the
-/// tray's z axis, each over its own parts that the other lacks (`turn_parts`): the camera
+/// The see-through counts of the pose and of its alternative `k` (an index into
+/// `turn_parts.alternatives`), each over its own parts that the other lacks: the camera
 /// sees past the turned pose's tab where the tray stands the right way round, whether or
 /// not it sees the tab itself. One thread, no allocation.
 pub fn turn_see_through(
@@ -249,15 +258,18 @@ pub fn turn_see_through(
     depth: &DepthEvidence,
     sensor: &Point3<f32>,
     pose: &Isometry3<f64>,
-    quarters: u32,
+    k: usize,
 ) -> (SeeThroughCounts, SeeThroughCounts) {
-    if !(1..4).contains(&quarters) {
+    let (Some(alternative), Some((own_points, own_normals))) =
+        (turn_parts.alternatives.list().get(k), turn_parts.parts.get(k))
+    else {
         return Default::default();
-    }
-    let (own_points, own_normals) = &turn_parts.parts[quarters as usize - 1];
+    };
+    let Some((points, normals)) = turn_parts.parts.get(turn_parts.alternatives.inverse_of(k)) else {
+        return Default::default();
+    };
     let own = count_seen_through(own_points.iter().zip(own_normals), depth, sensor, pose);
-    let (points, normals) = &turn_parts.parts[3 - quarters as usize];
-    let other = count_seen_through(points.iter().zip(normals), depth, sensor, &(pose * quarter_turns(quarters)));
+    let other = count_seen_through(points.iter().zip(normals), depth, sensor, &(pose * alternative.transform()));
     (own, other)
 }
 
@@ -350,10 +362,11 @@ mod tests {
                 model.views.iter().enumerate().flat_map(|(k, v)| v.points.iter().map(move |p| (k, *p))).collect();
             // A cell's first point stands for the cell: up to a cell's diagonal from another.
             let slack = model.surface_resolution * 3f32.sqrt();
+            assert_eq!(parts.parts.len(), parts.alternatives.list().len());
             for (q, (points, normals)) in (1..4u32).zip(&parts.parts) {
                 assert_eq!(points.len(), normals.len());
                 assert!(points.len() <= TURN_POINTS);
-                let turn = quarter_turns(q).cast::<f32>();
+                let turn = crate::pose::alternatives::quarter_turns(q).cast::<f32>();
                 for p in points {
                     // The turned tray's points near p: p turned back, against the tray.
                     let back = turn.inverse() * p;

@@ -8,8 +8,9 @@
 //!   with a measured point within the inlier distance (the tray is where the model says);
 //! - explained: of the measured points inside the tray's box at the pose, the share the
 //!   model explains (nothing stands where the model says there is free space);
-//! - turn margin: of the scene points the pose and its closest quarter turn that the tray's
-//!   symmetries do not list explain differently, how many more only the pose explains (a
+//! - turn margin: of the scene points the pose and its closest alternative that the tray's
+//!   symmetries do not list (a quarter turn, or a turn that lays the slot grid onto itself
+//!   shifted: `Alternatives`) explain differently, how many more only the pose explains (a
 //!   near-symmetric tray is told from its turn by a small feature alone, so only the points
 //!   where the two differ count);
 //! - see-through: of the tray's sensor-facing points at the pose that fall on a measured
@@ -36,6 +37,7 @@ use camplace_config::EstimatorParams;
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use rayon::prelude::*;
 
+use crate::pose::alternatives::{Alternative, MAX_ALTERNATIVES};
 use crate::pose::icp::ExplainedCounts;
 use crate::pose::icp::DISTINCT_MARGIN;
 use crate::pose::see_through::{
@@ -164,8 +166,8 @@ pub struct Verification {
     pub coverage: f32,
     /// Share of the measured points inside the tray's box that the model explains.
     pub explained: f32,
-    /// Against the closest unlisted quarter turn: (scene points on the pose's distinct parts
-    /// − those on the turn's) / both, in [−1, 1]; 1 when every quarter turn is listed or
+    /// Against the closest unlisted alternative: (scene points on the pose's distinct parts
+    /// − those on the alternative's) / both, in [−1, 1]; 1 when every one is listed or
     /// neither's parts have a point.
     pub turn_margin: f32,
     /// Scene points on the parts of the tray at the pose that the turn lacks.
@@ -182,14 +184,15 @@ pub struct Verification {
     /// The same of the pose moved by one slot's pitch (either way, along either of the
     /// tray's two slot directions) that the camera saw past least.
     pub see_through_shifted: SeeThroughCounts,
-    /// The pose's own distinct parts (those its closest unlisted quarter turn lacks) set
+    /// The pose's own distinct parts (those an unlisted alternative lacks) set
     /// against the measured depth: of the turns, the one whose parts the camera saw past
     /// least against the pose's.
     pub turn_see_through: SeeThroughCounts,
     /// The same turn's distinct parts (those the pose lacks) at the turned pose.
     pub turn_see_through_other: SeeThroughCounts,
-    /// That turn, in quarter turns about the tray's z axis (0 when none was weighed).
-    pub turn_seen_quarters: u32,
+    /// That alternative (a quarter turn, or a turn that lays the slot grid onto itself
+    /// shifted); `None` when none was weighed.
+    pub turn_seen: Option<Alternative>,
     /// The camera saw past the distinct parts of the closest unlisted turn (the one the
     /// turn margin is of) and not past the pose's, by the measure of
     /// [`Verification::turned_wrong_way`] the other way round: the pose stands against
@@ -226,7 +229,7 @@ impl Verification {
     }
 
     /// How many standard deviations the points only the pose explains exceed those only
-    /// the closest unlisted quarter turn explains (infinite when every turn is listed or
+    /// the closest unlisted alternative explains (infinite when every one is listed or
     /// neither explains a point).
     pub fn turn_sigmas(&self) -> f32 {
         let n = self.turn_own + self.turn_other;
@@ -269,11 +272,6 @@ pub(crate) fn turn_favoured(own: SeeThroughCounts, other: SeeThroughCounts) -> b
     }
 }
 
-/// Whether `model`'s symmetries list the turn by `quarters` quarter turns about its z axis.
-pub(crate) fn listed_turn(model: &Model, quarters: u32) -> bool {
-    model.symmetries_deg.iter().any(|s| (s.rem_euclid(360.0) - 90.0 * quarters as f32).abs() < 1.0)
-}
-
 /// The verification stage's settings: whether it may reject, and the threshold.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Verifier {
@@ -287,7 +285,7 @@ pub struct Verifier {
     pub pitches: [Option<Vector3<f64>>; 2],
     /// Per model view, its points that are the tray's and not an item's (see-through's).
     pub tray_points: Vec<Vec<u32>>,
-    /// The tray's parts that each quarter turn of it lacks (the turn's see-through evidence).
+    /// The tray's parts that each alternative to it lacks (the turn's see-through evidence).
     pub turn_parts: TurnParts,
 }
 
@@ -340,7 +338,7 @@ impl Verifier {
             ..Verification::default()
         };
         v.coverage = coverage(model, grid, sensor, pose, self.reach);
-        // The quarter turns the symmetries do not list, weighed by what the camera saw past:
+        // The alternatives the symmetries do not list, weighed by what the camera saw past:
         // each turn's counts taken once (by the turn check, when it weighed this pose), for
         // the turn they favour most and for the closest.
         let mut evidence = weighed.and_then(|w| w.evidence);
@@ -373,27 +371,33 @@ impl Verifier {
                 .unwrap_or_default();
             evidence = evidence.or(fresh);
         }
+        let alternatives = self.turn_parts.alternatives.list();
         if let Some(e) = &evidence {
-            (v.turn_seen_quarters, v.turn_see_through, v.turn_see_through_other) = most_favoured_turn(e);
+            let seen;
+            (seen, v.turn_see_through, v.turn_see_through_other) = most_favoured_turn(e);
+            v.turn_seen = seen.and_then(|k| alternatives.get(k).copied());
         }
-        // The quarter turns weighed against the pose in the same pass over the scene as the
+        // The alternatives weighed against the pose in the same pass over the scene as the
         // explained share.
         let counts = match weighed {
             Some(w) => w.counts,
-            None => icp.explained_near_and_apart(scene_points, pose, &[1, 2, 3], self.reach),
+            None => icp.explained_near_and_apart(scene_points, pose, icp.alternatives().every(), self.reach),
         };
         v.explained = if counts.inside == 0 { 0.0 } else { counts.explained as f32 / counts.inside as f32 };
         v.score = (v.coverage * v.explained).clamp(0.0, 1.0);
-        // The quarter turn the tray's symmetries do not list that comes closest: the points
-        // on the pose's distinct parts against those on the turn's.
-        let mut closest = 0;
-        for (q, &(own, other)) in (1..4u32).zip(&counts.apart).filter(|(q, _)| !listed_turn(model, *q)) {
+        // The alternative the tray's symmetries do not list that comes closest: the points
+        // on the pose's distinct parts against those on the alternative's.
+        let mut closest = None;
+        for (k, &(own, other)) in counts.apart.iter().enumerate().take(alternatives.len()) {
+            if alternatives[k].listed(model) {
+                continue;
+            }
             let margin = if own + other == 0 { 1.0 } else { (own as f32 - other as f32) / (own + other) as f32 };
             if margin < v.turn_margin {
-                (v.turn_margin, v.turn_own, v.turn_other, closest) = (margin, own, other, q);
+                (v.turn_margin, v.turn_own, v.turn_other, closest) = (margin, own, other, Some(k));
             }
         }
-        if let Some(Some((own, other))) = evidence.filter(|_| closest > 0).map(|e| e[closest as usize - 1]) {
+        if let Some(Some((own, other))) = closest.zip(evidence).map(|(k, e)| e[k]) {
             v.turn_confirmed = turn_favoured(other, own);
         }
         v.verdict = if !self.enabled {
@@ -414,9 +418,10 @@ impl Verifier {
 }
 
 impl Verifier {
-    /// Per quarter turn `q` of 1 to 3 (at `q - 1`) that the model's symmetries do not list,
-    /// the see-through counts of the pose's distinct parts and of the turn's
-    /// ([`turn_see_through`]); `None` for a listed turn.
+    /// Per alternative `k` that the model's symmetries do not list (at `k`), the
+    /// see-through counts of the pose's distinct parts and of the alternative's
+    /// ([`turn_see_through`]); `None` for a listed turn and past the alternatives. The
+    /// alternatives' passes are taken side by side on the pool, each a whole count.
     pub(crate) fn turn_evidences(
         &self,
         model: &Model,
@@ -424,16 +429,22 @@ impl Verifier {
         sensor: &Point3<f32>,
         pose: &Isometry3<f64>,
     ) -> TurnEvidence {
-        [1, 2, 3].map(|q| (!listed_turn(model, q)).then(|| turn_see_through(&self.turn_parts, depth, sensor, pose, q)))
+        let mut out = [None; MAX_ALTERNATIVES];
+        let alternatives = self.turn_parts.alternatives.list();
+        out.par_iter_mut().zip(alternatives.par_iter()).enumerate().for_each(|(k, (slot, a))| {
+            *slot = (!a.listed(model)).then(|| turn_see_through(&self.turn_parts, depth, sensor, pose, k));
+        });
+        out
     }
 }
 
-/// Per quarter turn of 1 to 3, the see-through counts of the pose's distinct parts and of
-/// the turn's; `None` for a turn the symmetries list.
-pub(crate) type TurnEvidence = [Option<(SeeThroughCounts, SeeThroughCounts)>; 3];
+/// Per alternative (the index into the model's [`crate::pose::Alternatives`]), the
+/// see-through counts of the pose's distinct parts and of the alternative's; `None` for a
+/// turn the symmetries list and past the alternatives.
+pub(crate) type TurnEvidence = [Option<(SeeThroughCounts, SeeThroughCounts)>; MAX_ALTERNATIVES];
 
 /// What the turn check weighed of a pose, which the verification reuses while the pose
-/// stands: [`Icp::explained_near_and_apart`] of it against its three quarter turns and, from
+/// stands: [`Icp::explained_near_and_apart`] of it against every alternative and, from
 /// a stereo frame, each turn's see-through evidence ([`Verifier::turn_evidences`]).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Weighed {
@@ -441,15 +452,23 @@ pub(crate) struct Weighed {
     pub(crate) evidence: Option<TurnEvidence>,
 }
 
-/// Of the turns weighed in `evidence`, the one whose distinct parts the camera saw past
-/// least against the pose's own (the largest excess of the pose's share over the turn's),
-/// with both counts; `(0, none, none)` when every turn is listed.
-pub(crate) fn most_favoured_turn(evidence: &TurnEvidence) -> (u32, SeeThroughCounts, SeeThroughCounts) {
-    (1..4u32)
-        .zip(evidence)
-        .filter_map(|(q, e)| e.map(|(own, other)| (q, own, other)))
-        .max_by(|a, b| (a.1.share() - a.2.share()).total_cmp(&(b.1.share() - b.2.share())))
-        .unwrap_or_default()
+/// Of the alternatives weighed in `evidence`, the one whose distinct parts the camera saw
+/// past least against the pose's own (the largest excess of the pose's share over the
+/// alternative's; the last of equals), with both counts; `(None, none, none)` when none
+/// was weighed.
+pub(crate) fn most_favoured_turn(evidence: &TurnEvidence) -> (Option<usize>, SeeThroughCounts, SeeThroughCounts) {
+    let excess = |(_, own, other): &(usize, SeeThroughCounts, SeeThroughCounts)| own.share() - other.share();
+    evidence
+        .iter()
+        .enumerate()
+        .filter_map(|(k, e)| e.map(|(own, other)| (k, own, other)))
+        .fold(None, |best: Option<(usize, SeeThroughCounts, SeeThroughCounts)>, e| match best {
+            Some(b) if excess(&b) > excess(&e) => Some(b),
+            _ => Some(e),
+        })
+        .map_or((None, SeeThroughCounts::default(), SeeThroughCounts::default()), |(k, own, other)| {
+            (Some(k), own, other)
+        })
 }
 
 /// Share of the closest view's points facing the sensor, at `pose`, with a scene point
