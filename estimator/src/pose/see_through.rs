@@ -40,8 +40,12 @@ const ITEM_FLOOR_MM: f32 = 2.0;
 /// the count's deviation far below the gap between a pose and its neighbour a pitch away,
 /// and a pass a few tens of microseconds on one core.
 const SEE_THROUGH_POINTS: usize = 4000;
-/// The points of a view where the tray and one turn of it differ, tested at most.
+/// The points where the tray and one turn of it about its centre differ, tested at most.
 const TURN_POINTS: usize = 3000;
+/// The same for a turn shifted onto the slot grid, whose parts apart are whole ends and
+/// sides of the tray rather than a tab: fewer points keep the share's deviation far below
+/// the gap the test asks for.
+const SHIFTED_POINTS: usize = 1000;
 
 /// The measured depth a pose is set against: the rectified left camera's disparity map
 /// (px; +inf where nothing was measured) and the camera.
@@ -119,12 +123,14 @@ pub fn tray_points(model: &Model) -> Vec<Vec<u32>> {
 }
 
 /// The tray's surface, every view's tray points merged (one a surface-resolution cell, kept
-/// where two views captured the cell or a neighbour of it), split per quarter turn `q` of
-/// 1 to 3 (at `q - 1`) into the points that the whole tray
-/// turned by `q` quarter turns about its z axis has nothing within `margin` of, mm: the
-/// parts (a tab, a chamfer, a whole end) where the tray and that turn of it differ. Merged
+/// where two views captured the cell or a neighbour of it), split per alternative `k` (the
+/// model's [`Alternatives`]: the quarter turns 1 to 3 at 0 to 2, then the turns shifted onto
+/// the slot grid) into the points that the whole tray at that alternative has nothing
+/// within `margin` of, mm: the parts (a tab, a chamfer, a whole end) where the tray and
+/// that alternative to it differ. Merged
 /// from every view because a view captured close up may miss a part another view shows.
-/// Every k-th of them, at most `TURN_POINTS` a turn. Found once per model.
+/// Every k-th of them, at most `TURN_POINTS` a turn about the centre and `SHIFTED_POINTS` a
+/// shifted one. Found once per model.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct TurnParts {
     /// The alternatives the parts are of ([`Alternatives::of`] the model).
@@ -197,7 +203,8 @@ impl TurnParts {
             .iter()
             .map(|a| {
                 let apart: Vec<&(Point3<f32>, Vector3<f32>)> = merged.iter().filter(|(m, _)| !turn_has(m, a)).collect();
-                camplace_config::thinned(&apart, TURN_POINTS).map(|&&(m, n)| (m, n)).unzip()
+                let most = if a.about_centre() { TURN_POINTS } else { SHIFTED_POINTS };
+                camplace_config::thinned(&apart, most).map(|&&(m, n)| (m, n)).unzip()
             })
             .collect();
         TurnParts { alternatives, parts }
