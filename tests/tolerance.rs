@@ -175,7 +175,9 @@ fn tolerances_are_paired_tests_walked_out_and_resume_without_a_scene() {
 /// Its poses are handed on as fitted: laid on the table, the poses of the rigs just past the
 /// edge come out right more often, and on 6 scenes success there rises and falls again
 /// (33 % at −355 mm, 17 % at −360, the single steps' drop at −310), so the edge is no
-/// longer one place that both walks must find.
+/// longer one place that both walks must find. The same held of 6 scenes once the turn
+/// check weighed the half turn moved a slot's pitch (a pose it now corrects at −320 mm
+/// left 4 of 6 lost there, 5 at −325 and 2 at −360); on 8 scenes both walks find −305 mm.
 const NARROW_CELL: &str = "[sensor]\ncamera_resolution = [320, 240]\ncamera_hfov = 24.0\n\n\
                            [estimator]\nransac_iterations = 2000\npose_on_table = false\n";
 
@@ -196,7 +198,7 @@ fn an_edge_inside_the_range_is_found_as_a_walk_in_single_steps_finds_it() {
             "--parameters",
             "r",
             "--scenarios",
-            "6",
+            "8",
             "--out",
             "tol",
         ],
@@ -222,7 +224,7 @@ fn an_edge_inside_the_range_is_found_as_a_walk_in_single_steps_finds_it() {
                 "--placement",
                 &p,
                 "--scenarios",
-                "6",
+                "8",
                 "--seed",
                 "1",
                 "--out",

@@ -15,7 +15,9 @@ use camplace_estimator::pose::{
     SEE_THROUGH_MIN_TESTED,
 };
 use camplace_estimator::{Estimator, EstimatorConfig, Model, PoseEstimate};
-use camplace_sim::{background_scene, build_model, draw_scenario, noise_key, Frame, Method, Simulator};
+use camplace_sim::{
+    background_scene, build_model, draw_scenario, hard_negatives, noise_key, weigh_negatives, Frame, Method, Simulator,
+};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
 use crate::meshes::tray_stl;
@@ -481,6 +483,48 @@ fn a_turn_laying_four_of_six_slots_onto_slots_is_told_from_the_truth() {
         accepted += usize::from(truth.verdict.accepted());
     }
     assert!(accepted >= 3, "{accepted} of 4 true poses accepted");
+}
+
+/// The hard negatives of scenes at the optimum (each turn the tray's symmetries do not
+/// list, the half turns shifted onto the slot grid, the truth a slot's pitch off either
+/// way along both slot directions, the truth tilted off the table), refined and verified
+/// against each frame: every one that stays grossly wrong is rejected, and every one
+/// refined back to the truth is correct by the truth itself, not by the verdict.
+#[test]
+fn hard_negatives_at_the_optimum_are_rejected() {
+    let cell = Cell::default();
+    let seed = 6;
+    let (mut sim, mut estimator) = setup(&cell, seed);
+    let mut frame = Frame::default();
+    let (mut gross, mut kinds) = (0, std::collections::BTreeSet::new());
+    for i in 0..4 {
+        let scene = draw_scenario(&cell, seed, i).scene();
+        sim.render(&scene, Method::OneShot, noise_key(seed, i, false), &mut frame);
+        let pose = estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
+        let made = hard_negatives(&estimator, &scene.t_world_tray);
+        // Tray-8: three turns, the half turn shifted a pitch either way along x, four
+        // shifts, one tilt.
+        assert_eq!(made.len(), 3 + 2 + 4 + 1, "scene {i}: {made:?}");
+        let negatives = weigh_negatives(&mut estimator, &scene.t_world_tray, &[], &cell.metrics).unwrap();
+        for n in &negatives {
+            kinds.insert(n.kind.clone());
+            eprintln!(
+                "scene {i}: {} {} ({:.3}), {:.1} mm / {:.1} deg",
+                n.kind, n.verdict, n.score, n.position_error_mm, n.rotation_error_deg
+            );
+            let limits = n.position_error_mm <= cell.metrics.success_position
+                && n.rotation_error_deg <= cell.metrics.success_rotation;
+            assert_eq!(n.correct, limits, "scene {i}: {n:?}");
+            if n.gross {
+                gross += 1;
+                assert!(!n.accepted(), "scene {i}: {n:?}");
+            }
+        }
+        // The frame's own pose is untouched by the negatives weighed after it.
+        assert!(pose.verification.verdict.accepted(), "scene {i}: {:?}", pose.verification);
+    }
+    assert!(gross >= 30, "{gross} gross negatives in 4 scenes");
+    assert_eq!(kinds.into_iter().collect::<Vec<_>>(), ["grid turn", "shift", "tilt", "turn"]);
 }
 
 #[test]

@@ -300,6 +300,19 @@ impl Estimator {
         &self.stages.verifier
     }
 
+    /// `start` refined against the last frame's scene cloud as the frame's own RANSAC pose
+    /// was (ICP from the model view closest to the sensor, no turn check), or `start` itself
+    /// where too few scene points lie near it: the pose the pipeline would have handed the
+    /// verification had RANSAC found `start` (hard negatives, diagnosis).
+    pub fn refine(&mut self, start: &Isometry3<f64>) -> Result<Isometry3<f64>> {
+        rayon::scope(|_| {
+            let s = &mut self.stages;
+            let view = s.model.closest_view(start, &s.sensor_position);
+            let out = s.icp.refine(s.features.cloud(), view, &s.sensor_position, start)?;
+            Ok(if out.refined { out.t_world_tray } else { *start })
+        })
+    }
+
     /// The verification of `t_world_tray` against the last frame's scene cloud, as the
     /// frame's own verification ran (for benches and diagnosis of other poses).
     pub fn verify(&self, t_world_tray: &Isometry3<f64>) -> Verification {

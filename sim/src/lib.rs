@@ -46,6 +46,7 @@ pub use study::findings::{drop_detection_power, scenes_for_power};
 pub use study::folder::open_folder;
 pub use study::lock::{lock_folder, FolderLock, LOCK_FILE};
 pub use study::merge::merge;
+pub use study::negatives::{hard_negatives, weigh_negatives};
 pub use study::one_placement::{acceptance_summary, evaluate_placement, measure_verification};
 pub use study::optimize::{SearchParameter, SearchPlan};
 pub use study::placement_search::optimize;

@@ -30,6 +30,6 @@ pub use slots::{
 };
 pub(crate) use verify::{most_favoured_turn, turn_favoured, Weighed};
 pub use verify::{
-    Verdict, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS, RESTING_HEIGHT_MM, RESTING_TILT_DEG,
-    SEE_THROUGH_MIN_EXCESS, SEE_THROUGH_MIN_TESTED, SEE_THROUGH_SIGMAS,
+    Verdict, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS, CONFLICTING_TURN_SIGMAS, RESTING_HEIGHT_MM,
+    RESTING_TILT_DEG, SEE_THROUGH_MIN_EXCESS, SEE_THROUGH_MIN_TESTED, SEE_THROUGH_SIGMAS,
 };

@@ -59,6 +59,11 @@ use crate::{Icp, Model};
 /// 3: where the camera barely sees the tab the turns cannot be told, and the score's
 /// threshold takes the half turns that pass.
 pub const AMBIGUOUS_TURN_SIGMAS: f32 = 1.0;
+/// Scene points on an alternative's distinct parts exceeding those on the pose's by this
+/// many standard deviations make the pose ambiguous against it even where the camera saw
+/// past the alternative's parts and not past the pose's: the scene's points and its depth
+/// then contradict each other, and the pose is not handed on.
+pub const CONFLICTING_TURN_SIGMAS: f32 = 3.0;
 /// A pose is seen through when the camera saw past its tray surface on a share larger, by
 /// at least this many standard deviations (two proportions), than the pose moved by one
 /// slot's pitch, and by at least [`SEE_THROUGH_MIN_EXCESS`]. Measured with `camplace
@@ -166,8 +171,9 @@ pub struct Verification {
     pub coverage: f32,
     /// Share of the measured points inside the tray's box that the model explains.
     pub explained: f32,
-    /// Against the closest unlisted alternative: (scene points on the pose's distinct parts
-    /// − those on the alternative's) / both, in [−1, 1]; 1 when every one is listed or
+    /// Against the closest unlisted alternative (the fewest deviations ahead, those not
+    /// confirmed against first): (scene points on the pose's distinct parts − those on the
+    /// alternative's) / both, in [−1, 1]; 1 when every one is listed or
     /// neither's parts have a point.
     pub turn_margin: f32,
     /// Scene points on the parts of the tray at the pose that the turn lacks.
@@ -193,10 +199,11 @@ pub struct Verification {
     /// That alternative (a quarter turn, or a turn that lays the slot grid onto itself
     /// shifted); `None` when none was weighed.
     pub turn_seen: Option<Alternative>,
-    /// The camera saw past the distinct parts of the closest unlisted turn (the one the
-    /// turn margin is of) and not past the pose's, by the measure of
+    /// The camera saw past the distinct parts of the closest unlisted alternative (the one
+    /// the turn margin is of) and not past the pose's, by the measure of
     /// [`Verification::turned_wrong_way`] the other way round: the pose stands against
-    /// that turn whatever the few scene points on either's parts say.
+    /// that alternative whatever the few scene points on either's parts say (but not
+    /// against [`CONFLICTING_TURN_SIGMAS`] of them).
     pub turn_confirmed: bool,
 }
 
@@ -232,12 +239,18 @@ impl Verification {
     /// the closest unlisted alternative explains (infinite when every one is listed or
     /// neither explains a point).
     pub fn turn_sigmas(&self) -> f32 {
-        let n = self.turn_own + self.turn_other;
-        if n == 0 {
-            return f32::INFINITY;
-        }
-        (self.turn_own as f32 - self.turn_other as f32) / (n as f32).sqrt()
+        lead_sigmas(self.turn_own, self.turn_other)
     }
+}
+
+/// How many standard deviations `own` exceeds `other` by, the counts taken as Poisson
+/// (infinite when both are 0).
+fn lead_sigmas(own: u32, other: u32) -> f32 {
+    let n = own + other;
+    if n == 0 {
+        return f32::INFINITY;
+    }
+    (own as f32 - other as f32) / (n as f32).sqrt()
 }
 
 /// Whether the camera saw past `pose`'s parts on a share larger than past `other`'s by
@@ -386,19 +399,33 @@ impl Verifier {
         v.explained = if counts.inside == 0 { 0.0 } else { counts.explained as f32 / counts.inside as f32 };
         v.score = (v.coverage * v.explained).clamp(0.0, 1.0);
         // The alternative the tray's symmetries do not list that comes closest: the points
-        // on the pose's distinct parts against those on the alternative's.
-        let mut closest = None;
+        // on the pose's distinct parts against those on the alternative's, in deviations
+        // (a tab's few points and a whole end's many weigh by their counts). An alternative
+        // the camera saw past where it did not past the pose (confirmed against) stands
+        // aside for one it did not, unless the scene's points speak for it so strongly
+        // (CONFLICTING_TURN_SIGMAS) that the two kinds of evidence contradict each other.
+        let mut closest: Option<(usize, f32, bool)> = None;
         for (k, &(own, other)) in counts.apart.iter().enumerate().take(alternatives.len()) {
             if alternatives[k].listed(model) {
                 continue;
             }
-            let margin = if own + other == 0 { 1.0 } else { (own as f32 - other as f32) / (own + other) as f32 };
-            if margin < v.turn_margin {
-                (v.turn_margin, v.turn_own, v.turn_other, closest) = (margin, own, other, Some(k));
+            let sigmas = lead_sigmas(own, other);
+            let confirmed = evidence.and_then(|e| e[k]).is_some_and(|(own, other)| turn_favoured(other, own))
+                && sigmas >= -CONFLICTING_TURN_SIGMAS;
+            let closer = match closest {
+                None => true,
+                Some((_, best, best_confirmed)) => {
+                    (best_confirmed && !confirmed) || (best_confirmed == confirmed && sigmas < best)
+                }
+            };
+            if closer {
+                closest = Some((k, sigmas, confirmed));
             }
         }
-        if let Some(Some((own, other))) = closest.zip(evidence).map(|(k, e)| e[k]) {
-            v.turn_confirmed = turn_favoured(other, own);
+        if let Some((k, _, confirmed)) = closest {
+            let (own, other) = counts.apart[k];
+            v.turn_margin = if own + other == 0 { 1.0 } else { (own as f32 - other as f32) / (own + other) as f32 };
+            (v.turn_own, v.turn_other, v.turn_confirmed) = (own, other, confirmed);
         }
         v.verdict = if !self.enabled {
             Verdict::Accepted

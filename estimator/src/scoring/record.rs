@@ -170,6 +170,40 @@ pub struct FrameRecord {
     /// The slots' states against the truth, where it is known.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub slot_score: Option<SlotScore>,
+    /// Hard negatives of the scene (a study's `evaluate` only): wrong poses made from the
+    /// truth, each refined and verified against the frame as the pipeline would have.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub negatives: Option<Vec<NegativeRecord>>,
+}
+
+/// One hard negative of a frame: a wrong pose made from the truth (a turn the tray's
+/// symmetries do not list, a turn laying the slot grid onto itself, a slot's pitch off, a
+/// tilt off the table), refined by ICP against the frame and verified.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NegativeRecord {
+    /// What the negative is: `turn`, `grid turn`, `shift` or `tilt`.
+    pub kind: String,
+    /// The verification's verdict of the refined pose.
+    pub verdict: String,
+    /// The verification's score of the refined pose.
+    pub score: f32,
+    /// The refined pose's errors against the truth (symmetries undone), mm and deg.
+    pub position_error_mm: f64,
+    pub rotation_error_deg: f64,
+    /// The refined pose came back within the success limits: no negative after all.
+    pub correct: bool,
+    /// The refined pose is off by more than `GROSS_FACTOR` times a success limit (a turn,
+    /// a slot away); a wrong pose within it is a near miss, the rig's calibration error's
+    /// scale, which no score of a frame tells from the correct poses.
+    #[serde(default)]
+    pub gross: bool,
+}
+
+impl NegativeRecord {
+    /// Whether the verification accepted it.
+    pub fn accepted(&self) -> bool {
+        self.verdict == Verdict::Accepted.as_str()
+    }
 }
 
 /// One slot of one frame, as `poses.jsonl` holds it.
@@ -291,6 +325,7 @@ impl FrameRecord {
             t_robot_tray: None,
             slots: None,
             slot_score: None,
+            negatives: None,
         }
     }
 

@@ -43,6 +43,98 @@ pub struct Summary {
     /// carries a slot score).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub slots: Option<SlotSummary>,
+    /// The hard negatives of the frames that carry them, against the frames' own correct
+    /// poses (absent when no record carries negatives).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub negatives: Option<NegativesSummary>,
+}
+
+/// The hard negatives of a set of frames (each a wrong pose made from the truth, refined
+/// and verified, [`super::NegativeRecord`]) beside the frames' own correct poses, both by
+/// the verdicts the estimator gave them: how well the verification at the model's
+/// threshold separates the two.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct NegativesSummary {
+    /// Frames that carry negatives.
+    pub frames: usize,
+    /// Negatives that stayed grossly wrong once refined (off by more than `GROSS_FACTOR`
+    /// times a success limit).
+    pub negatives: usize,
+    /// Of them, rejected by the verification.
+    pub rejected: usize,
+    /// The one-sided 95 % upper bound of the share of negatives accepted.
+    pub accepted_upper: f64,
+    /// Negatives whose refinement brought them back within the success limits (no
+    /// negative after all; not counted above).
+    pub returned: usize,
+    /// Negatives refined to a near miss (wrong, within `GROSS_FACTOR` times a success
+    /// limit; not counted above), and of them accepted.
+    pub near_misses: usize,
+    pub near_misses_accepted: usize,
+    /// Per kind (`turn`, `grid turn`, `shift`, `tilt`): (negatives, rejected).
+    pub by_kind: Vec<(String, usize, usize)>,
+    /// The same frames' own poses: correct ones, and of them accepted.
+    pub correct: usize,
+    pub correct_accepted: usize,
+}
+
+impl NegativesSummary {
+    /// Sums up the negatives of `records`; `None` when none carries them.
+    pub fn of(records: &[FrameRecord]) -> Option<NegativesSummary> {
+        let carrying: Vec<&FrameRecord> = records.iter().filter(|r| r.negatives.is_some()).collect();
+        if carrying.is_empty() {
+            return None;
+        }
+        let mut out = NegativesSummary { frames: carrying.len(), ..NegativesSummary::default() };
+        for r in &carrying {
+            if r.score.is_some_and(|s| s.success) {
+                out.correct += 1;
+                out.correct_accepted += usize::from(r.accepted());
+            }
+            for n in r.negatives.iter().flatten() {
+                if n.correct {
+                    out.returned += 1;
+                    continue;
+                }
+                if !n.gross {
+                    out.near_misses += 1;
+                    out.near_misses_accepted += usize::from(n.accepted());
+                    continue;
+                }
+                let rejected = !n.accepted();
+                out.negatives += 1;
+                out.rejected += usize::from(rejected);
+                match out.by_kind.iter_mut().find(|(kind, _, _)| *kind == n.kind) {
+                    Some(k) => (k.1, k.2) = (k.1 + 1, k.2 + usize::from(rejected)),
+                    None => out.by_kind.push((n.kind.clone(), 1, usize::from(rejected))),
+                }
+            }
+        }
+        out.by_kind.sort();
+        out.accepted_upper = clopper_pearson_upper(out.negatives - out.rejected, out.negatives, UPPER_CONFIDENCE);
+        Some(out)
+    }
+
+    /// One line for a terminal and the report.
+    pub fn line(&self) -> String {
+        let share = |k: usize, n: usize| if n == 0 { 0.0 } else { 100.0 * k as f64 / n as f64 };
+        let kinds: Vec<String> = self.by_kind.iter().map(|(kind, n, r)| format!("{kind} {r}/{n}")).collect();
+        format!(
+            "hard negatives of {} scenes: {} of {} rejected ({:.2} %; accepted at most {:.2} % at 95 %) [{}], {} back at the truth and {} near misses ({} accepted) once refined; correct poses accepted {} of {} ({:.1} %)",
+            self.frames,
+            self.rejected,
+            self.negatives,
+            share(self.rejected, self.negatives),
+            100.0 * self.accepted_upper,
+            kinds.join(", "),
+            self.returned,
+            self.near_misses,
+            self.near_misses_accepted,
+            self.correct_accepted,
+            self.correct,
+            share(self.correct_accepted, self.correct)
+        )
+    }
 }
 
 /// The slot states of a set of frames, among the accepted poses.
@@ -156,6 +248,7 @@ impl Summary {
             median_ms: median(&records.iter().map(|r| r.ms).collect::<Vec<_>>()).unwrap_or(0.0),
             verification: None,
             slots: SlotSummary::of(records),
+            negatives: NegativesSummary::of(records),
         }
     }
 
@@ -205,6 +298,7 @@ impl Summary {
             self.median_ms
         ) + &self.verification.map_or(String::new(), |v| format!("; {}", v.line()))
             + &self.slots.map_or(String::new(), |s| format!("; {}", s.line()))
+            + &self.negatives.as_ref().map_or(String::new(), |n| format!("; {}", n.line()))
     }
 }
 
@@ -323,5 +417,69 @@ mod tests {
         assert_eq!(s.median_ms, 20.0);
         let reversed: Vec<_> = records.iter().rev().cloned().collect();
         assert_eq!(Summary::from_records(&reversed), s);
+    }
+
+    /// The negatives' summary against a count over every negative: only the grossly wrong
+    /// count as negatives, those back at the truth and the near misses apart; the frames'
+    /// own correct poses and their acceptance beside them; records without negatives left
+    /// out; the order of the records irrelevant.
+    #[test]
+    fn negatives_are_counted_by_kind_apart_from_near_misses_and_returns() {
+        use super::super::record::NegativeRecord;
+        use crate::Verdict;
+        let kinds = ["turn", "grid turn", "shift", "tilt"];
+        let verdicts = [Verdict::Accepted, Verdict::PoorFit, Verdict::SeenThrough, Verdict::Ambiguous];
+        let mut records = Vec::new();
+        for f in 0..40u32 {
+            let pose = PoseEstimate { found: true, ..Default::default() };
+            let mut r = FrameRecord::new(format!("{f}"), &pose);
+            r.verdict = Some(verdicts[(f % 3) as usize].as_str().to_string());
+            r.score = Some(Score {
+                position_error_mm: 1.0,
+                rotation_error_deg: 0.1,
+                correct_matches: 4,
+                success: f % 5 != 0,
+            });
+            if f % 7 != 3 {
+                r.negatives = Some(
+                    (0..(f % 6))
+                        .map(|k| NegativeRecord {
+                            kind: kinds[((f + k) % 4) as usize].to_string(),
+                            verdict: verdicts[((f * 3 + k) % 4) as usize].as_str().to_string(),
+                            score: 0.5,
+                            position_error_mm: 50.0,
+                            rotation_error_deg: 90.0,
+                            correct: (f + k) % 9 == 0,
+                            gross: (f + k) % 4 != 1,
+                        })
+                        .collect(),
+                );
+            }
+            records.push(r);
+        }
+        let s = NegativesSummary::of(&records).unwrap();
+        let carrying: Vec<&FrameRecord> = records.iter().filter(|r| r.negatives.is_some()).collect();
+        let all: Vec<&NegativeRecord> = carrying.iter().flat_map(|r| r.negatives.iter().flatten()).collect();
+        let counted = |n: &&&NegativeRecord| !n.correct && n.gross;
+        assert_eq!(s.frames, carrying.len());
+        assert_eq!(s.negatives, all.iter().filter(counted).count());
+        assert_eq!(s.rejected, all.iter().filter(counted).filter(|n| n.verdict != "accepted").count());
+        assert_eq!(s.returned, all.iter().filter(|n| n.correct).count());
+        assert_eq!(s.near_misses, all.iter().filter(|n| !n.correct && !n.gross).count());
+        assert_eq!(
+            s.near_misses_accepted,
+            all.iter().filter(|n| !n.correct && !n.gross && n.verdict == "accepted").count()
+        );
+        for (kind, n, rejected) in &s.by_kind {
+            let of_kind = || all.iter().filter(counted).filter(|x| x.kind == *kind);
+            assert_eq!((*n, *rejected), (of_kind().count(), of_kind().filter(|x| x.verdict != "accepted").count()));
+        }
+        assert_eq!(s.by_kind.iter().map(|k| k.1).sum::<usize>(), s.negatives);
+        let correct = || carrying.iter().filter(|r| r.score.is_some_and(|x| x.success));
+        assert_eq!((s.correct, s.correct_accepted), (correct().count(), correct().filter(|r| r.accepted()).count()));
+        assert!(s.rejected < s.negatives && s.near_misses > 0 && s.returned > 0, "{s:?}");
+        let reversed: Vec<_> = records.iter().rev().cloned().collect();
+        assert_eq!(NegativesSummary::of(&reversed), Some(s));
+        assert_eq!(NegativesSummary::of(&records[3..4]), None);
     }
 }

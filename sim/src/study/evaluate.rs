@@ -8,6 +8,7 @@ use camplace_config::{Cell, Placement};
 use camplace_estimator::{geometry::isometry_from_rows, geometry::isometry_to_rows};
 use camplace_estimator::{Estimator, EstimatorConfig, Model, PoseEstimate};
 
+use super::negatives::weigh_negatives;
 use crate::model_builder::build_model;
 use crate::render::{Frame, Method, Simulator};
 use crate::scene::rig_error::draw_rig_error;
@@ -30,6 +31,9 @@ pub struct Evaluator {
     /// The simulator of the placement, each worker's copied from it (its projector
     /// patterns are dear to prepare; a render depends on nothing a render before left).
     sim: Simulator,
+    /// Whether each scene's hard negatives are weighed beside its pose
+    /// ([`super::negatives`]).
+    negatives: bool,
 }
 
 impl std::fmt::Debug for Evaluator {
@@ -62,7 +66,22 @@ impl Evaluator {
         sim.render(&background_scene(cell, seed), method, noise_key(seed, 0, true), &mut background);
         let mut estimator = Estimator::new(&EstimatorConfig::from(cell), sim.rig(), model, method)?;
         estimator.set_background(&background.shots.left, &background.shots.right)?;
-        Ok(Evaluator { cell: cell.clone(), placement: *placement, method, seed, background, estimator, sim })
+        Ok(Evaluator {
+            cell: cell.clone(),
+            placement: *placement,
+            method,
+            seed,
+            background,
+            estimator,
+            sim,
+            negatives: false,
+        })
+    }
+
+    /// The evaluator weighing each scene's hard negatives too, when `negatives`.
+    pub fn with_negatives(mut self, negatives: bool) -> Self {
+        self.negatives = negatives;
+        self
     }
 
     /// A worker with its own simulator and estimator (each owns its buffers), the
@@ -119,6 +138,10 @@ impl Worker<'_> {
         if !self.estimator.slots().is_empty() {
             record.slot_score =
                 Some(SlotScore::of(self.estimator.slots(), &scenario.filled, &self.pose.t_world_tray, &truth));
+        }
+        if self.evaluator.negatives {
+            let symmetries = self.estimator.model().symmetries_deg.clone();
+            record.negatives = Some(weigh_negatives(&mut self.estimator, &truth, &symmetries, &cell.metrics)?);
         }
         Ok(record)
     }

@@ -51,12 +51,20 @@ pub struct JobEvaluator<'a> {
     method: Method,
     store: &'a ResultsStore,
     model_cache: Option<PathBuf>,
+    negatives: bool,
 }
 
 impl<'a> JobEvaluator<'a> {
     /// An evaluator writing to `store`.
     pub fn new(cell: &'a Cell, method: Method, store: &'a ResultsStore) -> JobEvaluator<'a> {
-        JobEvaluator { cell, method, store, model_cache: None }
+        JobEvaluator { cell, method, store, model_cache: None, negatives: false }
+    }
+
+    /// Weighs each scene's hard negatives beside its pose (`evaluate`'s; a sweep's cells
+    /// do without, at half the cost).
+    pub fn with_negatives(mut self) -> Self {
+        self.negatives = true;
+        self
     }
 
     /// Keeps built models in `dir` and reads them from there, so a resumed run of one
@@ -123,7 +131,10 @@ impl<'a> JobEvaluator<'a> {
                 if evaluator.is_none() {
                     report(ProgressEvent::Doing(&format!("{} (model)", job.placement)));
                     let model = self.model(&job.placement, job.seed)?;
-                    evaluator = Some(Evaluator::with_model(self.cell, &job.placement, self.method, job.seed, model)?);
+                    evaluator = Some(
+                        Evaluator::with_model(self.cell, &job.placement, self.method, job.seed, model)?
+                            .with_negatives(self.negatives),
+                    );
                     report(ProgressEvent::Doing(&job.placement.to_string()));
                 }
                 self.run_scenes(evaluator.as_ref().expect("built above"), job, &todo)?;
@@ -149,7 +160,8 @@ impl<'a> JobEvaluator<'a> {
         }
         report(ProgressEvent::Doing(&format!("{} (model)", job.placement)));
         let model = self.model(&job.placement, job.seed)?;
-        let evaluator = Evaluator::with_model(self.cell, &job.placement, self.method, job.seed, model)?;
+        let evaluator = Evaluator::with_model(self.cell, &job.placement, self.method, job.seed, model)?
+            .with_negatives(self.negatives);
         report(ProgressEvent::Doing(&job.placement.to_string()));
         self.run_scenes(&evaluator, job, &todo)
     }

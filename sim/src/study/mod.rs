@@ -10,6 +10,7 @@ pub mod folder;
 pub mod jobs;
 pub mod lock;
 pub mod merge;
+pub(crate) mod negatives;
 pub mod one_placement;
 pub mod optimize;
 pub mod placement_search;

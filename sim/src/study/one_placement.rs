@@ -34,7 +34,10 @@ pub fn evaluate_placement(
 ) -> Result<Summary> {
     let store = open_folder(dir, cell, method, seed)?;
     let jobs = shard_jobs(&[*placement], seed, scenarios, shard);
-    JobEvaluator::new(cell, method, &store).with_model_cache(&dir.join(MODELS_FOLDER)).evaluate(&jobs, "evaluate")?;
+    JobEvaluator::new(cell, method, &store)
+        .with_model_cache(&dir.join(MODELS_FOLDER))
+        .with_negatives()
+        .evaluate(&jobs, "evaluate")?;
     let records = store.records(placement, method, seed, scenarios);
     let summary = Summary::from_records(&records).verified(&records, cell.estimator.verify_max_wrong, &cell.metrics);
     let rows =
