@@ -82,7 +82,7 @@ enum Command {
     /// The placement study: both trays x both methods, sweep then search, and report.html.
     #[cfg(feature = "sim")]
     Study(study::Args),
-    /// One placement over N scenarios into a study folder (resumable, shardable).
+    /// One placement over N scenarios into a study folder (resumable, shardable), each scene with its hard negatives.
     #[cfg(feature = "sim")]
     Evaluate(evaluate::Args),
     /// What each effect of the simulation costs: success with each switched off in turn.
