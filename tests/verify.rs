@@ -16,7 +16,8 @@ use camplace_estimator::pose::{
 };
 use camplace_estimator::{Estimator, EstimatorConfig, Model, PoseEstimate};
 use camplace_sim::{
-    background_scene, build_model, draw_scenario, hard_negatives, noise_key, weigh_negatives, Frame, Method, Simulator,
+    background_scene, build_model, draw_scenario, hard_negatives, noise_key, weigh_negatives, Frame, Method, SceneSpec,
+    Simulator,
 };
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
@@ -143,6 +144,23 @@ fn the_same_holds_for_a_mesh_tray() {
                 slots = [[-45.0, -30.0, 6.0, 0.0], [45.0, -30.0, 6.0, 0.0], [-45.0, 30.0, 6.0, 0.0], [45.0, 30.0, 6.0, 0.0]]\n";
     let cell = Cell::from_toml_str(text, dir.path()).unwrap();
     rejections(&cell, &Cell::default(), "tray-8");
+}
+
+/// Scenario `i` of `seed` rendered without its occluder, one shot, and processed by
+/// `estimator`: the scene, for its truth.
+fn processed_without_occluder(
+    cell: &Cell,
+    seed: u64,
+    i: u64,
+    sim: &mut Simulator,
+    estimator: &mut Estimator,
+    frame: &mut Frame,
+) -> SceneSpec {
+    let mut scene = draw_scenario(cell, seed, i).scene();
+    scene.occluder = None;
+    sim.render(&scene, Method::OneShot, noise_key(seed, i, false), frame);
+    estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
+    scene
 }
 
 /// The half turn about the tray's z axis.
@@ -401,10 +419,7 @@ fn a_listed_half_turn_is_accepted() {
     let mut frame = Frame::default();
     let mut accepted = 0;
     for i in 0..4 {
-        let mut scene = draw_scenario(&cell, seed, i).scene();
-        scene.occluder = None;
-        sim.render(&scene, Method::OneShot, noise_key(seed, i, false), &mut frame);
-        estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
+        let scene = processed_without_occluder(&cell, seed, i, &mut sim, &mut estimator, &mut frame);
         let truth = estimator.verify(&scene.t_world_tray);
         let turned = estimator.verify(&(scene.t_world_tray * half_turn()));
         eprintln!(
@@ -457,10 +472,7 @@ fn a_turn_laying_four_of_six_slots_onto_slots_is_told_from_the_truth() {
     let mut frame = Frame::default();
     let mut accepted = 0;
     for i in 0..4 {
-        let mut scene = draw_scenario(&cell, seed, i).scene();
-        scene.occluder = None;
-        sim.render(&scene, Method::OneShot, noise_key(seed, i, false), &mut frame);
-        estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
+        let scene = processed_without_occluder(&cell, seed, i, &mut sim, &mut estimator, &mut frame);
         let truth = estimator.verify(&scene.t_world_tray);
         // The wrong pose W with W * quarter = truth: the truth is W's alternative.
         let wrong_pose = scene.t_world_tray * quarter.inverse().transform();
