@@ -517,7 +517,7 @@ fn hard_negatives_at_the_optimum_are_rejected() {
         // Tray-8: three turns, the half turn shifted a pitch either way along x, four
         // shifts, one tilt.
         assert_eq!(made.len(), 3 + 2 + 4 + 1, "scene {i}: {made:?}");
-        let negatives = weigh_negatives(&mut estimator, &scene.t_world_tray, &[], &cell.metrics).unwrap();
+        let negatives = weigh_negatives(&mut estimator, &scene.t_world_tray, &cell.metrics).unwrap();
         for n in &negatives {
             kinds.insert(n.kind.clone());
             eprintln!(

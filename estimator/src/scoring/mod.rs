@@ -14,4 +14,6 @@ pub use intervals::wilson_interval;
 pub use record::{score, FrameRecord, NegativeRecord, Score, SlotRecord, SlotScore, Timings};
 pub(crate) use summary::median_or_nan;
 pub use summary::{median, median_in_place, pct, percentile, NegativesSummary, SlotSummary, Summary};
-pub use verified::{choose_threshold, clopper_pearson_upper, precision_recall, Scored, VerifiedSummary, GROSS_FACTOR};
+pub use verified::{
+    choose_threshold, clopper_pearson_upper, gross_error, precision_recall, Scored, VerifiedSummary, GROSS_FACTOR,
+};

@@ -44,12 +44,16 @@ impl Scored {
     pub fn of(record: &FrameRecord, metrics: &Metrics) -> Option<Scored> {
         let (score, verdict, truth) = (record.verify_score?, record.verdict.as_deref()?, record.score?);
         let eligible = record.found && [Verdict::Accepted.as_str(), Verdict::PoorFit.as_str()].contains(&verdict);
-        let gross = record.found
-            && !truth.success
-            && (truth.position_error_mm > GROSS_FACTOR * metrics.success_position
-                || truth.rotation_error_deg > GROSS_FACTOR * metrics.success_rotation);
+        let gross =
+            record.found && !truth.success && gross_error(truth.position_error_mm, truth.rotation_error_deg, metrics);
         Some(Scored { score, eligible, correct: truth.success, gross })
     }
+}
+
+/// Whether a pose off by `position_mm` and `rotation_deg` is grossly wrong under `metrics`:
+/// off by more than [`GROSS_FACTOR`] times a success limit.
+pub fn gross_error(position_mm: f64, rotation_deg: f64, metrics: &Metrics) -> bool {
+    position_mm > GROSS_FACTOR * metrics.success_position || rotation_deg > GROSS_FACTOR * metrics.success_rotation
 }
 
 /// The verification's figures over a set of frames at one threshold (`verification` in

@@ -140,8 +140,7 @@ impl Worker<'_> {
                 Some(SlotScore::of(self.estimator.slots(), &scenario.filled, &self.pose.t_world_tray, &truth));
         }
         if self.evaluator.negatives {
-            let symmetries = self.estimator.model().symmetries_deg.clone();
-            record.negatives = Some(weigh_negatives(&mut self.estimator, &truth, &symmetries, &cell.metrics)?);
+            record.negatives = Some(weigh_negatives(&mut self.estimator, &truth, &cell.metrics)?);
         }
         Ok(record)
     }

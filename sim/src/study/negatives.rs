@@ -8,8 +8,8 @@
 //! (within `GROSS_FACTOR` times a limit) is recorded as one, apart from the gross.
 
 use camplace_config::Metrics;
-use camplace_estimator::pose::{pose_errors, slot_pitches};
-use camplace_estimator::scoring::{NegativeRecord, GROSS_FACTOR};
+use camplace_estimator::pose::pose_errors;
+use camplace_estimator::scoring::{gross_error, NegativeRecord};
 use camplace_estimator::Estimator;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
@@ -26,7 +26,7 @@ pub fn hard_negatives(estimator: &Estimator, truth: &Isometry3<f64>) -> Vec<(&'s
     for a in estimator.verifier().turn_parts.alternatives.list().iter().filter(|a| !a.listed(model)) {
         out.push((if a.about_centre() { "turn" } else { "grid turn" }, truth * a.transform()));
     }
-    for d in slot_pitches(model).into_iter().flatten() {
+    for d in estimator.verifier().pitches.into_iter().flatten() {
         for d in [d, -d] {
             out.push(("shift", truth * Translation3::from(d)));
         }
@@ -37,19 +37,18 @@ pub fn hard_negatives(estimator: &Estimator, truth: &Isometry3<f64>) -> Vec<(&'s
 }
 
 /// The hard negatives of the frame `estimator` processed last, whose tray stood at
-/// `truth`: each refined, verified and scored against the truth under `symmetries_deg`
-/// and `metrics`.
+/// `truth`: each refined, verified and scored against the truth under the model's
+/// symmetries and `metrics`.
 pub fn weigh_negatives(
     estimator: &mut Estimator,
     truth: &Isometry3<f64>,
-    symmetries_deg: &[f32],
     metrics: &Metrics,
 ) -> Result<Vec<NegativeRecord>> {
     let mut out = Vec::new();
     for (kind, start) in hard_negatives(estimator, truth) {
         let refined = estimator.refine(&start)?;
         let v = estimator.verify(&refined);
-        let errors = pose_errors(&refined, truth, symmetries_deg, metrics);
+        let errors = pose_errors(&refined, truth, &estimator.model().symmetries_deg, metrics);
         out.push(NegativeRecord {
             kind: kind.to_string(),
             verdict: v.verdict.as_str().to_string(),
@@ -57,8 +56,7 @@ pub fn weigh_negatives(
             position_error_mm: errors.position_mm,
             rotation_error_deg: errors.rotation_deg,
             correct: errors.success,
-            gross: errors.position_mm > GROSS_FACTOR * metrics.success_position
-                || errors.rotation_deg > GROSS_FACTOR * metrics.success_rotation,
+            gross: gross_error(errors.position_mm, errors.rotation_deg, metrics),
         });
     }
     Ok(out)
