@@ -489,10 +489,7 @@ pub(crate) fn most_favoured_turn(evidence: &TurnEvidence) -> (Option<usize>, See
         .iter()
         .enumerate()
         .filter_map(|(k, e)| e.map(|(own, other)| (k, own, other)))
-        .fold(None, |best: Option<(usize, SeeThroughCounts, SeeThroughCounts)>, e| match best {
-            Some(b) if excess(&b) > excess(&e) => Some(b),
-            _ => Some(e),
-        })
+        .max_by(|a, b| excess(a).total_cmp(&excess(b)))
         .map_or((None, SeeThroughCounts::default(), SeeThroughCounts::default()), |(k, own, other)| {
             (Some(k), own, other)
         })
