@@ -101,12 +101,21 @@ impl std::ops::DerefMut for DescriptorBuffer {
     }
 }
 
-/// Descriptors of one image, with the Sobel planes they are sampled from.
+/// Descriptors of one image.
 #[derive(Debug, Clone)]
 pub struct DescriptorImage {
     pub width: usize,
     pub height: usize,
     pub data: DescriptorBuffer,
+}
+
+/// The Sobel and normalisation planes descriptors are sampled from: a scratch that the two
+/// images of a pair share, each image's descriptors computed in turn (every plane row a
+/// descriptor reads is written by the same [`DescriptorImage::compute_rows`] call).
+#[derive(Debug, Clone)]
+pub struct SobelPlanes {
+    width: usize,
+    height: usize,
     du: Vec<u8>,
     dv: Vec<u8>,
     /// Raw Sobel responses (x, y) per pixel.
@@ -121,17 +130,16 @@ pub struct DescriptorImage {
     inv_cols: Vec<f32>,
 }
 
-impl DescriptorImage {
-    /// Buffers for `width` x `height` images.
+impl SobelPlanes {
+    /// Planes for `width` x `height` images.
     pub fn new(width: usize, height: usize) -> Self {
         let n = width * height;
         let inv_cols = (0..width)
             .map(|x| 1.0 / (2 * (x.min(NORM_RADIUS) + (width - 1 - x).min(NORM_RADIUS) + 1)) as f32)
             .collect();
-        DescriptorImage {
+        SobelPlanes {
             width,
             height,
-            data: DescriptorBuffer::zeroed(n),
             du: vec![NEUTRAL; n],
             dv: vec![NEUTRAL; n],
             gx: vec![0; n],
@@ -141,21 +149,35 @@ impl DescriptorImage {
             inv_cols,
         }
     }
+}
+
+impl DescriptorImage {
+    /// Descriptors of `width` x `height` images.
+    pub fn new(width: usize, height: usize) -> Self {
+        DescriptorImage { width, height, data: DescriptorBuffer::zeroed(width * height) }
+    }
 
     /// Fills the descriptors of `img` (same size as the buffers) on the rows `wanted`
     /// accepts; the other rows keep what they held (zeros until first computed, and no
     /// memory: see [`DescriptorBuffer`]). The matcher calls [`DescriptorImage::compute_rows`].
     #[cfg(test)]
-    pub fn compute(&mut self, img: &GrayImage, wanted: impl Fn(usize) -> bool + Sync) {
-        self.compute_rows(img, (0, self.height), wanted);
+    pub fn compute(&mut self, img: &GrayImage, planes: &mut SobelPlanes, wanted: impl Fn(usize) -> bool + Sync) {
+        self.compute_rows(img, (0, self.height), planes, wanted);
     }
 
     /// [`DescriptorImage::compute`] on the rows from `rows.0` to before `rows.1` alone: the
     /// Sobel and normalisation planes are formed only as far as those rows' descriptors
     /// read them.
-    pub fn compute_rows(&mut self, img: &GrayImage, rows: (usize, usize), wanted: impl Fn(usize) -> bool + Sync) {
+    pub fn compute_rows(
+        &mut self,
+        img: &GrayImage,
+        rows: (usize, usize),
+        planes: &mut SobelPlanes,
+        wanted: impl Fn(usize) -> bool + Sync,
+    ) {
         let (w, h) = (self.width, self.height);
         debug_assert!(img.width == w && img.height == h);
+        debug_assert!(planes.width == w && planes.height == h);
         if w < 2 * BORDER + 1 || h < 2 * BORDER + 1 {
             self.data.iter_mut().for_each(|d| *d = [NEUTRAL; LEN]);
             return;
@@ -169,21 +191,21 @@ impl DescriptorImage {
         let bands = (lo.saturating_sub(4) / BAND, (hi + 4).min(h).div_ceil(BAND));
         let sobel_rows = ((bands.0 * BAND).saturating_sub(NORM_RADIUS + 1), (bands.1 * BAND + NORM_RADIUS + 1).min(h));
         let src = &img.data;
-        let sobel = self.gx.par_chunks_mut(w).zip(self.gy.par_chunks_mut(w)).zip(self.mag.par_chunks_mut(w));
-        sobel.zip(self.row_sum.par_chunks_mut(w)).enumerate().for_each(|(y, (((gxr, gyr), magr), sumr))| {
+        let sobel = planes.gx.par_chunks_mut(w).zip(planes.gy.par_chunks_mut(w)).zip(planes.mag.par_chunks_mut(w));
+        sobel.zip(planes.row_sum.par_chunks_mut(w)).enumerate().for_each(|(y, (((gxr, gyr), magr), sumr))| {
             if (sobel_rows.0..sobel_rows.1).contains(&y) {
                 sobel_row(src, w, h, y, gxr, gyr, magr, sumr);
             }
         });
-        let (gx, gy) = (&self.gx, &self.gy);
-        let (row_sum, inv_cols) = (&self.row_sum, &self.inv_cols[..]);
-        let planes = self.du.par_chunks_mut(BAND * w).zip(self.dv.par_chunks_mut(BAND * w));
-        planes.enumerate().for_each(|(band, (du, dv))| {
+        let (gx, gy) = (&planes.gx, &planes.gy);
+        let (row_sum, inv_cols) = (&planes.row_sum, &planes.inv_cols[..]);
+        let normalised = planes.du.par_chunks_mut(BAND * w).zip(planes.dv.par_chunks_mut(BAND * w));
+        normalised.enumerate().for_each(|(band, (du, dv))| {
             if (bands.0..bands.1).contains(&band) {
                 normalise_band(gx, gy, row_sum, inv_cols, w, h, band * BAND, du, dv);
             }
         });
-        let (du, dv) = (&self.du, &self.dv);
+        let (du, dv) = (&planes.du, &planes.dv);
         let wanted = |y: usize| (lo..hi).contains(&y) && wanted(y);
         self.data.par_chunks_mut(w).enumerate().filter(|(y, _)| wanted(*y)).for_each(|(y, row)| {
             if y < BORDER || y + BORDER >= h {
@@ -580,7 +602,8 @@ mod tests {
         let (w, h) = (20, 12);
         let img = GrayImage::from_vec(w, h, (0..w * h).map(|i| (2 * (i % w)) as u8).collect()).unwrap();
         let mut d = DescriptorImage::new(w, h);
-        d.compute(&img, |_| true);
+        let mut planes = SobelPlanes::new(w, h);
+        d.compute(&img, &mut planes, |_| true);
         let inner = d.data[5 * w + 9];
         let expect = sobel_byte(16.0 * NORM_TARGET / 8.0f32.max(NORM_FLOOR));
         assert_eq!(&inner[..11], &[expect; 11]);
@@ -614,7 +637,8 @@ mod tests {
         for (w, h) in [(11, 11), (37, 19), (70, 23)] {
             let img = GrayImage::from_vec(w, h, (0..w * h).map(|_| rng.random_range(0..=255u8)).collect()).unwrap();
             let mut d = DescriptorImage::new(w, h);
-            d.compute(&img, |_| true);
+            let mut planes = SobelPlanes::new(w, h);
+            d.compute(&img, &mut planes, |_| true);
             let sobel = |x: usize, y: usize| sobel_at(&img, x, y);
             let bytes = |x: usize, y: usize| -> (u8, u8) {
                 let (mut sum, mut count) = (0, 0);
@@ -657,7 +681,7 @@ mod tests {
             let mut some = DescriptorImage::new(w, h);
             let marker = [7u8; LEN];
             some.data.fill(marker);
-            some.compute(&img, |y| y % 3 == 0);
+            some.compute(&img, &mut planes, |y| y % 3 == 0);
             for (y, (got, all)) in some.data.chunks_exact(w).zip(d.data.chunks_exact(w)).enumerate() {
                 if y % 3 == 0 {
                     assert_eq!(got, all, "row {y}");
@@ -669,9 +693,9 @@ mod tests {
             // image: those rows as in the whole image, the others untouched.
             for span in [(0, h / 3), (h / 4, h / 2 + 3), (h / 2, h), (h - 1, h + 5), (3, 3)] {
                 let mut part = DescriptorImage::new(w, h);
-                part.compute(&GrayImage::from_vec(w, h, vec![99; w * h]).unwrap(), |_| true);
+                part.compute(&GrayImage::from_vec(w, h, vec![99; w * h]).unwrap(), &mut planes, |_| true);
                 part.data.fill(marker);
-                part.compute_rows(&img, span, |y| y % 2 == 0);
+                part.compute_rows(&img, span, &mut planes, |y| y % 2 == 0);
                 for (y, (got, all)) in part.data.chunks_exact(w).zip(d.data.chunks_exact(w)).enumerate() {
                     if (span.0..span.1).contains(&y) && y % 2 == 0 {
                         assert_eq!(got, all, "row {y} of span {span:?}");
@@ -693,7 +717,8 @@ mod tests {
         for (w, h) in [(11, 11), (37, 19), (65, 33), (70, 23), (129, 17), (640, 48)] {
             let img = GrayImage::from_vec(w, h, (0..w * h).map(|_| rng.random_range(0..=255u8)).collect()).unwrap();
             let mut d = DescriptorImage::new(w, h);
-            d.compute(&img, |_| true);
+            let mut planes = SobelPlanes::new(w, h);
+            d.compute(&img, &mut planes, |_| true);
             let sobel = |x: usize, y: usize| sobel_at(&img, x, y);
             for y in 0..h {
                 for x in 0..w {
@@ -709,7 +734,7 @@ mod tests {
                     let scale = NORM_TARGET / (sum as f32 * (inv_cols * inv_rows)).max(NORM_FLOOR);
                     let (gx, gy) = sobel(x, y);
                     let expect = (byte(gx as f32 * scale), byte(gy as f32 * scale));
-                    assert_eq!((d.du[y * w + x], d.dv[y * w + x]), expect, "{w}x{h} at ({x}, {y})");
+                    assert_eq!((planes.du[y * w + x], planes.dv[y * w + x]), expect, "{w}x{h} at ({x}, {y})");
                 }
             }
         }
@@ -723,7 +748,8 @@ mod tests {
         for (w, h) in [(11, 11), (20, 12), (25, 13), (26, 13), (37, 19), (41, 16), (70, 23), (100, 40), (640, 48)] {
             let img = GrayImage::from_vec(w, h, (0..w * h).map(|_| rng.random_range(0..=255u8)).collect()).unwrap();
             let mut d = DescriptorImage::new(w, h);
-            d.compute(&img, |_| true);
+            let mut planes = SobelPlanes::new(w, h);
+            d.compute(&img, &mut planes, |_| true);
             for y in 0..h {
                 for x in 0..w {
                     let mut expect = [NEUTRAL; LEN];
@@ -732,16 +758,16 @@ mod tests {
                             plane[(y as isize + dy) as usize * w + (x as isize + dx) as usize]
                         };
                         for (k, &o) in DU_PATTERN.iter().enumerate() {
-                            expect[k] = at(&d.du, o);
+                            expect[k] = at(&planes.du, o);
                         }
                         for (k, &o) in DV_PATTERN.iter().enumerate() {
-                            expect[DU_PATTERN.len() + k] = at(&d.dv, o);
+                            expect[DU_PATTERN.len() + k] = at(&planes.dv, o);
                         }
                         for (k, &o) in DU_OUTER.iter().enumerate() {
-                            expect[16 + k] = at(&d.du, o);
+                            expect[16 + k] = at(&planes.du, o);
                         }
                         for (k, &o) in DV_OUTER.iter().enumerate() {
-                            expect[16 + DU_OUTER.len() + k] = at(&d.dv, o);
+                            expect[16 + DU_OUTER.len() + k] = at(&planes.dv, o);
                         }
                     }
                     assert_eq!(d.data[y * w + x], expect, "{w}x{h} at ({x}, {y})");
@@ -779,8 +805,9 @@ mod tests {
             GrayImage::from_vec(w, h, bright.iter().map(|&v| (off + scale * v).round() as u8).collect()).unwrap()
         };
         let (mut a, mut b) = (DescriptorImage::new(w, h), DescriptorImage::new(w, h));
-        a.compute(&to_img(1.0, 20.0), |_| true);
-        b.compute(&to_img(0.25, 10.0), |_| true);
+        let mut planes = SobelPlanes::new(w, h);
+        a.compute(&to_img(1.0, 20.0), &mut planes, |_| true);
+        b.compute(&to_img(0.25, 10.0), &mut planes, |_| true);
         let mut worst = 0;
         for y in BORDER + NORM_RADIUS..h - BORDER - NORM_RADIUS {
             for x in BORDER + NORM_RADIUS..w - BORDER - NORM_RADIUS {

@@ -13,7 +13,7 @@ use rayon::prelude::*;
 
 use super::cost::{DisparityRange, Kernel};
 use super::dense::{match_row, Search, Side, VectorPrior, INVALID};
-use super::descriptor::{DescriptorImage, BORDER};
+use super::descriptor::{DescriptorImage, SobelPlanes, BORDER};
 use super::postprocess::{interpolate_gaps, remove_speckles, SpeckleScratch};
 use super::subpixel::{refine_subpixel, SubpixelScratch};
 use super::support::{SupportGrid, SupportParams, SupportPoint};
@@ -49,6 +49,8 @@ pub struct Elas {
     kernel: Kernel,
     desc_left: DescriptorImage,
     desc_right: DescriptorImage,
+    /// The planes both images' descriptors are sampled from, one image after the other.
+    planes: SobelPlanes,
     support: SupportGrid,
     points: Vec<SupportPoint>,
     prior: Prior,
@@ -99,6 +101,7 @@ impl Elas {
             kernel: Kernel::detect(),
             desc_left: DescriptorImage::new(width, height),
             desc_right: DescriptorImage::new(width, height),
+            planes: SobelPlanes::new(width, height),
             support,
             points: Vec::with_capacity(max_points),
             prior: Prior::new(width, height, step),
@@ -192,8 +195,8 @@ impl Elas {
         let (step, support_step) = (self.row_step, self.support.step);
         let rows = region.y0..region.y1.min(h);
         let wanted = |y: usize| y.is_multiple_of(step) || y.is_multiple_of(support_step);
-        self.desc_left.compute_rows(left, (rows.start, rows.end), wanted);
-        self.desc_right.compute_rows(right, (rows.start, rows.end), wanted);
+        self.desc_left.compute_rows(left, (rows.start, rows.end), &mut self.planes, wanted);
+        self.desc_right.compute_rows(right, (rows.start, rows.end), &mut self.planes, wanted);
         self.support.compute(&self.desc_left, &self.desc_right, &sp, region);
         self.support.points(&mut self.points);
         self.grid_left.compute(&self.points, disparities, false);
