@@ -360,7 +360,9 @@ impl Icp {
     /// points on the parts one of them has and the other lacks (`DISTINCT_MARGIN` away from
     /// anything of the other) tell them apart. The body the two share counts for neither, so
     /// a turn left a millimetre off (it was not refined) gains or loses nothing by it, and a
-    /// scene that does not show the parts gives no evidence for either.
+    /// scene that does not show the parts gives no evidence for either. Nor do points within
+    /// `DISTINCT_MARGIN` reaches of the plane the tray stands on: the table beside a low
+    /// tab's foot lies as near the tab as the tab's own points do.
     pub fn explained_near_and_apart(
         &self,
         scene_points: &[Point3<f32>],
@@ -383,6 +385,9 @@ impl Icp {
         let reach2 = reach * reach;
         let grow = Vector3::repeat(reach);
         let (lo, hi) = (self.whole_bounds.0 - grow, self.whole_bounds.1 + grow);
+        // Scene points this near the plane the tray stands on are the table's as much as
+        // any part's: no evidence for a part (a low tab's edge beside the table).
+        let floor = self.whole_bounds.0.z + DISTINCT_MARGIN * reach;
         let sum = |a: ExplainedCounts, b: ExplainedCounts| {
             let mut out = ExplainedCounts { explained: a.explained + b.explained, inside: a.inside + b.inside, ..a };
             for (o, (x, y)) in out.apart.iter_mut().zip(a.apart.iter().zip(&b.apart)) {
@@ -400,6 +405,9 @@ impl Icp {
                     if (0..3).all(|a| q[a] >= lo[a] && q[a] <= hi[a]) {
                         counts.inside += 1;
                         counts.explained += u32::from(own.is_some());
+                    }
+                    if q.z <= floor {
+                        continue;
                     }
                     for (apart, (other, own_bit, their_bit)) in counts.apart.iter_mut().zip(others) {
                         apart.0 += u32::from(own.is_some_and(|i| self.distinct[i] & own_bit != 0));
@@ -644,6 +652,38 @@ mod tests {
             }
             assert!(set[0] * 5 > points.len() && set[2] * 5 > points.len(), "{set:?}");
         }
+    }
+
+    /// The table beside a low tab, where the tray stands and where its half turn would put
+    /// the tab, is no evidence for either; the tab's top is, for the pose that has it.
+    #[test]
+    fn the_table_beside_a_tab_tells_nothing() {
+        let params = Cell::default().estimator;
+        let reach = params.inlier_distance as f32;
+        let model = Arc::new(testing::tray(false, 1));
+        let icp = Icp::new(&params, model).unwrap();
+        let pose = Isometry3::identity();
+        // The table (the tray's bottom plane, a few tenths of a millimetre of noise above
+        // it) around both ends' tab places, at half a millimetre.
+        let table: Vec<Point3<f32>> = (0..60)
+            .flat_map(|i| (0..100).map(move |j| (i, j)))
+            .flat_map(|(i, j)| {
+                let (x, y) = (95.0 + 0.5 * i as f32, 5.0 + 0.5 * j as f32);
+                let z = 0.1 * ((i + j) % 4) as f32;
+                [Point3::new(x, y, z), Point3::new(-x, -y, z)]
+            })
+            .collect();
+        // Both tab places hold points the distinct parts would explain, but for the floor.
+        let near_tab = table.iter().filter(|p| p.x > 100.0 && p.x < 118.0 && p.y > 13.0 && p.y < 47.0).count();
+        assert!(near_tab > 500, "{near_tab}");
+        let apart = icp.explained_near_and_apart(&table, &pose, &[HALF], reach).apart[0];
+        assert_eq!(apart, (0, 0), "the table counted for a part");
+        // The tab's top at the pose: its points speak for the pose alone.
+        let top: Vec<Point3<f32>> =
+            (0..12).flat_map(|i| (0..26).map(move |j| Point3::new(102.0 + i as f32, 17.0 + j as f32, 15.0))).collect();
+        let apart = icp.explained_near_and_apart(&top, &pose, &[HALF], reach).apart[0];
+        // (Those within the margin of the +x wall, which the half turn also has, are not.)
+        assert!(apart.1 == 0 && apart.0 as usize * 2 > top.len(), "the tab's top: {apart:?} of {}", top.len());
     }
 
     /// The scene's tab speaks for the pose that has it there and against its half turn,

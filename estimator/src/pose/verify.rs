@@ -205,6 +205,10 @@ pub struct Verification {
     /// that alternative whatever the few scene points on either's parts say (but not
     /// against [`CONFLICTING_TURN_SIGMAS`] of them).
     pub turn_confirmed: bool,
+    /// Neither the pose's distinct parts nor those of the closest unlisted alternative
+    /// hold a scene point: nothing tells the two apart but what the camera saw past them
+    /// (`turn_confirmed`), and without that the pose is ambiguous.
+    pub turn_unseen: bool,
 }
 
 impl Verification {
@@ -409,7 +413,8 @@ impl Verifier {
             if alternatives[k].listed(model) {
                 continue;
             }
-            let sigmas = lead_sigmas(own, other);
+            // No point on either's parts is no evidence either way: the closest of all.
+            let sigmas = if own + other == 0 { 0.0 } else { lead_sigmas(own, other) };
             let confirmed = evidence.and_then(|e| e[k]).is_some_and(|(own, other)| turn_favoured(other, own))
                 && sigmas >= -CONFLICTING_TURN_SIGMAS;
             let closer = match closest {
@@ -426,6 +431,7 @@ impl Verifier {
             let (own, other) = counts.apart[k];
             v.turn_margin = if own + other == 0 { 1.0 } else { (own as f32 - other as f32) / (own + other) as f32 };
             (v.turn_own, v.turn_other, v.turn_confirmed) = (own, other, confirmed);
+            v.turn_unseen = own + other == 0;
         }
         v.verdict = if !self.enabled {
             Verdict::Accepted
@@ -435,7 +441,7 @@ impl Verifier {
             Verdict::PoorFit
         } else if v.seen_past() || v.turned_wrong_way() {
             Verdict::SeenThrough
-        } else if v.turn_sigmas() < AMBIGUOUS_TURN_SIGMAS && !v.turn_confirmed {
+        } else if (v.turn_unseen || v.turn_sigmas() < AMBIGUOUS_TURN_SIGMAS) && !v.turn_confirmed {
             Verdict::Ambiguous
         } else {
             Verdict::Accepted
