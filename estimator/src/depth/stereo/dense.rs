@@ -30,7 +30,10 @@ pub const INVALID: f32 = f32::INFINITY;
 pub struct Side<'a> {
     pub own: &'a DescriptorImage,
     pub other: &'a DescriptorImage,
+    /// The prior disparity of every `prior_step`-th row from row 0 (row j holding image row
+    /// j x `prior_step`).
     pub prior: &'a [f32],
+    pub prior_step: usize,
     pub grid: &'a CandidateGrid,
     /// The columns of each row to match, from the first to one past the last (`(0, width)`
     /// for all); the others are left as they were.
@@ -135,8 +138,8 @@ fn cells(
 /// [`match_row`] with the scalar kernel; the reference the vector kernel is tested against.
 pub fn match_row_scalar<const LEFT: bool>(s: &Side<'_>, q: &Search<'_>, y: usize, out: &mut [f32]) {
     let w = s.own.width;
-    let row = y * w;
-    let (own, other, prior) = (&s.own.data[row..row + w], &s.other.data[row..row + w], &s.prior[row..row + w]);
+    let (row, held) = (y * w, y / s.prior_step * w);
+    let (own, other, prior) = (&s.own.data[row..row + w], &s.other.data[row..row + w], &s.prior[held..held + w]);
     for (columns, padded) in cells(s.grid, w, s.columns, y) {
         let list = &padded[..padded.len() - LIST_PAD];
         for x in columns {
@@ -281,8 +284,8 @@ mod avx2 {
         table: &[i32; 8],
     ) {
         let w = s.own.width;
-        let row = y * w;
-        let (own, prior) = (&s.own.data[row..row + w], &s.prior[row..row + w]);
+        let (row, held) = (y * w, y / s.prior_step * w);
+        let (own, prior) = (&s.own.data[row..row + w], &s.prior[held..held + w]);
         // SAFETY: an unaligned 32-byte read of an [i32; 8].
         let table = unsafe { _mm256_loadu_si256(table.as_ptr().cast()) };
         for (columns, padded) in cells(s.grid, w, s.columns, y) {
@@ -651,7 +654,7 @@ mod tests {
                 vector: VectorPrior::new(&energy, span as usize + 1),
             };
             assert!(q.vector.0.is_some(), "table {energy:?} should fit the vector kernel");
-            let side = Side { own: &left, other: &right, prior: &prior, grid: &grid, columns: (0, w) };
+            let side = Side { own: &left, other: &right, prior: &prior, prior_step: 1, grid: &grid, columns: (0, w) };
             let left_image = trial % 2 == 0;
             for y in BORDER..h - BORDER {
                 let mut slow = vec![0.0; w];
@@ -704,7 +707,8 @@ mod tests {
                         prior_energy: &energy,
                         vector: VectorPrior::new(&energy, span as usize + 1),
                     };
-                    let side = Side { own: &left, other: &right, prior: &prior, grid: &grid, columns: (0, w) };
+                    let side =
+                        Side { own: &left, other: &right, prior: &prior, prior_step: 1, grid: &grid, columns: (0, w) };
                     let left_image = trial % 2 == 0;
                     for y in BORDER..h - BORDER {
                         let mut slow = vec![0.0; w];

@@ -109,46 +109,66 @@ pub struct DescriptorImage {
     pub data: DescriptorBuffer,
 }
 
-/// The Sobel and normalisation planes descriptors are sampled from: a scratch that the two
-/// images of a pair share, each image's descriptors computed in turn (every plane row a
-/// descriptor reads is written by the same [`DescriptorImage::compute_rows`] call).
-#[derive(Debug, Clone)]
-pub struct SobelPlanes {
+/// The Sobel and normalisation planes descriptors are sampled from, laid in working memory
+/// the matcher lends (the sub-pixel refinement's planes use the same memory after them):
+/// the two images of a pair are computed in turn, and every plane row a descriptor reads is
+/// written by the same [`DescriptorImage::compute_rows`] call.
+#[derive(Debug)]
+pub struct SobelPlanes<'a> {
     width: usize,
     height: usize,
-    du: Vec<u8>,
-    dv: Vec<u8>,
     /// Raw Sobel responses (x, y) per pixel.
-    gx: Vec<i16>,
-    gy: Vec<i16>,
+    gx: &'a mut [i16],
+    gy: &'a mut [i16],
     /// |gx| + |gy| per pixel (at most 2 x 4 x 255), the row sums' input.
-    mag: Vec<u16>,
+    mag: &'a mut [u16],
     /// Row-wise box sums of `mag` (at most 9 x 2040).
-    row_sum: Vec<u16>,
-    /// Per column, 1 / (2 x the box window's column count there): both components are
-    /// summed, hence the 2.
-    inv_cols: Vec<f32>,
+    row_sum: &'a mut [u16],
+    du: &'a mut [u8],
+    dv: &'a mut [u8],
+    /// Per column, 1 / (2 x the box window's column count there) ([`column_weights`]).
+    inv_cols: &'a [f32],
 }
 
-impl SobelPlanes {
-    /// Planes for `width` x `height` images.
-    pub fn new(width: usize, height: usize) -> Self {
+/// Bytes of the planes per pixel: four 16-bit planes and two 8-bit ones.
+const PLANE_BYTES: usize = 4 * 2 + 2;
+
+impl<'a> SobelPlanes<'a> {
+    /// The f32 words of working memory the planes of `width` x `height` images take.
+    pub fn words_for(width: usize, height: usize) -> usize {
+        (width * height * PLANE_BYTES).div_ceil(4)
+    }
+
+    /// The planes of `width` x `height` images in `words` (at least
+    /// [`SobelPlanes::words_for`] of them; whatever they hold is overwritten where read),
+    /// with the image width's [`column_weights`].
+    pub fn in_words(words: &'a mut [f32], inv_cols: &'a [f32], width: usize, height: usize) -> Self {
         let n = width * height;
-        let inv_cols = (0..width)
-            .map(|x| 1.0 / (2 * (x.min(NORM_RADIUS) + (width - 1 - x).min(NORM_RADIUS) + 1)) as f32)
-            .collect();
+        let bytes: &mut [u8] = bytemuck::cast_slice_mut(words);
+        // The 16-bit planes first, each at an even offset from the words' start.
+        let (wide, narrow) = bytes[..n * PLANE_BYTES].split_at_mut(8 * n);
+        let (gx, rest) = wide.split_at_mut(2 * n);
+        let (gy, rest) = rest.split_at_mut(2 * n);
+        let (mag, row_sum) = rest.split_at_mut(2 * n);
+        let (du, dv) = narrow.split_at_mut(n);
         SobelPlanes {
             width,
             height,
-            du: vec![NEUTRAL; n],
-            dv: vec![NEUTRAL; n],
-            gx: vec![0; n],
-            gy: vec![0; n],
-            mag: vec![0; n],
-            row_sum: vec![0; n],
+            gx: bytemuck::cast_slice_mut(gx),
+            gy: bytemuck::cast_slice_mut(gy),
+            mag: bytemuck::cast_slice_mut(mag),
+            row_sum: bytemuck::cast_slice_mut(row_sum),
+            du,
+            dv,
             inv_cols,
         }
     }
+}
+
+/// Per column of a `width`-pixel row, 1 / (2 x the normalisation window's column count
+/// there): both components are summed, hence the 2.
+pub fn column_weights(width: usize) -> Vec<f32> {
+    (0..width).map(|x| 1.0 / (2 * (x.min(NORM_RADIUS) + (width - 1 - x).min(NORM_RADIUS) + 1)) as f32).collect()
 }
 
 impl DescriptorImage {
@@ -161,7 +181,7 @@ impl DescriptorImage {
     /// accepts; the other rows keep what they held (zeros until first computed, and no
     /// memory: see [`DescriptorBuffer`]). The matcher calls [`DescriptorImage::compute_rows`].
     #[cfg(test)]
-    pub fn compute(&mut self, img: &GrayImage, planes: &mut SobelPlanes, wanted: impl Fn(usize) -> bool + Sync) {
+    pub fn compute(&mut self, img: &GrayImage, planes: &mut SobelPlanes<'_>, wanted: impl Fn(usize) -> bool + Sync) {
         self.compute_rows(img, (0, self.height), planes, wanted);
     }
 
@@ -172,7 +192,7 @@ impl DescriptorImage {
         &mut self,
         img: &GrayImage,
         rows: (usize, usize),
-        planes: &mut SobelPlanes,
+        planes: &mut SobelPlanes<'_>,
         wanted: impl Fn(usize) -> bool + Sync,
     ) {
         let (w, h) = (self.width, self.height);
@@ -197,15 +217,15 @@ impl DescriptorImage {
                 sobel_row(src, w, h, y, gxr, gyr, magr, sumr);
             }
         });
-        let (gx, gy) = (&planes.gx, &planes.gy);
-        let (row_sum, inv_cols) = (&planes.row_sum, &planes.inv_cols[..]);
+        let (gx, gy) = (&*planes.gx, &*planes.gy);
+        let (row_sum, inv_cols) = (&*planes.row_sum, planes.inv_cols);
         let normalised = planes.du.par_chunks_mut(BAND * w).zip(planes.dv.par_chunks_mut(BAND * w));
         normalised.enumerate().for_each(|(band, (du, dv))| {
             if (bands.0..bands.1).contains(&band) {
                 normalise_band(gx, gy, row_sum, inv_cols, w, h, band * BAND, du, dv);
             }
         });
-        let (du, dv) = (&planes.du, &planes.dv);
+        let (du, dv) = (&*planes.du, &*planes.dv);
         let wanted = |y: usize| (lo..hi).contains(&y) && wanted(y);
         self.data.par_chunks_mut(w).enumerate().filter(|(y, _)| wanted(*y)).for_each(|(y, row)| {
             if y < BORDER || y + BORDER >= h {
@@ -602,7 +622,8 @@ mod tests {
         let (w, h) = (20, 12);
         let img = GrayImage::from_vec(w, h, (0..w * h).map(|i| (2 * (i % w)) as u8).collect()).unwrap();
         let mut d = DescriptorImage::new(w, h);
-        let mut planes = SobelPlanes::new(w, h);
+        let (mut words, cols) = (vec![0.0; SobelPlanes::words_for(w, h)], column_weights(w));
+        let mut planes = SobelPlanes::in_words(&mut words, &cols, w, h);
         d.compute(&img, &mut planes, |_| true);
         let inner = d.data[5 * w + 9];
         let expect = sobel_byte(16.0 * NORM_TARGET / 8.0f32.max(NORM_FLOOR));
@@ -637,7 +658,8 @@ mod tests {
         for (w, h) in [(11, 11), (37, 19), (70, 23)] {
             let img = GrayImage::from_vec(w, h, (0..w * h).map(|_| rng.random_range(0..=255u8)).collect()).unwrap();
             let mut d = DescriptorImage::new(w, h);
-            let mut planes = SobelPlanes::new(w, h);
+            let (mut words, cols) = (vec![0.0; SobelPlanes::words_for(w, h)], column_weights(w));
+            let mut planes = SobelPlanes::in_words(&mut words, &cols, w, h);
             d.compute(&img, &mut planes, |_| true);
             let sobel = |x: usize, y: usize| sobel_at(&img, x, y);
             let bytes = |x: usize, y: usize| -> (u8, u8) {
@@ -717,7 +739,8 @@ mod tests {
         for (w, h) in [(11, 11), (37, 19), (65, 33), (70, 23), (129, 17), (640, 48)] {
             let img = GrayImage::from_vec(w, h, (0..w * h).map(|_| rng.random_range(0..=255u8)).collect()).unwrap();
             let mut d = DescriptorImage::new(w, h);
-            let mut planes = SobelPlanes::new(w, h);
+            let (mut words, cols) = (vec![0.0; SobelPlanes::words_for(w, h)], column_weights(w));
+            let mut planes = SobelPlanes::in_words(&mut words, &cols, w, h);
             d.compute(&img, &mut planes, |_| true);
             let sobel = |x: usize, y: usize| sobel_at(&img, x, y);
             for y in 0..h {
@@ -748,7 +771,8 @@ mod tests {
         for (w, h) in [(11, 11), (20, 12), (25, 13), (26, 13), (37, 19), (41, 16), (70, 23), (100, 40), (640, 48)] {
             let img = GrayImage::from_vec(w, h, (0..w * h).map(|_| rng.random_range(0..=255u8)).collect()).unwrap();
             let mut d = DescriptorImage::new(w, h);
-            let mut planes = SobelPlanes::new(w, h);
+            let (mut words, cols) = (vec![0.0; SobelPlanes::words_for(w, h)], column_weights(w));
+            let mut planes = SobelPlanes::in_words(&mut words, &cols, w, h);
             d.compute(&img, &mut planes, |_| true);
             for y in 0..h {
                 for x in 0..w {
@@ -805,7 +829,8 @@ mod tests {
             GrayImage::from_vec(w, h, bright.iter().map(|&v| (off + scale * v).round() as u8).collect()).unwrap()
         };
         let (mut a, mut b) = (DescriptorImage::new(w, h), DescriptorImage::new(w, h));
-        let mut planes = SobelPlanes::new(w, h);
+        let (mut words, cols) = (vec![0.0; SobelPlanes::words_for(w, h)], column_weights(w));
+        let mut planes = SobelPlanes::in_words(&mut words, &cols, w, h);
         a.compute(&to_img(1.0, 20.0), &mut planes, |_| true);
         b.compute(&to_img(0.25, 10.0), &mut planes, |_| true);
         let mut worst = 0;

@@ -13,9 +13,9 @@ use rayon::prelude::*;
 
 use super::cost::{DisparityRange, Kernel};
 use super::dense::{match_row, Search, Side, VectorPrior, INVALID};
-use super::descriptor::{DescriptorImage, SobelPlanes, BORDER};
+use super::descriptor::{column_weights, DescriptorImage, SobelPlanes, BORDER};
 use super::postprocess::{interpolate_gaps, remove_speckles, SpeckleScratch};
-use super::subpixel::{refine_subpixel, SubpixelScratch};
+use super::subpixel::{refine_subpixel, WORDS_PER_PIXEL};
 use super::support::{SupportGrid, SupportParams, SupportPoint};
 use super::triangulation::{CandidateGrid, Prior};
 use super::DisparityMatcher;
@@ -49,8 +49,11 @@ pub struct Elas {
     kernel: Kernel,
     desc_left: DescriptorImage,
     desc_right: DescriptorImage,
-    /// The planes both images' descriptors are sampled from, one image after the other.
-    planes: SobelPlanes,
+    /// Working memory no step keeps past its own: the planes both images' descriptors are
+    /// sampled from (one image after the other), then the sub-pixel refinement's.
+    scratch: Vec<f32>,
+    /// The descriptors' normalisation weights per column.
+    column_weights: Vec<f32>,
     support: SupportGrid,
     points: Vec<SupportPoint>,
     prior: Prior,
@@ -61,7 +64,6 @@ pub struct Elas {
     dense_left: Vec<f32>,
     dense_right: Vec<f32>,
     speckles: SpeckleScratch,
-    subpixel: SubpixelScratch,
 }
 
 impl Elas {
@@ -101,16 +103,16 @@ impl Elas {
             kernel: Kernel::detect(),
             desc_left: DescriptorImage::new(width, height),
             desc_right: DescriptorImage::new(width, height),
-            planes: SobelPlanes::new(width, height),
+            scratch: vec![0.0; (WORDS_PER_PIXEL * width * height).max(SobelPlanes::words_for(width, height))],
+            column_weights: column_weights(width),
             support,
             points: Vec::with_capacity(max_points),
-            prior: Prior::new(width, height, step),
+            prior: Prior::new(width, height, step, row_step),
             grid_left: CandidateGrid::new(width, height, cell, max_disparity_span),
             grid_right: CandidateGrid::new(width, height, cell, max_disparity_span),
             dense_left: vec![INVALID; matched],
             dense_right: vec![INVALID; matched],
             speckles: SpeckleScratch::new(width, height.div_ceil(row_step)),
-            subpixel: SubpixelScratch::new(width * height),
         }
     }
 
@@ -195,13 +197,14 @@ impl Elas {
         let (step, support_step) = (self.row_step, self.support.step);
         let rows = region.y0..region.y1.min(h);
         let wanted = |y: usize| y.is_multiple_of(step) || y.is_multiple_of(support_step);
-        self.desc_left.compute_rows(left, (rows.start, rows.end), &mut self.planes, wanted);
-        self.desc_right.compute_rows(right, (rows.start, rows.end), &mut self.planes, wanted);
+        let mut planes = SobelPlanes::in_words(&mut self.scratch, &self.column_weights, w, h);
+        self.desc_left.compute_rows(left, (rows.start, rows.end), &mut planes, wanted);
+        self.desc_right.compute_rows(right, (rows.start, rows.end), &mut planes, wanted);
         self.support.compute(&self.desc_left, &self.desc_right, &sp, region);
         self.support.points(&mut self.points);
         self.grid_left.compute(&self.points, disparities, false);
         self.grid_right.compute(&self.points, disparities, true);
-        self.prior.compute(&self.support, step, (rows.start, rows.end));
+        self.prior.compute(&self.support, (rows.start, rows.end));
 
         // A left pixel x matches right pixels x - d_max ..= x - d_min, which the left-right
         // check reads back.
@@ -213,6 +216,7 @@ impl Elas {
             own: &self.desc_left,
             other: &self.desc_right,
             prior: &self.prior.left,
+            prior_step: step,
             grid: &self.grid_left,
             columns: left_columns,
         };
@@ -220,6 +224,7 @@ impl Elas {
             own: &self.desc_right,
             other: &self.desc_left,
             prior: &self.prior.right,
+            prior_step: step,
             grid: &self.grid_right,
             columns: right_columns,
         };
@@ -256,7 +261,7 @@ impl Elas {
         // A region of n pixels holds about n / step matched ones.
         let speckle_size = self.speckle_size.div_ceil(step);
         remove_speckles(dense, w, speckle_size, self.speckle_similarity, &mut self.speckles);
-        refine_subpixel(left, right, dense, step, self.subpixel_radius, (rows.start, rows.end), &mut self.subpixel);
+        refine_subpixel(left, right, dense, step, self.subpixel_radius, (rows.start, rows.end), &mut self.scratch);
         interpolate_gaps(dense, w, self.gap_width, self.gap_width / step);
         // The matched rows into their places; the rows between stay INVALID.
         for (j, row) in dense.chunks_exact(w).enumerate() {

@@ -23,6 +23,9 @@ struct Run {
     size: u32,
 }
 
+// SAFETY: `Run` is four `u32`s, for which all zero bits are a valid value.
+unsafe impl bytemuck::Zeroable for Run {}
+
 /// Scratch of the connected-component pass, sized once.
 #[derive(Debug, Clone)]
 pub struct SpeckleScratch {
@@ -33,9 +36,11 @@ pub struct SpeckleScratch {
 }
 
 impl SpeckleScratch {
-    /// Buffers for `width` x `height` images.
+    /// Buffers for `width` x `height` images. The run slots are allocated zeroed, which the
+    /// allocator does by mapping pages on first use: a row's slots are written only as far
+    /// as its runs reach (a few dozen of `width`), so most of them never take memory.
     pub fn new(width: usize, height: usize) -> Self {
-        SpeckleScratch { runs: vec![Run::default(); width * height], count: vec![0; height] }
+        SpeckleScratch { runs: bytemuck::zeroed_vec(width * height), count: vec![0; height] }
     }
 }
 

@@ -16,29 +16,15 @@ const LANES: usize = 16;
 /// Below this summed squared gradient the window has no texture to refine on.
 const MIN_GRADIENT: f32 = 1e-3;
 
-/// Float copies of a rectified pair and their horizontal gradients, sized once: the
-/// refinement reads every pixel ~2 (2 r + 1)^2 times, so converting and differencing once
-/// per frame halves its arithmetic.
-#[derive(Debug, Clone)]
-pub struct SubpixelScratch {
-    left: Vec<f32>,
-    left_grad: Vec<f32>,
-    right: Vec<f32>,
-    right_grad: Vec<f32>,
-}
-
-impl SubpixelScratch {
-    /// Buffers for images of `n` pixels.
-    pub fn new(n: usize) -> Self {
-        SubpixelScratch { left: vec![0.0; n], left_grad: vec![0.0; n], right: vec![0.0; n], right_grad: vec![0.0; n] }
-    }
-}
+/// The f32 words of working memory per pixel the refinement takes: float copies of a
+/// rectified pair and their horizontal gradients. The refinement reads every pixel
+/// ~2 (2 r + 1)^2 times, so converting and differencing once per frame halves its
+/// arithmetic.
+pub const WORDS_PER_PIXEL: usize = 4;
 
 /// Intensities as f32 and half the central difference along the row (0 at the row ends).
-fn float_planes(img: &GrayImage, rows: (usize, usize), value: &mut Vec<f32>, grad: &mut Vec<f32>) {
-    let (w, n) = (img.width, img.width * img.height);
-    value.resize(n, 0.0);
-    grad.resize(n, 0.0);
+fn float_planes(img: &GrayImage, rows: (usize, usize), value: &mut [f32], grad: &mut [f32]) {
+    let w = img.width;
     if w == 0 {
         return;
     }
@@ -66,6 +52,15 @@ fn float_row_body(src: &[u8], value: &mut [f32], grad: &mut [f32]) {
     }
 }
 
+/// The four planes of `n` pixels in `scratch` (at least [`WORDS_PER_PIXEL`] x `n` words;
+/// whatever they hold is overwritten where read).
+fn split_planes(scratch: &mut [f32], n: usize) -> [&mut [f32]; 4] {
+    let (left, right) = scratch[..WORDS_PER_PIXEL * n].split_at_mut(2 * n);
+    let (lf, lg) = left.split_at_mut(n);
+    let (rf, rg) = right.split_at_mut(n);
+    [lf, lg, rf, rg]
+}
+
 /// The four planes and the window they are read through.
 #[derive(Clone, Copy)]
 struct Planes<'a> {
@@ -86,7 +81,8 @@ struct Planes<'a> {
 /// integer disparity.
 ///
 /// `disp` holds every `row_step`-th row of the images from row 0 (all of them at 1), as
-/// dense matching with a row step leaves them.
+/// dense matching with a row step leaves them. `scratch` is working memory of
+/// [`WORDS_PER_PIXEL`] words a pixel.
 pub fn refine_subpixel(
     left: &GrayImage,
     right: &GrayImage,
@@ -94,13 +90,14 @@ pub fn refine_subpixel(
     row_step: usize,
     radius: usize,
     rows: (usize, usize),
-    s: &mut SubpixelScratch,
+    scratch: &mut [f32],
 ) {
     let (w, h) = (left.width, left.height);
     let planes = (rows.0.saturating_sub(radius), rows.1.saturating_add(radius + 1).min(h));
-    float_planes(left, planes, &mut s.left, &mut s.left_grad);
-    float_planes(right, planes, &mut s.right, &mut s.right_grad);
-    let p = Planes { lf: &s.left, lg: &s.left_grad, rf: &s.right, rg: &s.right_grad, width: w, radius };
+    let [lf, lg, rf, rg] = split_planes(scratch, w * h);
+    float_planes(left, planes, lf, lg);
+    float_planes(right, planes, rf, rg);
+    let p = Planes { lf, lg, rf, rg, width: w, radius };
     let (x_lo, x_hi) = (radius + 1, w.saturating_sub(radius + 1));
     disp.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
         let y = j * row_step;
@@ -359,7 +356,7 @@ mod tests {
         let shift = 7.3f32;
         let (left, right) = shifted_pair(11, w, h, shift);
         let mut d = vec![7.0f32; w * h];
-        refine_subpixel(&left, &right, &mut d, 1, 2, (0, usize::MAX), &mut SubpixelScratch::new(0));
+        refine_subpixel(&left, &right, &mut d, 1, 2, (0, usize::MAX), &mut vec![0.0; WORDS_PER_PIXEL * w * h]);
         let mut errs: Vec<f32> = (4..h - 4)
             .flat_map(|y| (14..w - 6).map(move |x| (y, x)))
             .map(|(y, x)| (d[y * w + x] - shift).abs())
@@ -390,20 +387,11 @@ mod tests {
                         x += run;
                     }
                 }
-                let planes_of = |s: &mut SubpixelScratch| {
-                    float_planes(&l, (0, usize::MAX), &mut s.left, &mut s.left_grad);
-                    float_planes(&r, (0, usize::MAX), &mut s.right, &mut s.right_grad);
-                };
-                let mut scratch = SubpixelScratch::new(0);
-                planes_of(&mut scratch);
-                let p = Planes {
-                    lf: &scratch.left,
-                    lg: &scratch.left_grad,
-                    rf: &scratch.right,
-                    rg: &scratch.right_grad,
-                    width: w,
-                    radius,
-                };
+                let mut scratch = vec![0.0; WORDS_PER_PIXEL * w * h];
+                let [lf, lg, rf, rg] = split_planes(&mut scratch, w * h);
+                float_planes(&l, (0, usize::MAX), lf, lg);
+                float_planes(&r, (0, usize::MAX), rf, rg);
+                let p = Planes { lf, lg, rf, rg, width: w, radius };
                 let slow: Vec<f32> = (0..w * h)
                     .map(|i| {
                         let (x, y) = (i % w, i / w);
@@ -415,7 +403,7 @@ mod tests {
                     })
                     .collect();
                 let mut fast = d.clone();
-                refine_subpixel(&l, &r, &mut fast, 1, radius, (0, usize::MAX), &mut SubpixelScratch::new(0));
+                refine_subpixel(&l, &r, &mut fast, 1, radius, (0, usize::MAX), &mut vec![0.0; WORDS_PER_PIXEL * w * h]);
                 let refined = slow.iter().zip(&d).filter(|(s, d)| s.is_finite() && s != d).count();
                 assert!(refined > w * h / 4, "only {refined} pixels refined");
                 for i in 0..w * h {
@@ -425,7 +413,15 @@ mod tests {
                 // them: each refined as in the whole map.
                 for row_step in [2, 3] {
                     let mut rows: Vec<f32> = d.chunks_exact(w).step_by(row_step).flatten().copied().collect();
-                    refine_subpixel(&l, &r, &mut rows, row_step, radius, (0, usize::MAX), &mut SubpixelScratch::new(0));
+                    refine_subpixel(
+                        &l,
+                        &r,
+                        &mut rows,
+                        row_step,
+                        radius,
+                        (0, usize::MAX),
+                        &mut vec![0.0; WORDS_PER_PIXEL * w * h],
+                    );
                     for (j, row) in rows.chunks_exact(w).enumerate() {
                         let y = j * row_step;
                         for (x, v) in row.iter().enumerate() {

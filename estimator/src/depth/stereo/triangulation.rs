@@ -44,18 +44,23 @@ pub struct Prior {
     tx: Vec<f32>,
     /// The triangles moved into the right view, two per grid square, row by row.
     moved: Vec<Moved>,
-    /// Prior disparity per left pixel.
+    /// Dense matching's row step: the priors hold every `row_step`-th row from row 0.
+    row_step: usize,
+    /// Prior disparity per left pixel, of every `row_step`-th row (row j holding image row
+    /// j x `row_step`).
     pub left: Vec<f32>,
-    /// Prior disparity per right pixel.
+    /// Prior disparity per right pixel, the same rows.
     pub right: Vec<f32>,
 }
 
 const NO_NODE: u16 = u16::MAX;
 
 impl Prior {
-    /// Buffers for `width` x `height` images and support points every `step` px.
-    pub fn new(width: usize, height: usize, step: usize) -> Self {
+    /// Buffers for `width` x `height` images, support points every `step` px and dense
+    /// matching on every `row_step`-th row.
+    pub fn new(width: usize, height: usize, step: usize, row_step: usize) -> Self {
         let step = step.max(1);
+        let row_step = row_step.max(1);
         let cols = width.div_ceil(step) + usize::from(!(width.max(1) - 1).is_multiple_of(step));
         let rows = height.div_ceil(step) + usize::from(!(height.max(1) - 1).is_multiple_of(step));
         let n = cols * rows;
@@ -83,8 +88,9 @@ impl Prior {
             right_of: vec![NO_NODE; n],
             tx,
             moved: vec![Moved::EMPTY; 2 * cols.saturating_sub(1) * rows.saturating_sub(1)],
-            left: vec![f32::NAN; width * height],
-            right: vec![f32::NAN; width * height],
+            row_step,
+            left: vec![f32::NAN; width * height.div_ceil(row_step)],
+            right: vec![f32::NAN; width * height.div_ceil(row_step)],
         }
     }
 
@@ -92,13 +98,14 @@ impl Prior {
     /// rasterises both priors on every `row_step`-th row from row 0 within `rows` (first,
     /// one past the last: the rows dense matching reads; the others keep what they held).
     /// Fewer than three support points give no prior.
-    pub fn compute(&mut self, support: &SupportGrid, row_step: usize, rows: (usize, usize)) {
+    pub fn compute(&mut self, support: &SupportGrid, rows: (usize, usize)) {
+        let row_step = self.row_step;
         debug_assert_eq!(support.step, self.step);
         let pixel_rows = rows;
         let (cols, rows) = (self.cols, self.rows);
         let valid = support.d.iter().filter(|&&d| d != NONE).count();
         if valid < 3 || self.width == 0 || self.height == 0 {
-            self.clear();
+            self.clear(pixel_rows);
             return;
         }
         // Border nodes beyond the support grid copy their inner neighbour's support point.
@@ -220,7 +227,7 @@ impl Prior {
             }
         }
         if cols < 2 || rows < 2 {
-            self.clear();
+            self.clear(pixel_rows);
             return;
         }
         let (width, height, step) = (self.width, self.height, self.step);
@@ -248,15 +255,23 @@ impl Prior {
             .par_chunks_mut(width)
             .zip(self.right.par_chunks_mut(width))
             .enumerate()
-            .step_by(row_step.max(1))
+            .map(|(j, rows)| (j * row_step, rows))
             .filter(|(y, _)| (pixel_rows.0..pixel_rows.1).contains(y))
             .for_each(|(y, (left, right))| rasterise_row(node, tx, moved, grid, y, left, right));
     }
 
-    /// No prior anywhere.
-    fn clear(&mut self) {
-        self.left.fill(f32::NAN);
-        self.right.fill(f32::NAN);
+    /// No prior on the rows [`Prior::compute`] would rasterise.
+    fn clear(&mut self, rows: (usize, usize)) {
+        let (width, row_step) = (self.width.max(1), self.row_step);
+        self.left
+            .chunks_mut(width)
+            .zip(self.right.chunks_mut(width))
+            .enumerate()
+            .filter(|(j, _)| (rows.0..rows.1).contains(&(j * row_step)))
+            .for_each(|(_, (left, right))| {
+                left.fill(f32::NAN);
+                right.fill(f32::NAN);
+            });
     }
 }
 
@@ -666,7 +681,7 @@ mod tests {
         ];
         let mut compared = 0;
         for &(w, h, step) in &sizes {
-            let mut prior = Prior::new(w, h, step);
+            let mut prior = Prior::new(w, h, step, 1);
             for trial in 0..12 {
                 let hole = [0.0, 0.3, 0.7, 0.97][trial % 4];
                 // Surfaces from gentle to torn: steep slopes and jumps fold moved triangles
@@ -682,18 +697,19 @@ mod tests {
                         g.d[gy * g.cols + gx] = if rng.random_bool(hole) { NONE } else { d.max(0.0) as i16 };
                     }
                 }
-                prior.compute(&g, 1, (0, usize::MAX));
+                prior.compute(&g, (0, usize::MAX));
                 let (left, right) = serial_views(&prior, &g);
                 assert!(same_bits(&prior.left, &left), "left view differs at {w}x{h}/{step}, trial {trial}");
                 assert!(same_bits(&prior.right, &right), "right view differs at {w}x{h}/{step}, trial {trial}");
                 // With a row step the rasterised rows are those rows of the full views.
                 let row_step = 2 + trial % 3;
-                let mut stepped = Prior::new(w, h, step);
-                stepped.compute(&g, row_step, (0, usize::MAX));
-                for y in (0..h).step_by(row_step) {
-                    let row = y * w..(y + 1) * w;
-                    assert!(same_bits(&stepped.left[row.clone()], &left[row.clone()]), "left row {y} / {row_step}");
-                    assert!(same_bits(&stepped.right[row.clone()], &right[row]), "right row {y} / {row_step}");
+                let mut stepped = Prior::new(w, h, step, row_step);
+                stepped.compute(&g, (0, usize::MAX));
+                assert_eq!(stepped.left.len(), w * h.div_ceil(row_step));
+                for (j, y) in (0..h).step_by(row_step).enumerate() {
+                    let (row, held) = (y * w..(y + 1) * w, j * w..(j + 1) * w);
+                    assert!(same_bits(&stepped.left[held.clone()], &left[row.clone()]), "left row {y} / {row_step}");
+                    assert!(same_bits(&stepped.right[held], &right[row]), "right row {y} / {row_step}");
                 }
                 compared += right.iter().filter(|v| !v.is_nan()).count();
             }
@@ -715,8 +731,8 @@ mod tests {
             border || (!block && !holes[gy * 21 + gx])
         };
         let g = grid_of(w, h, step, plane, keep);
-        let mut prior = Prior::new(w, h, step);
-        prior.compute(&g, 1, (0, usize::MAX));
+        let mut prior = Prior::new(w, h, step, 1);
+        prior.compute(&g, (0, usize::MAX));
         for y in 0..h {
             for x in 0..w {
                 let expect = plane(x as f64, y as f64);
@@ -749,18 +765,18 @@ mod tests {
         let (w, h, step) = (120, 40, 5);
         let d = |u: f64, _v: f64| if u < 60.0 { 50.0 } else { 30.0 };
         let g = grid_of(w, h, step, d, |_, _| true);
-        let mut prior = Prior::new(w, h, step);
-        prior.compute(&g, 1, (0, usize::MAX));
+        let mut prior = Prior::new(w, h, step, 1);
+        prior.compute(&g, (0, usize::MAX));
         // Right column 5 sees the box (left column 55, disparity 50) and the background
         // (left column 35 is box territory, so only the box).
         assert!((prior.right[20 * w + 5] - 50.0).abs() < 1e-4, "{}", prior.right[20 * w + 5]);
         // Three support points in one corner cover the whole image.
         let g = grid_of(w, h, step, |_, _| 33.0, |gx, gy| gx + gy <= 1);
-        prior.compute(&g, 1, (0, usize::MAX));
+        prior.compute(&g, (0, usize::MAX));
         assert!(prior.left.iter().all(|&p| (p - 33.0).abs() < 1e-4));
         // Two are not enough for a plane.
         let g = grid_of(w, h, step, |_, _| 33.0, |gx, gy| gx + gy == 0 || (gx, gy) == (3, 3));
-        prior.compute(&g, 1, (0, usize::MAX));
+        prior.compute(&g, (0, usize::MAX));
         assert!(prior.left.iter().all(|p| p.is_nan()));
     }
 }
