@@ -782,16 +782,16 @@ mod tests {
                             plane[(y as isize + dy) as usize * w + (x as isize + dx) as usize]
                         };
                         for (k, &o) in DU_PATTERN.iter().enumerate() {
-                            expect[k] = at(&planes.du, o);
+                            expect[k] = at(planes.du, o);
                         }
                         for (k, &o) in DV_PATTERN.iter().enumerate() {
-                            expect[DU_PATTERN.len() + k] = at(&planes.dv, o);
+                            expect[DU_PATTERN.len() + k] = at(planes.dv, o);
                         }
                         for (k, &o) in DU_OUTER.iter().enumerate() {
-                            expect[16 + k] = at(&planes.du, o);
+                            expect[16 + k] = at(planes.du, o);
                         }
                         for (k, &o) in DV_OUTER.iter().enumerate() {
-                            expect[16 + DU_OUTER.len() + k] = at(&planes.dv, o);
+                            expect[16 + DU_OUTER.len() + k] = at(planes.dv, o);
                         }
                     }
                     assert_eq!(d.data[y * w + x], expect, "{w}x{h} at ({x}, {y})");
