@@ -206,7 +206,8 @@ impl Estimator {
             disparity: crate::FloatImage::new(w, h, f32::INFINITY),
             ..Reconstruction::default()
         };
-        let verifier = Verifier::for_model(&params, &model);
+        let icp = Icp::new(&params, Arc::clone(&model))?;
+        let verifier = Verifier::for_model(&params, &model, icp.alternatives());
         let slots = model.slots.clone().map(SlotJudge::new).transpose()?;
         let stages = Stages {
             verifier,
@@ -214,7 +215,7 @@ impl Estimator {
             slots_judged: false,
             features: FeatureExtractor::new(&params, pixels)?,
             ransac: Ransac::new(&params, Arc::clone(&model))?,
-            icp: Icp::new(&params, Arc::clone(&model))?,
+            icp,
             matcher,
             sensor_position,
             heights: Vec::with_capacity(keypoints),

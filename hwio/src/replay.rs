@@ -12,8 +12,7 @@ use camplace_config::{
 use camplace_config::{Cell, TruthFile};
 use camplace_estimator::{depth::method_for, depth::Method, Estimator, EstimatorConfig, Model, PoseEstimate, Rig};
 use camplace_estimator::{
-    geometry::isometry_from_rows, pose::Verifier, scoring::score, scoring::FrameRecord, scoring::SlotScore,
-    scoring::Summary,
+    geometry::isometry_from_rows, scoring::score, scoring::FrameRecord, scoring::SlotScore, scoring::Summary,
 };
 
 use crate::{Error, ErrorKind, FrameSource, Frames, RecordedSource, Result};
@@ -82,7 +81,6 @@ pub struct DatasetEstimate {
 /// removed before the new poses are written, so it never stands beside poses it does not
 /// describe (`replay` writes a new one when the frames carry their truth).
 pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> Result<DatasetEstimate> {
-    let threshold = Verifier::for_model(&cell.estimator, &model).threshold_in_force();
     let source = RecordedSource::open(dir)?;
     remove_stale_temp_files(dir)?;
     let method = method_for(source.shots());
@@ -90,6 +88,7 @@ pub fn estimate_dataset(cell: &Cell, model: Model, dir: &Path) -> Result<Dataset
     let mut frames = Frames::new(source.shots());
     let background = source.background(&mut frames)?.then_some(&frames);
     let mut estimator = estimator_for(cell, model, &rig, &dir.join("rig.json"), method, background)?;
+    let threshold = estimator.verifier().threshold_in_force();
     let mut lines = String::new();
     let mut records = Vec::with_capacity(source.frame_dirs().len());
     let mut clouds = Vec::with_capacity(source.frame_dirs().len());

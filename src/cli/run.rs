@@ -69,9 +69,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let rig = Rig::from_file(&opened.rig);
     let model = Model::load_checked(&a.deploy.model, &cell, a.deploy.cell.as_deref())?;
     let method = method_for(opened.source.shots());
-    let threshold = camplace_estimator::pose::Verifier::for_model(&cell.estimator, &model).threshold_in_force();
     let (max_wrong, metrics) = (cell.estimator.verify_max_wrong, cell.metrics.clone());
     let estimator = estimator_for(&cell, model, &rig, &opened.rig_path, method, opened.background.as_ref())?;
+    let threshold = estimator.verifier().threshold_in_force();
     if opened.background.is_none() {
         noteln!("note: no background to remove (give --background DIR with the empty cell's images)");
     }

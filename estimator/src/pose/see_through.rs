@@ -143,10 +143,10 @@ pub struct TurnParts {
 pub type SurfacePoints = (Vec<Point3<f32>>, Vec<Vector3<f32>>);
 
 impl TurnParts {
-    /// The distinct parts of `model`'s tray for each of its alternatives (see
-    /// [`TurnParts`]).
-    pub fn of(model: &Model, margin: f32) -> TurnParts {
-        let alternatives = Alternatives::of(model);
+    /// The distinct parts of `model`'s tray for each of its `alternatives`
+    /// ([`Alternatives::of`] the model; see [`TurnParts`]).
+    pub fn of(model: &Model, alternatives: &Alternatives, margin: f32) -> TurnParts {
+        let alternatives = alternatives.clone();
         let resolution = model.surface_resolution.max(0.1);
         let key = |m: &Point3<f32>| (m.coords / resolution).map(|c| c.floor() as i32);
         // Every view's points, one a cell of the surface resolution (the first view's first,
@@ -364,7 +364,7 @@ mod tests {
         let margin = 6.0;
         for symmetric in [false, true] {
             let model = testing::tray(symmetric, 1);
-            let parts = TurnParts::of(&model, margin);
+            let parts = TurnParts::of(&model, &Alternatives::of(&model), margin);
             let whole: Vec<(usize, Point3<f32>)> =
                 model.views.iter().enumerate().flat_map(|(k, v)| v.points.iter().map(move |p| (k, *p))).collect();
             // A cell's first point stands for the cell: up to a cell's diagonal from another.

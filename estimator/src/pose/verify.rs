@@ -37,7 +37,7 @@ use camplace_config::EstimatorParams;
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use rayon::prelude::*;
 
-use crate::pose::alternatives::{Alternative, MAX_ALTERNATIVES};
+use crate::pose::alternatives::{Alternative, Alternatives, MAX_ALTERNATIVES};
 use crate::pose::icp::ExplainedCounts;
 use crate::pose::icp::DISTINCT_MARGIN;
 use crate::pose::see_through::{
@@ -308,15 +308,16 @@ pub struct Verifier {
 
 impl Verifier {
     /// The settings for `model` under the cell's `params`: the threshold the model carries,
-    /// or the cell's `verify_threshold` for a model that carries none.
-    pub fn for_model(params: &EstimatorParams, model: &Model) -> Verifier {
+    /// or the cell's `verify_threshold` for a model that carries none. `alternatives` are
+    /// the model's ([`crate::pose::Alternatives::of`] it, as ICP holds them).
+    pub fn for_model(params: &EstimatorParams, model: &Model, alternatives: &Alternatives) -> Verifier {
         Verifier {
             enabled: params.verify,
             threshold: model.verification.map_or(params.verify_threshold as f32, |v| v.threshold),
             reach: params.inlier_distance as f32,
             pitches: slot_pitches(model),
             tray_points: tray_points(model),
-            turn_parts: TurnParts::of(model, DISTINCT_MARGIN * params.inlier_distance as f32),
+            turn_parts: TurnParts::of(model, alternatives, DISTINCT_MARGIN * params.inlier_distance as f32),
         }
     }
 
