@@ -21,7 +21,7 @@ use std::time::Instant;
 use camplace_config::{AsImageView, EstimatorParams};
 use nalgebra::{Isometry3, Point3};
 
-use crate::pose::{most_favoured_turn, on_table, turn_favoured, turn_see_through, Weighed};
+use crate::pose::{lead_sigmas, most_favoured_turn, on_table, turn_favoured, turn_see_through, Weighed};
 use crate::{
     Correspondence, DepthEvidence, Error, ErrorKind, EstimatorConfig, FeatureExtractor, FeatureMatcher, Icp, IcpResult,
     Method, Model, Ransac, RansacResult, Reconstruction, Reconstructor, Result, Rig, SlotJudge, SlotReading, Verdict,
@@ -474,8 +474,8 @@ impl Stages {
         // turns against 28.)
         let reach = p.inlier_distance as f32;
         let pose = if refined { out.icp.t_world_tray } else { coarse };
-        // The pose's counts against its quarter turns and its turns' see-through evidence,
-        // which the verification reuses while the pose stands.
+        // The pose's counts against its alternatives and their see-through evidence, which
+        // the verification reuses while the pose stands.
         let mut weighed = None;
         // Whether a turn of the pose was taken instead of it.
         let mut refined_turn = false;
@@ -484,7 +484,7 @@ impl Stages {
             let alternatives = &self.verifier.turn_parts.alternatives;
             let every = alternatives.every();
             let counts = self.icp.explained_near_and_apart(self.features.cloud(), &pose, every, reach);
-            let lead = |(own, theirs): (u32, u32)| (theirs as f32 - own as f32) / ((own + theirs).max(1) as f32).sqrt();
+            let lead = |(own, theirs): (u32, u32)| lead_sigmas(theirs, own);
             // What the camera saw past of the pose's and each turn's distinct parts, taken
             // once. A turn whose parts it saw past, where it did not past the pose's, is no
             // candidate however the few points on either's parts fall.

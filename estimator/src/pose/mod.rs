@@ -28,7 +28,7 @@ pub use slots::{
     slot_letters, SlotJudge, SlotLayout, SlotReading, SlotState, EDGE_CELL, FLOOR_TOLERANCE_MM, MAX_FOOTPRINT_CELLS,
     MAX_MISMATCH_SHARE, MIN_SEEN_SHARE,
 };
-pub(crate) use verify::{most_favoured_turn, turn_favoured, Weighed};
+pub(crate) use verify::{lead_sigmas, most_favoured_turn, turn_favoured, Weighed};
 pub use verify::{
     Verdict, Verification, Verifier, AMBIGUOUS_TURN_SIGMAS, CONFLICTING_TURN_SIGMAS, RESTING_HEIGHT_MM,
     RESTING_TILT_DEG, SEE_THROUGH_MIN_EXCESS, SEE_THROUGH_MIN_TESTED, SEE_THROUGH_SIGMAS,

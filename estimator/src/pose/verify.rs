@@ -243,18 +243,18 @@ impl Verification {
     /// the closest unlisted alternative explains (infinite when every one is listed or
     /// neither explains a point).
     pub fn turn_sigmas(&self) -> f32 {
+        if self.turn_own + self.turn_other == 0 {
+            return f32::INFINITY;
+        }
         lead_sigmas(self.turn_own, self.turn_other)
     }
 }
 
-/// How many standard deviations `own` exceeds `other` by, the counts taken as Poisson
-/// (infinite when both are 0).
-fn lead_sigmas(own: u32, other: u32) -> f32 {
-    let n = own + other;
-    if n == 0 {
-        return f32::INFINITY;
-    }
-    (own as f32 - other as f32) / (n as f32).sqrt()
+/// How many standard deviations `own` exceeds `other` by, the counts taken as Poisson; 0
+/// when both are 0 (no evidence either way). The verification's closest alternative and
+/// the turn check's candidates are both weighed by it.
+pub(crate) fn lead_sigmas(own: u32, other: u32) -> f32 {
+    (own as f32 - other as f32) / ((own + other).max(1) as f32).sqrt()
 }
 
 /// Whether the camera saw past `pose`'s parts on a share larger than past `other`'s by
@@ -414,8 +414,8 @@ impl Verifier {
             if alternatives[k].listed(model) {
                 continue;
             }
-            // No point on either's parts is no evidence either way: the closest of all.
-            let sigmas = if own + other == 0 { 0.0 } else { lead_sigmas(own, other) };
+            // No point on either's parts is no evidence either way (0): the closest of all.
+            let sigmas = lead_sigmas(own, other);
             let confirmed = evidence.and_then(|e| e[k]).is_some_and(|(own, other)| turn_favoured(other, own))
                 && sigmas >= -CONFLICTING_TURN_SIGMAS;
             let closer = match closest {
