@@ -1,5 +1,7 @@
-//! ICP's model index: a dense grid over one fixed model view whose cells store their
-//! nearest model point, an approximate nearest-neighbour lookup in O(1).
+//! ICP's model index: a grid over one fixed model view whose cells store their nearest
+//! model point, an approximate nearest-neighbour lookup in O(1). The cells are kept in
+//! blocks of 4 × 4 × 4, and only blocks with a point within reach are stored: most of a
+//! tray's bounding box lies far from its surface.
 
 use nalgebra::{Point3, Vector3};
 
@@ -8,23 +10,70 @@ use nalgebra::{Point3, Vector3};
 /// which the point-to-plane residual hardly feels on the tray's flat faces.
 ///
 /// Why not a hash: the model view is fixed and small, so the answer is computed once per
-/// cell when the model loads, and a query is one array read instead of a search.
+/// cell when the model loads, and a query is two array reads instead of a search.
 #[derive(Debug, Clone)]
 pub(crate) struct NearestGrid {
     origin: Point3<f32>,
     cell: f32,
     dims: [usize; 3],
-    /// Model point index per cell, `u32::MAX` where none lies within reach.
-    cells: Vec<u32>,
+    /// Blocks along each axis (`dims` over [`BLOCK`], rounded up).
+    blocks: [usize; 3],
+    /// Per block, its first cell in `cells`, or `u32::MAX` when no cell of it holds a point.
+    block_start: Vec<u32>,
+    /// The stored blocks' cells, [`BLOCK_CELLS`] a block (x fastest, then y, then z): the
+    /// model point index, or none where no point lies within reach.
+    cells: Cells,
 }
 
-/// Cells per view above which the grid coarsens, bounding memory (4 bytes a cell) on big trays.
+/// The stored cells: two bytes a cell when the view has fewer than `u16::MAX` points (a
+/// tray's view at the surface resolution usually has), four otherwise; the largest value
+/// marks a cell without a point.
+#[derive(Debug, Clone)]
+enum Cells {
+    Narrow(Vec<u16>),
+    Wide(Vec<u32>),
+}
+
+impl Cells {
+    fn get(&self, k: usize) -> Option<u32> {
+        match self {
+            Cells::Narrow(c) => (c[k] != u16::MAX).then_some(c[k] as u32),
+            Cells::Wide(c) => (c[k] != u32::MAX).then_some(c[k]),
+        }
+    }
+
+    #[cfg(test)]
+    fn len(&self) -> usize {
+        match self {
+            Cells::Narrow(c) => c.len(),
+            Cells::Wide(c) => c.len(),
+        }
+    }
+}
+
+/// Cells along each edge of a block.
+const BLOCK: usize = 4;
+const BLOCK_CELLS: usize = BLOCK * BLOCK * BLOCK;
+
+/// Cells per view above which the grid coarsens, bounding memory (4 bytes a cell while it is
+/// built) on big trays.
 const MAX_GRID_CELLS: usize = 1 << 23;
 
 impl NearestGrid {
     /// A grid of cells about `surface_resolution` wide covering every query within
     /// `max_distance` of `points`.
     pub(crate) fn new(points: &[Point3<f32>], surface_resolution: f32, max_distance: f32) -> Self {
+        NearestGrid::with_narrow_below(points, surface_resolution, max_distance, u16::MAX as usize)
+    }
+
+    /// [`NearestGrid::new`], its cells two bytes wide when there are fewer than
+    /// `narrow_below` points.
+    fn with_narrow_below(
+        points: &[Point3<f32>],
+        surface_resolution: f32,
+        max_distance: f32,
+        narrow_below: usize,
+    ) -> Self {
         let (mut lo, mut hi) = (points[0], points[0]);
         for p in points {
             lo = lo.inf(p);
@@ -44,25 +93,79 @@ impl NearestGrid {
             cell *= 1.25;
         }
         let n = dims.iter().product::<usize>();
-        let mut cells = vec![u32::MAX; n];
+        let mut dense = vec![u32::MAX; n];
         let mut best = vec![f32::INFINITY; n];
         let splat = Splat { origin, cell, dims, reach };
-        splat_points(&splat, points, &mut best, &mut cells);
-        NearestGrid { origin, cell, dims, cells }
+        splat_points(&splat, points, &mut best, &mut dense);
+        drop(best);
+        let (block_start, stored, blocks) = into_blocks(&dense, dims);
+        drop(dense);
+        let cells = if points.len() < narrow_below.min(u16::MAX as usize) {
+            Cells::Narrow(stored.iter().map(|&i| if i == u32::MAX { u16::MAX } else { i as u16 }).collect())
+        } else {
+            Cells::Wide(stored)
+        };
+        NearestGrid { origin, cell, dims, blocks, block_start, cells }
     }
 
     pub(crate) fn lookup(&self, q: &Point3<f32>) -> Option<u32> {
-        let mut k = 0;
-        for a in (0..3).rev() {
-            let c = ((q[a] - self.origin[a]) / self.cell).floor();
-            if !(c >= 0.0 && (c as usize) < self.dims[a]) {
+        let mut c = [0usize; 3];
+        for a in 0..3 {
+            let v = ((q[a] - self.origin[a]) / self.cell).floor();
+            if !(v >= 0.0 && (v as usize) < self.dims[a]) {
                 return None;
             }
-            k = k * self.dims[a] + c as usize;
+            c[a] = v as usize;
         }
-        let item = self.cells[k];
-        (item != u32::MAX).then_some(item)
+        self.cell_at(c)
     }
+
+    /// The point cell `c` (x, y, z) holds, if any.
+    fn cell_at(&self, c: [usize; 3]) -> Option<u32> {
+        let [bx, by, bz] = c.map(|v| v / BLOCK);
+        let start = self.block_start[(bz * self.blocks[1] + by) * self.blocks[0] + bx];
+        if start == u32::MAX {
+            return None;
+        }
+        let [x, y, z] = c.map(|v| v % BLOCK);
+        self.cells.get(start as usize + (z * BLOCK + y) * BLOCK + x)
+    }
+}
+
+/// The dense grid `dense` (x fastest) of `dims` cells kept as blocks: each block's start in
+/// the stored cells (`u32::MAX` for a block with no point), the stored cells, and the
+/// blocks along each axis.
+fn into_blocks(dense: &[u32], dims: [usize; 3]) -> (Vec<u32>, Vec<u32>, [usize; 3]) {
+    let blocks = dims.map(|d| d.div_ceil(BLOCK));
+    let mut block_start = vec![u32::MAX; blocks.iter().product()];
+    let mut cells = Vec::new();
+    let mut block = [u32::MAX; BLOCK_CELLS];
+    for bz in 0..blocks[2] {
+        for by in 0..blocks[1] {
+            for bx in 0..blocks[0] {
+                block.fill(u32::MAX);
+                let mut any = false;
+                for z in 0..BLOCK {
+                    for y in 0..BLOCK {
+                        for x in 0..BLOCK {
+                            let (gx, gy, gz) = (bx * BLOCK + x, by * BLOCK + y, bz * BLOCK + z);
+                            if gx < dims[0] && gy < dims[1] && gz < dims[2] {
+                                let item = dense[(gz * dims[1] + gy) * dims[0] + gx];
+                                block[(z * BLOCK + y) * BLOCK + x] = item;
+                                any |= item != u32::MAX;
+                            }
+                        }
+                    }
+                }
+                if any {
+                    block_start[(bz * blocks[1] + by) * blocks[0] + bx] = cells.len() as u32;
+                    cells.extend_from_slice(&block);
+                }
+            }
+        }
+    }
+    cells.shrink_to_fit();
+    (block_start, cells, blocks)
 }
 
 /// The grid's layout, as [`splat_points`] walks it.
@@ -175,7 +278,34 @@ mod tests {
                 .collect();
             let grid = NearestGrid::new(&points, sres, max_distance);
             let reach = max_distance + grid.cell * 0.87;
-            assert_eq!(grid.cells, cells_by_search(&points, &grid, reach), "{n} points, {sres} mm cells");
+            let [nx, ny, nz] = grid.dims;
+            let mut stored = Vec::with_capacity(nx * ny * nz);
+            for z in 0..nz {
+                for y in 0..ny {
+                    for x in 0..nx {
+                        stored.push(grid.cell_at([x, y, z]).unwrap_or(u32::MAX));
+                    }
+                }
+            }
+            let expected = cells_by_search(&points, &grid, reach);
+            assert_eq!(stored, expected, "{n} points, {sres} mm cells");
+            // Exactly the blocks holding a point are stored.
+            let mut holding = std::collections::HashSet::new();
+            for (k, _) in expected.iter().enumerate().filter(|(_, &c)| c != u32::MAX) {
+                let (x, y, z) = (k % nx, k / nx % ny, k / (nx * ny));
+                holding.insert((x / BLOCK, y / BLOCK, z / BLOCK));
+            }
+            assert_eq!(grid.cells.len(), holding.len() * BLOCK_CELLS, "{n} points, {sres} mm cells");
+            // Four-byte cells (a view of 65 535 points or more) hold the same.
+            let wide = NearestGrid::with_narrow_below(&points, sres, max_distance, 0);
+            assert!(matches!((&grid.cells, &wide.cells), (Cells::Narrow(_), Cells::Wide(_))));
+            for z in 0..nz {
+                for y in 0..ny {
+                    for x in 0..nx {
+                        assert_eq!(wide.cell_at([x, y, z]), grid.cell_at([x, y, z]));
+                    }
+                }
+            }
         }
     }
 

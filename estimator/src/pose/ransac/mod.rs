@@ -19,8 +19,8 @@
 //! comes with probability about p where normals fix the turn and p^2 elsewhere.
 //!
 //! Either way the hypotheses are scored by the inliers of the closest viewpoint's ICP cloud
-//! against the scene. The view's points are kept in a fixed random order, so every prefix is
-//! a random sample: hypotheses are compared on the first `SCORE_SAMPLE` (8 192) points, and
+//! against the scene. `SCORE_SAMPLE` (8 192) of each view's points are drawn once and kept in
+//! random order, so every prefix is a random sample: hypotheses are compared on them, and
 //! scoring gives up once the points scored so far show the hypothesis cannot win (a
 //! sequential test in the spirit of Chum and Matas' randomized RANSAC). The winner is then
 //! counted on the whole view.
@@ -125,7 +125,8 @@ pub struct Ransac {
     inlier_distance: f32,
     min_inlier_share: f32,
     seed: u64,
-    /// Each view's ICP points in a fixed random order.
+    /// Each view's scoring sample: [`SCORE_SAMPLE`] of its ICP points (all of a smaller
+    /// view) drawn once, in random order.
     views: Vec<Vec<Point3<f32>>>,
     grid: SceneGrid,
     /// `match_model[match_start[k]..match_start[k + 1]]` are key point k's model features.
@@ -159,9 +160,11 @@ impl Ransac {
             .views
             .iter()
             .map(|v| {
+                // SCORE_SAMPLE points drawn at random, in random order; the winner is
+                // counted on the whole view, in the model's order.
                 let mut points = v.points.clone();
-                points.shuffle(&mut rng);
-                points
+                let (sample, _) = points.partial_shuffle(&mut rng, SCORE_SAMPLE);
+                sample.to_vec()
             })
             .collect();
         let inlier_distance = params.inlier_distance as f32;

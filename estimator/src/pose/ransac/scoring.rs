@@ -53,14 +53,14 @@ impl Ransac {
         (self.min_inlier_share * self.sample_len(view) as f32).ceil() as u32
     }
 
-    /// Points in `view`'s scoring sample: its first [`SCORE_SAMPLE`].
+    /// Points in `view`'s scoring sample: [`SCORE_SAMPLE`], or the whole of a smaller view.
     pub(super) fn sample_len(&self, view: usize) -> usize {
-        self.views[view].len().min(SCORE_SAMPLE)
+        self.views[view].len()
     }
 
     /// The fewest inliers a pose scored on all of `view` needs to be returned.
     pub(super) fn required(&self, view: usize) -> u32 {
-        (self.min_inlier_share * self.views[view].len() as f32).ceil() as u32
+        (self.min_inlier_share * self.model.views[view].points.len() as f32).ceil() as u32
     }
 
     /// Inliers of `pose` among the first [`SCORE_SAMPLE`] points of `view`, or `None` as
@@ -97,7 +97,8 @@ impl Ransac {
         let (r, t) = split(pose);
         let r2 = self.inlier_distance * self.inlier_distance;
         // In fixed chunks, so the count is the same whatever the number of threads.
-        self.views[view]
+        self.model.views[view]
+            .points
             .par_chunks(4096)
             .map(|chunk| chunk.iter().filter(|p| self.grid.any_within(&(r * *p + t), r2)).count() as u32)
             .sum()
