@@ -1,5 +1,5 @@
 //! Builds the tray model the estimator loads, after the paper §3: the tray alone, turned
-//! about z in `model_viewpoints` steps (6: 60° apart), each turn captured full and then with the items closest to the
+//! about z in `model_viewpoints` steps (12 by default: 30° apart), each turn captured full and then with the items closest to the
 //! sensor removed until empty — in the cell's `model_fill_states` steps, evenly apart, where
 //! the paper takes one item at a time — every capture rendered and reconstructed by the very sensor
 //! and estimator stages of the placement. Each capture's key points and descriptors are

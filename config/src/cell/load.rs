@@ -13,8 +13,10 @@ use crate::{Error, ErrorKind};
 /// The commented default cell file, as `camplace init` writes it.
 pub const DEFAULT_CELL_TOML: &str = include_str!("default_cell.toml");
 /// The keys the paper preset sets, and to what (the feature radius from SRes).
-fn paper_preset_keys(surface_resolution: f64) -> [(&'static str, toml::Value); 6] {
+fn paper_preset_keys(surface_resolution: f64) -> [(&'static str, toml::Value); 8] {
     [
+        ("model_viewpoints", toml::Value::Integer(6)),
+        ("icp_trim", toml::Value::Float(0.0)),
         ("icp_on_table", toml::Value::Boolean(false)),
         ("pose_on_table", toml::Value::Boolean(false)),
         ("ransac_sample", toml::Value::Integer(3)),

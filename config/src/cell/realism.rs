@@ -304,6 +304,7 @@ mod tests {
         assert_eq!(c.estimator.preset, crate::EstimatorPreset::Paper);
         assert_eq!((c.estimator.ransac_sample, c.estimator.feature_radius, c.estimator.turn_check), (3, 25.0, false));
         assert!(!c.estimator.pose_on_table, "the paper hands the fit on as it is");
+        assert_eq!((c.estimator.model_viewpoints, c.estimator.icp_trim), (6, 0.0), "the paper's 60° steps, no trim");
         let ours = Cell::default();
         assert_eq!((ours.estimator.ransac_sample, ours.estimator.turn_check), (2, true));
         assert!(ours.estimator.pose_on_table);

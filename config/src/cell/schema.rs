@@ -269,8 +269,8 @@ pub enum EstimatorPreset {
     /// The keys of `[estimator]` as given.
     Ours,
     /// The paper's estimator (Buch et al.'s RANSAC as the paper ran it): 3-match samples,
-    /// ECSAD support of 10 x SRes, no turn check; Table 1's SRes, k, RIt and ICPIt are the
-    /// defaults already.
+    /// ECSAD support of 10 x SRes, no turn check, an untrimmed ICP, a model of 6 viewpoints;
+    /// Table 1's SRes, k, RIt and ICPIt are the defaults already.
     Paper,
 }
 
@@ -279,8 +279,8 @@ pub enum EstimatorPreset {
 #[serde(deny_unknown_fields)]
 pub struct EstimatorParams {
     /// "ours" (the keys as given) or "paper": the paper's estimator, which sets
-    /// `ransac_sample`, `feature_radius`, `turn_check`, `icp_on_table`, `pose_on_table` and
-    /// `verify` (see [`EstimatorPreset`]).
+    /// `ransac_sample`, `feature_radius`, `turn_check`, `icp_on_table`, `icp_trim`,
+    /// `pose_on_table`, `verify` and `model_viewpoints` (see [`EstimatorPreset`]).
     pub preset: EstimatorPreset,
     pub surface_resolution: f64,
     /// Radius of the neighbourhood a normal is fitted to, mm.

@@ -36,6 +36,21 @@ const WINDOW_PX: isize = 2;
 /// captured with its slots filled, and an empty slot is no view past the tray.
 const ITEM_GROWTH_MM: f32 = 6.0;
 const ITEM_FLOOR_MM: f32 = 2.0;
+/// The views the tray's distinct parts are merged from: this many spread evenly round the
+/// tray (every view of a model with fewer). The stereo smear beside a wall differs between
+/// views this far apart (60°, the paper's steps), so a cell two of them captured is the
+/// tray's surface; views 30° apart can share the smear.
+pub const SPREAD_VIEWS: usize = 6;
+
+/// Of `n` views (the tray turned in `n` equal steps), the [`SPREAD_VIEWS`] nearest to
+/// equal turns apart, in order.
+fn spread_views(n: usize) -> Vec<usize> {
+    let mut views: Vec<usize> =
+        (0..SPREAD_VIEWS.min(n)).map(|j| (j * n + SPREAD_VIEWS / 2) / SPREAD_VIEWS.min(n) % n).collect();
+    views.dedup();
+    views
+}
+
 /// The tray's points of a view tested at most (every k-th of them): a few thousand keep
 /// the count's deviation far below the gap between a pose and its neighbour a pitch away,
 /// and a pass a few tens of microseconds on one core.
@@ -122,8 +137,8 @@ pub fn tray_points(model: &Model) -> Vec<Vec<u32>> {
         .collect()
 }
 
-/// The tray's surface, every view's tray points merged (one a surface-resolution cell, kept
-/// where two views captured the cell or a neighbour of it), split per alternative `k` (the
+/// The tray's surface, the tray points of [`SPREAD_VIEWS`] views spread round it merged (one
+/// a surface-resolution cell, kept where two of them captured the cell or a neighbour of it), split per alternative `k` (the
 /// model's [`Alternatives`]: the quarter turns 1 to 3 at 0 to 2, then the turns shifted onto
 /// the slot grid) into the points that the whole tray at that alternative has nothing
 /// within `margin` of, mm: the parts (a tab, a chamfer, a whole end) where the tray and
@@ -154,7 +169,11 @@ impl TurnParts {
         // and the views that captured a point in the cell (view k as bit k mod 64).
         let mut index = std::collections::HashMap::new();
         let mut cells: Vec<(Point3<f32>, Vector3<f32>, bool, u64)> = Vec::new();
+        let spread = spread_views(model.views.len());
         for (k, (view, tray)) in model.views.iter().zip(all_tray_points(model)).enumerate() {
+            if !spread.contains(&k) {
+                continue;
+            }
             let mut is_tray = vec![false; view.points.len()];
             for i in tray {
                 is_tray[i as usize] = true;
