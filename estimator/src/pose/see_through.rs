@@ -43,12 +43,12 @@ const ITEM_FLOOR_MM: f32 = 2.0;
 pub const SPREAD_VIEWS: usize = 6;
 
 /// Of `n` views (the tray turned in `n` equal steps), the [`SPREAD_VIEWS`] nearest to
-/// equal turns apart, in order.
+/// equal turns apart (view j × n / 6, rounded), in order; every view when there are fewer.
 fn spread_views(n: usize) -> Vec<usize> {
-    let mut views: Vec<usize> =
-        (0..SPREAD_VIEWS.min(n)).map(|j| (j * n + SPREAD_VIEWS / 2) / SPREAD_VIEWS.min(n) % n).collect();
-    views.dedup();
-    views
+    if n <= SPREAD_VIEWS {
+        return (0..n).collect();
+    }
+    (0..SPREAD_VIEWS).map(|j| (j * n + SPREAD_VIEWS / 2) / SPREAD_VIEWS).collect()
 }
 
 /// The tray's points of a view tested at most (every k-th of them): a few thousand keep
@@ -373,6 +373,23 @@ mod tests {
     use super::*;
     use crate::pose::SlotLayout;
     use crate::testing;
+
+    /// Six views about equal turns apart, each view once: 60° steps of 12 and of 8 (45°
+    /// steps: 0, 45, 135, 180, 225 and 315° against 0, 60 … 300°), every view of fewer.
+    #[test]
+    fn the_spread_views_are_the_nearest_to_equal_turns() {
+        assert_eq!(spread_views(12), [0, 2, 4, 6, 8, 10]);
+        assert_eq!(spread_views(8), [0, 1, 3, 4, 5, 7]);
+        assert_eq!(spread_views(6), [0, 1, 2, 3, 4, 5]);
+        assert_eq!(spread_views(4), [0, 1, 2, 3]);
+        for n in 7..=72usize {
+            let views = spread_views(n);
+            for (j, &k) in views.iter().enumerate() {
+                let off = (k as f32 * 360.0 / n as f32 - j as f32 * 60.0).abs();
+                assert!(off <= 180.0 / n as f32 + 1e-3, "{n} views: view {k} is {off}° from {}°", j * 60);
+            }
+        }
+    }
 
     /// The turn parts of the synthetic tray against a search over every point of every
     /// view: each part point has no point of the turned tray within the margin (up to a
