@@ -131,10 +131,12 @@ impl SeeThroughCounts {
 /// [`ITEM_FLOOR_MM`] above the slot's floor; every k-th of them, at most
 /// `SEE_THROUGH_POINTS` a view. Found once per model.
 pub fn tray_points(model: &Model) -> Vec<Vec<u32>> {
-    all_tray_points(model)
-        .iter()
-        .map(|tray| camplace_config::thinned(tray, SEE_THROUGH_POINTS).copied().collect())
-        .collect()
+    thin_tray_points(&all_tray_points(model))
+}
+
+/// [`tray_points`] from every view's tray points (`all_tray_points` of the model).
+pub(crate) fn thin_tray_points(all: &[Vec<u32>]) -> Vec<Vec<u32>> {
+    all.iter().map(|tray| camplace_config::thinned(tray, SEE_THROUGH_POINTS).copied().collect()).collect()
 }
 
 /// The tray's surface, the tray points of [`SPREAD_VIEWS`] views spread round it merged (one
@@ -161,6 +163,17 @@ impl TurnParts {
     /// The distinct parts of `model`'s tray for each of its `alternatives`
     /// ([`Alternatives::of`] the model; see [`TurnParts`]).
     pub fn of(model: &Model, alternatives: &Alternatives, margin: f32) -> TurnParts {
+        TurnParts::of_tray_points(model, alternatives, margin, &all_tray_points(model))
+    }
+
+    /// [`TurnParts::of`] from every view's tray points (`all_tray_points` of the model,
+    /// found once for the verifier's see-through points too).
+    pub(crate) fn of_tray_points(
+        model: &Model,
+        alternatives: &Alternatives,
+        margin: f32,
+        tray_points: &[Vec<u32>],
+    ) -> TurnParts {
         let alternatives = alternatives.clone();
         let resolution = model.surface_resolution.max(0.1);
         let key = |m: &Point3<f32>| (m.coords / resolution).map(|c| c.floor() as i32);
@@ -169,13 +182,10 @@ impl TurnParts {
         // and the views that captured a point in the cell (view k as bit k mod 64).
         let mut index = std::collections::HashMap::new();
         let mut cells: Vec<(Point3<f32>, Vector3<f32>, bool, u64)> = Vec::new();
-        let spread = spread_views(model.views.len());
-        for (k, (view, tray)) in model.views.iter().zip(all_tray_points(model)).enumerate() {
-            if !spread.contains(&k) {
-                continue;
-            }
+        for k in spread_views(model.views.len()) {
+            let (view, tray) = (&model.views[k], &tray_points[k]);
             let mut is_tray = vec![false; view.points.len()];
-            for i in tray {
+            for &i in tray {
                 is_tray[i as usize] = true;
             }
             for (i, (m, n)) in view.points.iter().zip(&view.normals).enumerate() {
@@ -231,7 +241,7 @@ impl TurnParts {
 }
 
 /// Per view of `model`, every point that is the tray's and not a slot's item.
-fn all_tray_points(model: &Model) -> Vec<Vec<u32>> {
+pub(crate) fn all_tray_points(model: &Model) -> Vec<Vec<u32>> {
     // Each slot's tray -> slot frame (the layout's own slot poses) and its item's outline
     // there, grown: [x0, y0, x1, y1].
     let items: Vec<(Isometry3<f32>, [f32; 4])> = model.slots.as_ref().map_or_else(Vec::new, |layout| {

@@ -41,7 +41,8 @@ use crate::pose::alternatives::{Alternative, Alternatives, MAX_ALTERNATIVES};
 use crate::pose::icp::ExplainedCounts;
 use crate::pose::icp::DISTINCT_MARGIN;
 use crate::pose::see_through::{
-    see_through, slot_pitches, tray_points, turn_see_through, DepthEvidence, SeeThroughCounts, TurnParts,
+    all_tray_points, see_through, slot_pitches, thin_tray_points, turn_see_through, DepthEvidence, SeeThroughCounts,
+    TurnParts,
 };
 use crate::spatial::SceneGrid;
 use crate::{Icp, Model};
@@ -311,13 +312,15 @@ impl Verifier {
     /// or the cell's `verify_threshold` for a model that carries none. `alternatives` are
     /// the model's ([`crate::pose::Alternatives::of`] it, as ICP holds them).
     pub fn for_model(params: &EstimatorParams, model: &Model, alternatives: &Alternatives) -> Verifier {
+        let all_tray = all_tray_points(model);
+        let margin = DISTINCT_MARGIN * params.inlier_distance as f32;
         Verifier {
             enabled: params.verify,
             threshold: model.verification.map_or(params.verify_threshold as f32, |v| v.threshold),
             reach: params.inlier_distance as f32,
             pitches: slot_pitches(model),
-            tray_points: tray_points(model),
-            turn_parts: TurnParts::of(model, alternatives, DISTINCT_MARGIN * params.inlier_distance as f32),
+            tray_points: thin_tray_points(&all_tray),
+            turn_parts: TurnParts::of_tray_points(model, alternatives, margin, &all_tray),
         }
     }
 
