@@ -12,8 +12,8 @@
 
 use camplace_config::{Cell, TrayKind};
 use camplace_estimator::pose::{
-    see_through, tray_points, Alternative, DepthEvidence, Verdict, AMBIGUOUS_TURN_SIGMAS, SEE_THROUGH_MARGIN_MM,
-    SEE_THROUGH_MIN_TESTED,
+    see_through, tray_points, Alternative, DepthEvidence, Verdict, AMBIGUOUS_TURN_SIGMAS, OCCLUDED_MARGIN_MM,
+    SEE_THROUGH_MARGIN_MM, SEE_THROUGH_MIN_TESTED,
 };
 use camplace_estimator::{Estimator, EstimatorConfig, Model, PoseEstimate};
 use camplace_sim::{
@@ -388,8 +388,10 @@ fn a_turn_that_nothing_tells_from_the_pose_leaves_it_ambiguous() {
     // inside taken out (where the tab is and where its turns put it: what an occluder or a
     // shadow over both ends leaves), verified from the cloud alone (no depth to see past
     // either): no evidence for the truth over its half turn, so the truth is ambiguous;
-    // with the whole cloud it is accepted.
-    let cell = Cell::default();
+    // with the whole cloud it is accepted. Taking the ends out takes their share of the
+    // coverage (about half), so the threshold stands below it: the verdict is the turn's.
+    let mut cell = Cell::default();
+    cell.estimator.verify_threshold = 0.3;
     let seed = 2;
     let (mut sim, mut estimator) = setup(&cell, seed);
     let mut frame = Frame::default();
@@ -638,4 +640,97 @@ fn a_fit_resting_on_the_table_is_handed_on_laid_on_it() {
         x.y.atan2(x.x)
     };
     assert!((yaw(&pa) - yaw(&pb)).abs() < 1e-9, "{} against {}", yaw(&pa), yaw(&pb));
+}
+
+/// Scenarios with the cell's occluder (the gripper's box) moved over part of the tray,
+/// rendered with it and without it: the share of the closest view's sensor-facing tray points the verification
+/// sets aside as hidden at the truth (by the occluder, and by the tray's own walls where the
+/// closest view looked from elsewhere) matches the share the rendered scene's true depth
+/// (the renderer's ray cast) hides by more than the margin, and where the occluder hides a
+/// tenth of the tray more than its walls do, the coverage is the coverage in plain view.
+#[test]
+fn the_tray_under_an_occluder_is_covered_as_in_plain_view() {
+    let seed = 3;
+    let mut cell = Cell::default();
+    cell.occluder.probability = 1.0;
+    let (mut sim, mut estimator) = setup(&cell, seed);
+    let sensor = estimator.sensor_position();
+    let mut frame = Frame::default();
+    let mut occluded_scenes = 0;
+    // The brute-force share at `truth` in the frame last rendered: every tray point of the
+    // closest view that faces the sensor, hidden where the true depth at its pixel is more
+    // than the margin in front of it.
+    let true_hidden = |estimator: &Estimator, sim: &Simulator, frame: &Frame, truth: &Isometry3<f64>| {
+        let model = estimator.model();
+        let k = model.closest_view(truth, &sensor);
+        let mask = &estimator.verifier().tray_mask[k];
+        let left = &sim.rig().left;
+        let eye = truth.inverse() * sensor.cast::<f64>();
+        let (mut facing, mut hidden) = (0usize, 0usize);
+        for (j, (m, n)) in model.views[k].points.iter().zip(&model.views[k].normals).enumerate() {
+            let (m, n) = (m.cast::<f64>(), n.cast::<f64>());
+            if mask[j / 64] & (1 << (j % 64)) == 0 || n.dot(&(eye - m)) <= 0.0 {
+                continue;
+            }
+            facing += 1;
+            let world = truth * m;
+            let z = left.t_world_camera.inverse_transform_point(&world).z;
+            let Some(uv) = left.project(&world) else { continue };
+            let (u, v) = (uv.x.round() as usize, uv.y.round() as usize);
+            if u < frame.depth_left.width && v < frame.depth_left.height {
+                hidden += usize::from(f64::from(frame.depth_left.row(v)[u]) < z - f64::from(OCCLUDED_MARGIN_MM));
+            }
+        }
+        hidden as f64 / facing.max(1) as f64
+    };
+    for i in 0..6 {
+        let mut scene = draw_scenario(&cell, seed, i).scene();
+        let truth = scene.t_world_tray;
+        // The occluder moved onto the ray from the tray's centre to the sensor, 150 mm above
+        // the tray, and made 60 x 60 x 30 mm: the gripper over part of the tray.
+        let t = truth.translation.vector;
+        let c = t + (sensor.coords.cast::<f64>() - t) * (150.0 / (f64::from(sensor.z) - t.z));
+        let b = scene.occluder.as_mut().expect("the cell draws an occluder in every scene");
+        (b.min, b.max) = ([c.x - 30.0, c.y - 30.0, c.z - 15.0], [c.x + 30.0, c.y + 30.0, c.z + 15.0]);
+        let mut clear_scene = scene.clone();
+        clear_scene.occluder = None;
+        let mut seen = Vec::new();
+        for spec in [&scene, &clear_scene] {
+            sim.render(spec, Method::OneShot, noise_key(seed, i, false), &mut frame);
+            estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
+            seen.push((estimator.verify(&truth), true_hidden(&estimator, &sim, &frame, &truth)));
+        }
+        let [(occluded, occluded_true), (clear, clear_true)] = [seen[0], seen[1]];
+        eprintln!(
+            "scene {i}: hidden {:.3} + unmeasured {:.3} (true depth {occluded_true:.3}), in plain view {:.3} + {:.3} \
+             ({clear_true:.3}); coverage {:.3}, in plain view {:.3}",
+            occluded.hidden, occluded.unmeasured, clear.hidden, clear.unmeasured, occluded.coverage, clear.coverage
+        );
+        // A surface nearer than the matcher's range (the gripper high above the tray) is
+        // measured nowhere: hidden and unmeasured together are what the true depth hides.
+        for (what, v, t) in [("under the occluder", occluded, occluded_true), ("in plain view", clear, clear_true)] {
+            let set_aside = f64::from(v.hidden + v.unmeasured);
+            assert!(
+                (set_aside - t).abs() <= 0.1,
+                "scene {i} {what}: hidden {:.3} and unmeasured {:.3}, by the true depth {t:.3} hidden",
+                v.hidden,
+                v.unmeasured
+            );
+        }
+        if occluded_true - clear_true < 0.1 {
+            continue;
+        }
+        occluded_scenes += 1;
+        assert!(
+            (occluded.coverage - clear.coverage).abs() <= 0.1,
+            "scene {i}: coverage {:.3} under the occluder, {:.3} in plain view ({:.3} hidden)",
+            occluded.coverage,
+            clear.coverage,
+            occluded.hidden
+        );
+    }
+    assert!(
+        occluded_scenes >= 2,
+        "only {occluded_scenes} of 6 scenes hide a tenth of the tray: the test shows nothing"
+    );
 }

@@ -1,7 +1,7 @@
 //! The verification's evidence on simulated scenes with their truth: builds the model at a
-//! placement, runs scenarios 0..N of a seed as `evaluate` does (each scene's miscalibrated
+//! placement, runs scenarios FIRST..FIRST+N of a seed as `evaluate` does (each scene's miscalibrated
 //! rig included) and prints per scene whether the pose is correct, its errors, and the
-//! score, coverage, explained share, turn margin, height and tilt, the share of the tray's
+//! score, coverage, hidden and unmeasured shares, explained share, turn margin, height and tilt, the share of the tray's
 //! surface the camera saw past at the pose and at the pose a slot's pitch away, the turn the
 //! see-through evidence weighs with the shares of the pose's and the turn's distinct parts
 //! seen past and how many of each were tested, then the score's distribution for correct and
@@ -10,7 +10,7 @@
 //! ```text
 //! cargo run --release -p camplace-sim --example verify_features -- \
 //!     [--placement r=1000,alpha=60,baseline=81,vergence=3.5] [--method one-shot] \
-//!     [--count 100] [--seed 1] [--cell cell.toml] [--quiet]
+//!     [--first 0] [--count 100] [--seed 1] [--cell cell.toml] [--quiet]
 //! ```
 
 use camplace_config::Cell;
@@ -18,13 +18,15 @@ use camplace_sim::{Evaluator, Method};
 
 fn main() {
     let mut placement = "r=1000,alpha=60,baseline=81,vergence=3.5".to_string();
-    let (mut method, mut count, mut seed, mut cell, mut quiet) = (Method::OneShot, 100u64, 1u64, None, false);
+    let (mut method, mut first, mut count, mut seed, mut cell, mut quiet) =
+        (Method::OneShot, 0u64, 100u64, 1u64, None, false);
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
         let mut value = || it.next().unwrap_or_else(|| panic!("{flag} needs a value"));
         match flag.as_str() {
             "--placement" => placement = value(),
             "--method" => method = value().parse().expect("--method: one-shot or phase-12"),
+            "--first" => first = value().parse().expect("--first: a number"),
             "--count" => count = value().parse().expect("--count: a number"),
             "--seed" => seed = value().parse().expect("--seed: a number"),
             "--cell" => cell = Some(Cell::load(std::path::Path::new(&value())).expect("cell file")),
@@ -37,10 +39,10 @@ fn main() {
     let evaluator = Evaluator::new(&cell, &placement, method, seed).expect("evaluator");
     let mut worker = evaluator.worker().expect("worker");
     if !quiet {
-        println!("scene found ok  pos_mm  rot_deg  score coverage explained turn_margin own other height_mm tilt_deg icp_rms icp_pairs seen_past shifted turn_q turn_own_st turn_other_st n_own n_other verdict");
+        println!("scene found ok  pos_mm  rot_deg  score coverage hidden unmeasured explained turn_margin own other height_mm tilt_deg icp_rms icp_pairs seen_past shifted turn_q turn_own_st turn_other_st n_own n_other verdict");
     }
     let (mut right, mut wrong) = (Vec::new(), Vec::new());
-    for i in 0..count {
+    for i in first..first + count {
         let record = worker.scene(i).expect("scene");
         let pose = worker.last_pose();
         let s = record.score.expect("scored");
@@ -50,13 +52,15 @@ fn main() {
         }
         if !quiet {
             println!(
-                "{i:5} {:5} {:2} {:7.2} {:8.2} {:6.3} {:8.3} {:9.3} {:11.3} {:5} {:5} {:9.2} {:8.2} {:7.3} {:9} {:9.3} {:7.3} {} {:6.3} {:6.3} {:4} {:4} {}",
+                "{i:5} {:5} {:2} {:7.2} {:8.2} {:6.3} {:8.3} {:6.3} {:6.3} {:9.3} {:11.3} {:5} {:5} {:9.2} {:8.2} {:7.3} {:9} {:9.3} {:7.3} {} {:6.3} {:6.3} {:4} {:4} {}",
                 u8::from(pose.found),
                 u8::from(s.success),
                 s.position_error_mm,
                 s.rotation_error_deg,
                 v.score,
                 v.coverage,
+                v.hidden,
+                v.unmeasured,
                 v.explained,
                 v.turn_margin,
                 v.turn_own,

@@ -23,7 +23,9 @@ pub use model::{Model, ModelOrigin, ModelVerification, ModelView};
 pub use model_file::MODEL_FORMAT_VERSION;
 pub use ransac::{Ransac, RansacCheck, RansacResult};
 pub(crate) use see_through::turn_see_through;
-pub use see_through::{see_through, slot_pitches, tray_points, DepthEvidence, SeeThroughCounts, SEE_THROUGH_MARGIN_MM};
+pub use see_through::{
+    see_through, slot_pitches, tray_points, DepthEvidence, SeeThroughCounts, OCCLUDED_MARGIN_MM, SEE_THROUGH_MARGIN_MM,
+};
 pub use slots::{
     slot_letters, SlotJudge, SlotLayout, SlotReading, SlotState, EDGE_CELL, FLOOR_TOLERANCE_MM, MAX_FOOTPRINT_CELLS,
     MAX_MISMATCH_SHARE, MIN_SEEN_SHARE,

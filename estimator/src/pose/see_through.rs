@@ -94,6 +94,101 @@ impl DepthEvidence<'_> {
     }
 }
 
+/// A measured depth more than this in front of the model's surface along the pixel's ray
+/// means something stood between the sensor and that surface (a gripper or an arm above the
+/// tray, the tray's own wall), mm: the same margin as a view past it, the other way.
+pub const OCCLUDED_MARGIN_MM: f32 = SEE_THROUGH_MARGIN_MM;
+/// Pixels either side of a point's projection that must all hold a nearer surface, where
+/// measured, for the point to be hidden: a row the one-shot matcher skipped is bridged, and
+/// a single pixel of a wall's edge hides nothing.
+const HIDDEN_WINDOW_PX: isize = 1;
+
+/// The test of world points against a frame's measured depth for whether the sensor could
+/// see them at all ([`DepthEvidence::occlusion`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Occlusion<'a> {
+    depth: &'a DepthEvidence<'a>,
+    world_to_camera: Isometry3<f32>,
+    intrinsics: [f32; 4],
+    focal_baseline: f32,
+}
+
+impl<'a> DepthEvidence<'a> {
+    /// The occlusion test of world points against this depth.
+    pub(crate) fn occlusion(&'a self) -> Occlusion<'a> {
+        let camera = self.camera;
+        let kk = &camera.k;
+        Occlusion {
+            depth: self,
+            world_to_camera: camera.t_world_rectified.inverse().cast::<f32>(),
+            intrinsics: [kk[(0, 0)] as f32, kk[(1, 1)] as f32, kk[(0, 2)] as f32, kk[(1, 2)] as f32],
+            focal_baseline: (camera.focal() * camera.baseline) as f32,
+        }
+    }
+}
+
+/// What a frame's measured depth says of a point the model puts on a surface.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Sight {
+    /// The sensor could have measured it: nothing nearer stood in front of it.
+    Open,
+    /// A surface more than [`OCCLUDED_MARGIN_MM`] nearer stood in front of it.
+    Hidden,
+    /// Nothing was measured around its pixel: no evidence either way.
+    Unmeasured,
+}
+
+impl Occlusion<'_> {
+    /// What the measured depth says of `world` on the pixels within [`HIDDEN_WINDOW_PX`]
+    /// of its projection: hidden where every measured one holds a surface more than
+    /// [`OCCLUDED_MARGIN_MM`] in front of it, unmeasured where none is measured (the
+    /// matcher's search covers the work volume, so a gripper high above the tray is
+    /// measured nowhere), open otherwise. Outside the matched region the sensor saw the
+    /// empty cell's background, which hides nothing; a point off the image or behind the
+    /// camera is open (counted as the coverage counts it).
+    pub(crate) fn sight(&self, world: &Point3<f32>) -> Sight {
+        let p = self.world_to_camera * world;
+        if p.z <= OCCLUDED_MARGIN_MM + 1.0 {
+            return Sight::Open;
+        }
+        let [fx, fy, cx, cy] = self.intrinsics;
+        let (u, v) = ((fx * p.x / p.z + cx).round() as isize, (fy * p.y / p.z + cy).round() as isize);
+        let disparity = self.depth.disparity;
+        let (width, height) = (disparity.width as isize, disparity.height as isize);
+        let w = HIDDEN_WINDOW_PX;
+        if u - w < 0 || v - w < 0 || u + w >= width || v + w >= height {
+            return Sight::Open;
+        }
+        if let Some((region, _)) = self.depth.beyond {
+            let inside = |x: isize, y: isize| {
+                (region.x0 as isize..region.x1 as isize).contains(&x)
+                    && (region.y0 as isize..region.y1 as isize).contains(&y)
+            };
+            if !inside(u - w, v - w) || !inside(u + w, v + w) {
+                return Sight::Open;
+            }
+        }
+        // Nearer than the surface by the margin: a disparity above this.
+        let nearer = self.focal_baseline / (p.z - OCCLUDED_MARGIN_MM);
+        let mut measured = false;
+        for y in (v - w)..=(v + w) {
+            for &d in &disparity.row(y as usize)[(u - w) as usize..=(u + w) as usize] {
+                if d.is_finite() && d > 0.0 {
+                    if d <= nearer {
+                        return Sight::Open;
+                    }
+                    measured = true;
+                }
+            }
+        }
+        if measured {
+            Sight::Hidden
+        } else {
+            Sight::Unmeasured
+        }
+    }
+}
+
 /// The largest finite disparity of `row`, 0 when none.
 #[inline]
 fn nearest_measured(row: &[f32]) -> f32 {

@@ -4,8 +4,10 @@
 //! scene index it reads is RANSAC's and the whole-tray lookup is ICP's.
 //!
 //! The evidence, each a share in [0, 1]:
-//! - coverage: of the model's surface that faces the sensor in the closest view, the share
-//!   with a measured point within the inlier distance (the tray is where the model says);
+//! - coverage: of the tray's surface (not the slots' items: which slots hold one is the
+//!   scene's) that faces the sensor in the closest view, the share with a measured point
+//!   within the inlier distance (the tray is where the model says), leaving out the points
+//!   the measured depth shows hidden behind something nearer (a gripper over the tray);
 //! - explained: of the measured points inside the tray's box at the pose, the share the
 //!   model explains (nothing stands where the model says there is free space);
 //! - turn margin: of the scene points the pose and its closest alternative that the tray's
@@ -42,7 +44,7 @@ use crate::pose::icp::ExplainedCounts;
 use crate::pose::icp::DISTINCT_MARGIN;
 use crate::pose::see_through::{
     all_tray_points, see_through, slot_pitches, thin_tray_points, turn_see_through, DepthEvidence, SeeThroughCounts,
-    TurnParts,
+    Sight, TurnParts,
 };
 use crate::spatial::SceneGrid;
 use crate::{Icp, Model};
@@ -98,6 +100,9 @@ pub const TURN_SEE_THROUGH_MIN_TESTED: u32 = 30;
 pub const RESTING_HEIGHT_MM: f64 = 6.0;
 /// A tray resting on the table has its z axis within this of the world's, deg.
 pub const RESTING_TILT_DEG: f64 = 4.0;
+
+/// The largest share of a view's facing points the coverage sets aside as hidden.
+pub const MOST_HIDDEN: f32 = 0.6;
 
 /// View points per parallel task of the coverage count.
 const COVERAGE_CHUNK: usize = 2048;
@@ -168,8 +173,15 @@ pub struct Verification {
     pub score: f32,
     /// The decision at the threshold in force.
     pub verdict: Verdict,
-    /// Share of the closest view's sensor-facing points with a measured point within reach.
+    /// Share of the closest view's sensor-facing tray points (not the slots' items) with a
+    /// measured point within reach, of those the measured depth does not hide.
     pub coverage: f32,
+    /// Share of the closest view's sensor-facing tray points that the measured depth hides
+    /// behind a nearer surface (an occluder), which the coverage sets aside.
+    pub hidden: f32,
+    /// Share of the same points with nothing measured around their pixel (a surface out of
+    /// the matcher's range, a shadow), which the coverage sets aside too.
+    pub unmeasured: f32,
     /// Share of the measured points inside the tray's box that the model explains.
     pub explained: f32,
     /// Against the closest unlisted alternative (the fewest deviations ahead, those not
@@ -303,6 +315,9 @@ pub struct Verifier {
     pub pitches: [Option<Vector3<f64>>; 2],
     /// Per model view, its points that are the tray's and not an item's (see-through's).
     pub tray_points: Vec<Vec<u32>>,
+    /// Per model view, one bit a point (point i at bit i % 64 of word i / 64): set where the
+    /// point is the tray's and not an item's (the coverage's points).
+    pub tray_mask: Vec<Vec<u64>>,
     /// The tray's parts that each alternative to it lacks (the turn's see-through evidence).
     pub turn_parts: TurnParts,
 }
@@ -320,6 +335,12 @@ impl Verifier {
             reach: params.inlier_distance as f32,
             pitches: slot_pitches(model),
             tray_points: thin_tray_points(&all_tray),
+            tray_mask: model
+                .views
+                .iter()
+                .zip(&all_tray)
+                .map(|(view, tray)| bit_mask(view.points.len(), tray))
+                .collect(),
             turn_parts: TurnParts::of_tray_points(model, alternatives, margin, &all_tray),
         }
     }
@@ -358,7 +379,7 @@ impl Verifier {
             turn_margin: 1.0,
             ..Verification::default()
         };
-        v.coverage = coverage(model, grid, sensor, pose, self.reach);
+        (v.coverage, v.hidden, v.unmeasured) = coverage(model, &self.tray_mask, grid, sensor, pose, self.reach, depth);
         // The alternatives the symmetries do not list, weighed by what the camera saw past:
         // each turn's counts taken once (by the turn check, when it weighed this pose), for
         // the turn they favour most and for the closest.
@@ -505,43 +526,85 @@ pub(crate) fn most_favoured_turn(evidence: &TurnEvidence) -> (Option<usize>, See
         })
 }
 
-/// Share of the closest view's points facing the sensor, at `pose`, with a scene point
-/// within `reach`.
-fn coverage(model: &Model, grid: &SceneGrid, sensor: &Point3<f32>, pose: &Isometry3<f64>, reach: f32) -> f32 {
-    let view = &model.views[model.closest_view(pose, sensor)];
+/// One bit per index below `len`, set at `indices`.
+fn bit_mask(len: usize, indices: &[u32]) -> Vec<u64> {
+    let mut mask = vec![0u64; len.div_ceil(64)];
+    for &i in indices {
+        mask[i as usize / 64] |= 1 << (i % 64);
+    }
+    mask
+}
+
+/// Share of the closest view's tray points (those `tray_mask` sets: not a slot's item, since
+/// which slots hold one is the scene's, not the tray's) facing the sensor, at `pose`, with a
+/// scene point within `reach`; with the frame's `depth`, of those the sensor could see: a point with no
+/// scene point near that the measured depth puts behind a nearer surface
+/// ([`crate::pose::see_through::Occlusion::hidden`]: a gripper over the tray, an arm) counts neither way. At most
+/// [`MOST_HIDDEN`] of the facing points are set aside, so a pose the sensor barely saw
+/// cannot score as if it saw it whole.
+fn coverage(
+    model: &Model,
+    tray_mask: &[Vec<u64>],
+    grid: &SceneGrid,
+    sensor: &Point3<f32>,
+    pose: &Isometry3<f64>,
+    reach: f32,
+    depth: Option<&DepthEvidence>,
+) -> (f32, f32, f32) {
+    let k = model.closest_view(pose, sensor);
+    let (view, mask) = (&model.views[k], tray_mask.get(k).map_or(&[][..], Vec::as_slice));
     let to_world = pose.cast::<f32>();
     let eye = pose.inverse().cast::<f32>() * sensor;
     let r2 = reach * reach;
+    let occlusion = depth.map(DepthEvidence::occlusion);
     // Fixed chunks, integer counts: the same share whatever the number of threads.
-    let (facing, seen) = view
+    let (facing, seen, hidden, unmeasured) = view
         .points
         .par_chunks(COVERAGE_CHUNK)
         .zip(view.normals.par_chunks(COVERAGE_CHUNK))
-        .map(|(points, normals)| {
-            // The facing points moved to the world in small batches, each counted by the
+        .enumerate()
+        .map(|(chunk, (points, normals))| {
+            // The facing points moved to the world in small batches, each looked up in the
             // grid at once so that their cache misses overlap.
-            let (mut facing, mut seen) = (0u32, 0u32);
+            let (mut facing, mut seen, mut hidden, mut unmeasured) = (0u32, 0u32, 0u32, 0u32);
             let mut batch = [Point3::origin(); COVERAGE_BATCH];
             let mut filled = 0;
-            for (m, n) in points.iter().zip(normals) {
-                if n.dot(&(eye - m)) <= 0.0 {
+            let mut count = |batch: &[Point3<f32>]| {
+                grid.each_within(batch, r2, |q, within| {
+                    if within {
+                        seen += 1;
+                    } else {
+                        match occlusion.as_ref().map_or(Sight::Open, |o| o.sight(q)) {
+                            Sight::Open => {}
+                            Sight::Hidden => hidden += 1,
+                            Sight::Unmeasured => unmeasured += 1,
+                        }
+                    }
+                })
+            };
+            for (j, (m, n)) in points.iter().zip(normals).enumerate() {
+                let i = chunk * COVERAGE_CHUNK + j;
+                let tray = mask.get(i / 64).is_some_and(|w| w & (1 << (i % 64)) != 0);
+                if !tray || n.dot(&(eye - m)) <= 0.0 {
                     continue;
                 }
                 facing += 1;
                 batch[filled] = to_world * m;
                 filled += 1;
                 if filled == COVERAGE_BATCH {
-                    seen += grid.count_within(&batch, r2);
+                    count(&batch);
                     filled = 0;
                 }
             }
-            seen += grid.count_within(&batch[..filled], r2);
-            (facing, seen)
+            count(&batch[..filled]);
+            (facing, seen, hidden, unmeasured)
         })
-        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
-    if facing == 0 {
-        0.0
+        .reduce(|| (0, 0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2, a.3 + b.3));
+    let visible = facing - (hidden + unmeasured).min((MOST_HIDDEN * facing as f32) as u32);
+    if visible == 0 {
+        (0.0, 0.0, 0.0)
     } else {
-        seen as f32 / facing as f32
+        let share = |n: u32| n as f32 / facing as f32;
+        (seen as f32 / visible as f32, share(hidden), share(unmeasured))
     }
 }

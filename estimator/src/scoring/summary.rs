@@ -257,7 +257,9 @@ impl Summary {
     /// for `max_wrong`, and the figures at it.
     pub fn verified(mut self, records: &[FrameRecord], max_wrong: f64, metrics: &Metrics) -> Summary {
         let frames: Vec<Scored> = records.iter().filter_map(|r| Scored::of(r, metrics)).collect();
-        self.verification = VerifiedSummary::choose(&frames, max_wrong);
+        let negatives: Vec<Scored> =
+            records.iter().flat_map(|r| r.negatives.iter().flatten()).filter_map(Scored::of_negative).collect();
+        self.verification = VerifiedSummary::choose(&frames, &negatives, max_wrong);
         self
     }
 

@@ -11,7 +11,7 @@ use camplace_config::Metrics;
 use serde::{Deserialize, Serialize};
 
 use super::intervals::wilson_interval;
-use super::record::FrameRecord;
+use super::record::{FrameRecord, NegativeRecord};
 
 /// One-sided confidence of the upper bound on the wrong share.
 pub(super) const UPPER_CONFIDENCE: f64 = 0.95;
@@ -19,6 +19,12 @@ pub(super) const UPPER_CONFIDENCE: f64 = 0.95;
 /// A wrong pose off by more than this many times a success limit is gross (a turn, a slot
 /// away): what the score is there to reject. A wrong pose within it is a near miss.
 pub const GROSS_FACTOR: f64 = 2.0;
+
+/// The largest share of the hard negatives (wrong poses made from each scene's truth and
+/// refined: a turn the symmetries do not list, a slot's pitch away, a tilt) that the chosen
+/// threshold may let through. RANSAC's own wrong poses are a handful in hundreds of scenes,
+/// too few to set a threshold on; the negatives are tens a scene.
+pub const MAX_NEGATIVES_ACCEPTED: f64 = 0.005;
 
 /// Near misses raise the threshold only when the poses the raise would reject are wrong more
 /// often than those it keeps at this one-sided significance (Fisher's exact test).
@@ -47,6 +53,20 @@ impl Scored {
         let gross =
             record.found && !truth.success && gross_error(truth.position_error_mm, truth.rotation_error_deg, metrics);
         Some(Scored { score, eligible, correct: truth.success, gross })
+    }
+}
+
+impl Scored {
+    /// A hard negative as the threshold choice sees it: `None` unless it stayed grossly
+    /// wrong once refined (one refined back to the truth is no negative, a near miss is
+    /// the rig's calibration error's scale).
+    pub fn of_negative(negative: &NegativeRecord) -> Option<Scored> {
+        (!negative.correct && negative.gross).then(|| Scored {
+            score: negative.score,
+            eligible: [Verdict::Accepted.as_str(), Verdict::PoorFit.as_str()].contains(&negative.verdict.as_str()),
+            correct: false,
+            gross: true,
+        })
     }
 }
 
@@ -87,16 +107,31 @@ pub struct VerifiedSummary {
     pub correct_rejected: usize,
     /// `correct_rejected / correct` (0 when no pose is correct).
     pub correct_rejected_share: f64,
+    /// Hard negatives weighed beside the frames (gross ones; 0 when none was weighed).
+    #[serde(default)]
+    pub negatives: usize,
+    /// Of them, accepted at the threshold.
+    #[serde(default)]
+    pub negatives_accepted: usize,
 }
 
 impl VerifiedSummary {
-    /// The threshold chosen for `max_wrong` over `frames`, and the figures at it; `None`
-    /// when no frame has a score.
-    pub fn choose(frames: &[Scored], max_wrong: f64) -> Option<VerifiedSummary> {
+    /// The threshold chosen for `max_wrong` over `frames` and, where the frames' hard
+    /// `negatives` were weighed, raised as far as [`negatives_threshold`] needs; the figures
+    /// at it. `None` when no frame has a score.
+    pub fn choose(frames: &[Scored], negatives: &[Scored], max_wrong: f64) -> Option<VerifiedSummary> {
         if frames.is_empty() {
             return None;
         }
-        Some(Self::at(frames, choose_threshold(frames, max_wrong), max_wrong))
+        let threshold = choose_threshold(frames, max_wrong).max(negatives_threshold(negatives));
+        Some(Self::at(frames, threshold, max_wrong).with_negatives(negatives))
+    }
+
+    /// The summary with the hard `negatives` counted at its threshold.
+    pub fn with_negatives(mut self, negatives: &[Scored]) -> VerifiedSummary {
+        self.negatives = negatives.len();
+        self.negatives_accepted = negatives.iter().filter(|n| n.eligible && n.score >= self.threshold).count();
+        self
     }
 
     /// The figures over `frames` at `threshold`.
@@ -121,6 +156,8 @@ impl VerifiedSummary {
             wrong_accepted_upper: clopper_pearson_upper(wrong, n_accepted, UPPER_CONFIDENCE),
             correct_rejected: correct - verified,
             correct_rejected_share: ratio(correct - verified, correct),
+            negatives: 0,
+            negatives_accepted: 0,
         }
     }
 
@@ -138,6 +175,16 @@ impl VerifiedSummary {
 
     /// One line for a terminal.
     pub fn line(&self) -> String {
+        let negatives = if self.negatives == 0 {
+            String::new()
+        } else {
+            format!(
+                ", hard negatives accepted {} of {} ({:.2} %)",
+                self.negatives_accepted,
+                self.negatives,
+                100.0 * self.negatives_accepted as f64 / self.negatives as f64
+            )
+        };
         format!(
             "verified success {:.1} % ({} of {}), wrong accepted {} of {} ({:.2} %, 95 % upper bound {:.2} %), \
              correct rejected {} of {} ({:.1} %) at threshold {:.3}",
@@ -152,7 +199,7 @@ impl VerifiedSummary {
             self.correct,
             100.0 * self.correct_rejected_share,
             self.threshold
-        )
+        ) + &negatives
     }
 }
 
@@ -173,6 +220,20 @@ pub fn choose_threshold(frames: &[Scored], max_wrong: f64) -> f32 {
     } else {
         gross
     }
+}
+
+/// The lowest threshold at which at most [`MAX_NEGATIVES_ACCEPTED`] of the hard `negatives`
+/// (all of them, whatever rejected them) are accepted: just above the score of the first
+/// eligible one beyond that count, highest first; 0 when the other checks already reject
+/// enough of them, or none was weighed.
+pub fn negatives_threshold(negatives: &[Scored]) -> f32 {
+    let allowed = (MAX_NEGATIVES_ACCEPTED * negatives.len() as f64).floor() as usize;
+    let mut eligible: Vec<f32> = negatives.iter().filter(|n| n.eligible).map(|n| n.score).collect();
+    if eligible.len() <= allowed {
+        return 0.0;
+    }
+    eligible.sort_by(|a, b| b.total_cmp(a));
+    eligible[allowed].next_up()
 }
 
 /// The lowest threshold at which the frames `wrong` picks are at most `max_wrong` of the
@@ -375,7 +436,7 @@ mod tests {
         let s = VerifiedSummary::at(&frames, t, 0.008);
         assert_eq!((s.accepted, s.wrong_accepted, s.correct_rejected), (201, 1, 0));
         // At 0.4 % even one wrong in 201 is too many: the threshold rises above 0.6.
-        let strict = VerifiedSummary::choose(&frames, 0.004).unwrap();
+        let strict = VerifiedSummary::choose(&frames, &[], 0.004).unwrap();
         assert!(strict.threshold > 0.6 && strict.wrong_accepted == 0, "{strict:?}");
         assert!(strict.correct_rejected > 0 && strict.wrong_accepted_upper > 0.0);
         // The curve's last point accepts every eligible frame.
@@ -427,13 +488,13 @@ mod tests {
         let mut frames: Vec<Scored> = (0..200).map(|i| frame(0.5 + 0.4 * i as f32 / 200.0, true)).collect();
         frames.push(near_miss(0.62));
         frames.push(near_miss(0.81));
-        let s = VerifiedSummary::choose(&frames, 0.005).unwrap();
+        let s = VerifiedSummary::choose(&frames, &[], 0.005).unwrap();
         assert_eq!(s.threshold, 0.5);
         assert_eq!((s.accepted, s.wrong_accepted, s.correct_rejected), (202, 2, 0));
         // Gross wrong poses in the same places are rejected, whatever it costs.
         frames[200] = frame(0.62, false);
         frames[201] = frame(0.81, false);
-        let s = VerifiedSummary::choose(&frames, 0.005).unwrap();
+        let s = VerifiedSummary::choose(&frames, &[], 0.005).unwrap();
         assert!(s.threshold > 0.81, "{s:?}");
         assert_eq!(s.wrong_accepted, 0);
     }
@@ -444,7 +505,7 @@ mod tests {
         let mut frames: Vec<Scored> = (0..200).map(|i| frame(0.5 + 0.4 * i as f32 / 200.0, true)).collect();
         frames.extend((0..10).map(|i| near_miss(0.40 + 0.005 * i as f32)));
         // Every wrong pose's share is within 0.5 % from the highest near miss up (1 of 201).
-        let s = VerifiedSummary::choose(&frames, 0.005).unwrap();
+        let s = VerifiedSummary::choose(&frames, &[], 0.005).unwrap();
         assert_eq!(s.threshold, frames[209].score);
         assert_eq!((s.accepted, s.wrong_accepted, s.correct_rejected), (201, 1, 0));
     }
@@ -530,5 +591,60 @@ mod tests {
         }
         // Both branches taken.
         assert!(raised > 100 && raised < 2900, "{raised}");
+    }
+
+    /// The negatives' threshold against the slow rule: of every candidate (0 and just above
+    /// each score), the lowest at which at most the allowed share of all the negatives is
+    /// eligible and scored at or above it.
+    #[test]
+    fn the_negatives_threshold_is_the_lowest_within_the_share() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut raised = 0;
+        for _ in 0..2000 {
+            let n = (next() % 1200) as usize;
+            // One in 4, 128 or 1024 passes the other checks: often more than the share.
+            let rare = [4, 128, 1024][(next() % 3) as usize];
+            let negatives: Vec<Scored> = (0..n)
+                .map(|_| {
+                    let r = next();
+                    let score = ((r >> 16) % 50) as f32 / 50.0;
+                    Scored { score, eligible: r % rare == 0, correct: false, gross: true }
+                })
+                .collect();
+            let fast = negatives_threshold(&negatives);
+            let allowed = MAX_NEGATIVES_ACCEPTED * n as f64;
+            let accepted = |t: f32| negatives.iter().filter(|f| f.eligible && f.score >= t).count() as f64;
+            let slow = std::iter::once(0.0)
+                .chain(negatives.iter().map(|f| f.score.next_up()))
+                .filter(|&t| accepted(t) <= allowed)
+                .fold(f32::INFINITY, f32::min);
+            assert_eq!(fast, slow, "{n} negatives");
+            raised += usize::from(fast > 0.0);
+        }
+        assert!(raised > 100 && raised < 1900, "{raised}");
+    }
+
+    /// A summary chosen with negatives holds the threshold the negatives need when it is
+    /// above the frames' own, and counts them at it.
+    #[test]
+    fn negatives_raise_the_threshold_and_are_counted_at_it() {
+        let frames: Vec<Scored> = (0..100)
+            .map(|i| Scored { score: 0.5 + i as f32 / 250.0, eligible: true, correct: true, gross: false })
+            .collect();
+        let negatives: Vec<Scored> =
+            (0..400).map(|i| Scored { score: i as f32 / 500.0, eligible: true, correct: false, gross: true }).collect();
+        let s = VerifiedSummary::choose(&frames, &negatives, 0.005).unwrap();
+        // Two of 400 may pass: the two highest, 0.796 and 0.798.
+        assert_eq!(s.threshold, (0.794f32).next_up());
+        assert_eq!((s.negatives, s.negatives_accepted), (400, 2));
+        assert_eq!(s.correct_rejected, frames.iter().filter(|f| f.score < s.threshold).count());
+        let alone = VerifiedSummary::choose(&frames, &[], 0.005).unwrap();
+        assert_eq!((alone.threshold, alone.negatives), (0.5, 0));
     }
 }

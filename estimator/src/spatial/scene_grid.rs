@@ -123,6 +123,13 @@ impl SceneGrid {
     /// `r2` at most (half a cell)².
     pub(crate) fn count_within(&self, queries: &[Point3<f32>], r2: f32) -> u32 {
         let mut count = 0;
+        self.each_within(queries, r2, |_, within| count += u32::from(within));
+        count
+    }
+
+    /// [`SceneGrid::count_within`] that hands `visit` each query with whether a scene point
+    /// lies within `sqrt(r2)` of it, in order.
+    pub(crate) fn each_within(&self, queries: &[Point3<f32>], r2: f32, mut visit: impl FnMut(&Point3<f32>, bool)) {
         for block in queries.chunks(MASK_BATCH) {
             let mut reach = [Reach::Maybe; MASK_BATCH];
             self.near.classify_batch(block, &mut reach[..block.len()]);
@@ -132,10 +139,9 @@ impl SceneGrid {
                     Reach::Surely if r2 >= self.near.inner_reach2 => true,
                     _ => self.search_within(q, r2),
                 };
-                count += u32::from(within);
+                visit(q, within);
             }
         }
-        count
     }
 
     /// The search behind [`SceneGrid::any_within`]: the 8 cells around `q`.

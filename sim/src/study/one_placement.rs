@@ -72,7 +72,8 @@ pub fn acceptance_summary(
 }
 
 /// The verification threshold of `model` at `placement`, measured on scenarios
-/// `0..scenarios` of `seed` as `evaluate` with the same seed runs them (a model built with
+/// `0..scenarios` of `seed` and their hard negatives as `evaluate` with the same seed runs
+/// them (a model built with
 /// that seed is the one `evaluate` builds, so the two choose the same threshold), and the
 /// figures at it; `None` when no scene was run.
 pub fn measure_verification(
@@ -86,8 +87,10 @@ pub fn measure_verification(
     if scenarios == 0 {
         return Ok(None);
     }
-    let evaluator = Evaluator::with_model(cell, placement, method, seed, model.clone())?;
+    let evaluator = Evaluator::with_model(cell, placement, method, seed, model.clone())?.with_negatives(true);
     let records = each_index(scenarios as usize, || evaluator.worker(), |worker, i| worker.scene(i as u64))?;
     let frames: Vec<Scored> = records.iter().filter_map(|r| Scored::of(r, &cell.metrics)).collect();
-    Ok(VerifiedSummary::choose(&frames, cell.estimator.verify_max_wrong))
+    let negatives: Vec<Scored> =
+        records.iter().flat_map(|r| r.negatives.iter().flatten()).filter_map(Scored::of_negative).collect();
+    Ok(VerifiedSummary::choose(&frames, &negatives, cell.estimator.verify_max_wrong))
 }
