@@ -20,9 +20,10 @@ pub(super) const UPPER_CONFIDENCE: f64 = 0.95;
 /// away): what the score is there to reject. A wrong pose within it is a near miss.
 pub const GROSS_FACTOR: f64 = 2.0;
 
-/// The largest share of the hard negatives (wrong poses made from each scene's truth and
-/// refined: a turn the symmetries do not list, a slot's pitch away, a tilt) that the chosen
-/// threshold may let through. RANSAC's own wrong poses are a handful in hundreds of scenes,
+/// The largest share of the hard negatives the score is for (wrong poses made from each
+/// scene's truth and refined: a turn laying the slot grid onto itself, a slot's pitch away,
+/// a tilt; not a turn about the centre, [`TURN_NEGATIVE`]) that the chosen threshold may let
+/// through. RANSAC's own wrong poses are a handful in hundreds of scenes,
 /// too few to set a threshold on; the negatives are tens a scene.
 pub const MAX_NEGATIVES_ACCEPTED: f64 = 0.005;
 
@@ -56,12 +57,19 @@ impl Scored {
     }
 }
 
+/// The kind of hard negative the threshold leaves to the turn check: a turn about the
+/// tray's centre explains the scene as well as the right pose wherever the telling feature
+/// is out of sight, so its score is the right pose's, and the turn margin and the
+/// see-through evidence of the distinct parts judge it, not the score.
+pub const TURN_NEGATIVE: &str = "turn";
+
 impl Scored {
     /// A hard negative as the threshold choice sees it: `None` unless it stayed grossly
     /// wrong once refined (one refined back to the truth is no negative, a near miss is
-    /// the rig's calibration error's scale).
+    /// the rig's calibration error's scale), and for a turn about the centre
+    /// ([`TURN_NEGATIVE`]).
     pub fn of_negative(negative: &NegativeRecord) -> Option<Scored> {
-        (!negative.correct && negative.gross).then(|| Scored {
+        (!negative.correct && negative.gross && negative.kind != TURN_NEGATIVE).then(|| Scored {
             score: negative.score,
             eligible: [Verdict::Accepted.as_str(), Verdict::PoorFit.as_str()].contains(&negative.verdict.as_str()),
             correct: false,
@@ -107,7 +115,8 @@ pub struct VerifiedSummary {
     pub correct_rejected: usize,
     /// `correct_rejected / correct` (0 when no pose is correct).
     pub correct_rejected_share: f64,
-    /// Hard negatives weighed beside the frames (gross ones; 0 when none was weighed).
+    /// Hard negatives weighed beside the frames (gross ones, not turns about the centre:
+    /// [`Scored::of_negative`]; 0 when none was weighed).
     #[serde(default)]
     pub negatives: usize,
     /// Of them, accepted at the threshold.
