@@ -564,17 +564,21 @@ mod tests {
         }
     }
 
-    #[test]
-    fn the_threshold_is_the_slow_rules() {
-        // Small random sets (up to 16 eligible frames, so every placement of the wrong
-        // poses can be counted), scores on a coarse grid so that ties occur.
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
+    /// A xorshift generator from `state` (not 0): the random sets of the slow-rule tests.
+    fn xorshift(mut state: u64) -> impl FnMut() -> u64 {
+        move || {
             state ^= state << 13;
             state ^= state >> 7;
             state ^= state << 17;
             state
-        };
+        }
+    }
+
+    #[test]
+    fn the_threshold_is_the_slow_rules() {
+        // Small random sets (up to 16 eligible frames, so every placement of the wrong
+        // poses can be counted), scores on a coarse grid so that ties occur.
+        let mut next = xorshift(0x2545_f491_4f6c_dd1d);
         let mut raised = 0;
         for _ in 0..3000 {
             let n = 4 + (next() % 13) as usize;
@@ -607,13 +611,7 @@ mod tests {
     /// eligible and scored at or above it.
     #[test]
     fn the_negatives_threshold_is_the_lowest_within_the_share() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = xorshift(0x9e37_79b9_7f4a_7c15);
         let mut raised = 0;
         for _ in 0..2000 {
             let n = (next() % 1200) as usize;
