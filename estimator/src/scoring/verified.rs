@@ -590,7 +590,7 @@ mod tests {
                     let score = (((r >> 8) % 20) as f32) / 20.0;
                     // Wrong poses lean low, so the test sometimes lets near misses lift it.
                     let score = if correct { score } else { score * 0.6 };
-                    Scored { score, eligible: (r >> 16) % 8 != 0, correct, gross }
+                    Scored { score, eligible: !(r >> 16).is_multiple_of(8), correct, gross }
                 })
                 .collect();
             let max_wrong = [0.005, 0.1, 0.25][(next() % 3) as usize];
@@ -621,7 +621,7 @@ mod tests {
                 .map(|_| {
                     let r = next();
                     let score = ((r >> 16) % 50) as f32 / 50.0;
-                    Scored { score, eligible: r % rare == 0, correct: false, gross: true }
+                    Scored { score, eligible: r.is_multiple_of(rare), correct: false, gross: true }
                 })
                 .collect();
             let fast = negatives_threshold(&negatives);
