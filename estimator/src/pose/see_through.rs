@@ -15,6 +15,10 @@
 //! walls need no z-buffer: a model point hidden behind another part of the model is
 //! measured in front of it, never behind, so only a measurement clearly behind the model's
 //! surface counts against the pose.
+//!
+//! The same depth answers the coverage's question the other way round ([`Occlusion`]):
+//! whether the sensor could have seen a model point at all, or a nearer surface hid it, or
+//! nothing was measured there.
 
 use nalgebra::{Isometry3, Point3, Vector3};
 

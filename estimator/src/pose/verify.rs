@@ -7,7 +7,8 @@
 //! - coverage: of the tray's surface (not the slots' items: which slots hold one is the
 //!   scene's) that faces the sensor in the closest view, the share with a measured point
 //!   within the inlier distance (the tray is where the model says), leaving out the points
-//!   the measured depth shows hidden behind something nearer (a gripper over the tray);
+//!   the measured depth shows hidden behind something nearer (a gripper over the tray) or
+//!   did not measure;
 //! - explained: of the measured points inside the tray's box at the pose, the share the
 //!   model explains (nothing stands where the model says there is free space);
 //! - turn margin: of the scene points the pose and its closest alternative that the tray's
@@ -101,7 +102,8 @@ pub const RESTING_HEIGHT_MM: f64 = 6.0;
 /// A tray resting on the table has its z axis within this of the world's, deg.
 pub const RESTING_TILT_DEG: f64 = 4.0;
 
-/// The largest share of a view's facing points the coverage sets aside as hidden.
+/// The largest share of a view's facing points the coverage sets aside as hidden or
+/// unmeasured.
 pub const MOST_HIDDEN: f32 = 0.6;
 
 /// View points per parallel task of the coverage count.
@@ -537,11 +539,12 @@ fn bit_mask(len: usize, indices: &[u32]) -> Vec<u64> {
 
 /// Share of the closest view's tray points (those `tray_mask` sets: not a slot's item, since
 /// which slots hold one is the scene's, not the tray's) facing the sensor, at `pose`, with a
-/// scene point within `reach`; with the frame's `depth`, of those the sensor could see: a point with no
-/// scene point near that the measured depth puts behind a nearer surface
-/// ([`crate::pose::see_through::Occlusion::hidden`]: a gripper over the tray, an arm) counts neither way. At most
-/// [`MOST_HIDDEN`] of the facing points are set aside, so a pose the sensor barely saw
-/// cannot score as if it saw it whole.
+/// scene point within `reach`; with the frame's `depth`, of those the sensor could see: a
+/// point with no scene point near that the measured depth puts behind a nearer surface, or
+/// where it measured nothing ([`Sight`]: a gripper over the tray, an arm), counts neither
+/// way. At most [`MOST_HIDDEN`] of the facing points are set aside, so a pose the sensor
+/// barely saw cannot score as if it saw it whole. Returns the coverage and the hidden and
+/// unmeasured shares of the facing points.
 fn coverage(
     model: &Model,
     tray_mask: &[Vec<u64>],
