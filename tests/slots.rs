@@ -7,7 +7,7 @@ use std::path::Path;
 
 use camplace_config::{parse_pose, Cell, LengthUnit, PoseConvention, RobotPoseFormat, TruthFile};
 use camplace_estimator::{
-    geometry::isometry_from_rows, pose::SlotState, pose::Verdict, Estimator, EstimatorConfig, Model,
+    geometry::isometry_from_rows, pose::pose_errors, pose::SlotState, Estimator, EstimatorConfig, Model,
 };
 use camplace_sim::{background_scene, draw_scenario, noise_key, Frame, Method, Simulator};
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
@@ -124,8 +124,10 @@ fn serve_gives_each_slots_state_and_frame_in_every_convention() {
 
 /// A box item tilted 20° about its y axis (resting on one bottom edge, leaning on the slot's
 /// divider) and a foreign box of another size (20 x 20 x 14 mm) stand in two slots of a
-/// full tray: under every accepted pose both are filled and askew, the upright items filled
-/// and not askew.
+/// full tray: under every pose found within the success limits both are filled and askew,
+/// the upright items filled and not askew. The slots are judged under every pose found,
+/// and the test is of them, not of the fixture's threshold (measured on 40 scenes of
+/// random fills: a full tray's items hide more of it, and it scores at their low end).
 #[test]
 fn a_tilted_item_and_a_foreign_box_are_flagged_askew() {
     let f = fixture();
@@ -155,16 +157,19 @@ fn a_tilted_item_and_a_foreign_box_are_flagged_askew() {
     sim.render(&background_scene(&cell, seed), Method::OneShot, noise_key(seed, 0, true), &mut frame);
     let mut estimator = Estimator::new(&EstimatorConfig::from(&cell), sim.rig(), model, Method::OneShot).unwrap();
     estimator.set_background(&frame.shots.left, &frame.shots.right).unwrap();
-    let mut accepted = 0;
+    let mut judged = 0;
     for index in 0..6 {
         let mut scene = draw_scenario(&cell, seed, index).scene();
         scene.filled = (0..8).collect();
         sim.render(&scene, Method::OneShot, noise_key(seed, 1000 + index, false), &mut frame);
         let pose = estimator.process(&frame.shots.left, &frame.shots.right).unwrap();
-        if !(pose.found && pose.verification.verdict == Verdict::Accepted) {
+        let errors =
+            pose_errors(&pose.t_world_tray, &scene.t_world_tray, &estimator.model().symmetries_deg, &cell.metrics);
+        eprintln!("scene {index}: {} ({:.2} mm)", pose.verification.verdict, errors.position_mm);
+        if !(pose.found && errors.success) {
             continue;
         }
-        accepted += 1;
+        judged += 1;
         let slots = estimator.slots();
         for (n, r) in slots.iter().enumerate() {
             let askew = n == 2 || n == 5;
@@ -180,5 +185,5 @@ fn a_tilted_item_and_a_foreign_box_are_flagged_askew() {
             slots[5]
         );
     }
-    assert!(accepted >= 3, "{accepted} accepted poses of 6 scenes");
+    assert!(judged >= 5, "{judged} poses of 6 scenes within the success limits");
 }
