@@ -256,10 +256,7 @@ impl Summary {
     /// limits `metrics`: the threshold [`choose_threshold`](super::choose_threshold) picks
     /// for `max_wrong`, and the figures at it.
     pub fn verified(mut self, records: &[FrameRecord], max_wrong: f64, metrics: &Metrics) -> Summary {
-        let frames: Vec<Scored> = records.iter().filter_map(|r| Scored::of(r, metrics)).collect();
-        let negatives: Vec<Scored> =
-            records.iter().flat_map(|r| r.negatives.iter().flatten()).filter_map(Scored::of_negative).collect();
-        self.verification = VerifiedSummary::choose(&frames, &negatives, max_wrong);
+        self.verification = VerifiedSummary::of_records(records, max_wrong, metrics);
         self
     }
 

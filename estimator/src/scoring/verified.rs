@@ -50,7 +50,7 @@ impl Scored {
     /// truth or written before the verification.
     pub fn of(record: &FrameRecord, metrics: &Metrics) -> Option<Scored> {
         let (score, verdict, truth) = (record.verify_score?, record.verdict.as_deref()?, record.score?);
-        let eligible = record.found && [Verdict::Accepted.as_str(), Verdict::PoorFit.as_str()].contains(&verdict);
+        let eligible = record.found && threshold_decides(verdict);
         let gross =
             record.found && !truth.success && gross_error(truth.position_error_mm, truth.rotation_error_deg, metrics);
         Some(Scored { score, eligible, correct: truth.success, gross })
@@ -71,11 +71,17 @@ impl Scored {
     pub fn of_negative(negative: &NegativeRecord) -> Option<Scored> {
         (!negative.correct && negative.gross && negative.kind != TURN_NEGATIVE).then(|| Scored {
             score: negative.score,
-            eligible: [Verdict::Accepted.as_str(), Verdict::PoorFit.as_str()].contains(&negative.verdict.as_str()),
+            eligible: threshold_decides(&negative.verdict),
             correct: false,
             gross: true,
         })
     }
+}
+
+/// Whether the threshold alone decides a pose of `verdict`: accepted, or refused for its
+/// score (the checks a threshold does not move passed).
+fn threshold_decides(verdict: &str) -> bool {
+    [Verdict::Accepted.as_str(), Verdict::PoorFit.as_str()].contains(&verdict)
 }
 
 /// Whether a pose off by `position_mm` and `rotation_deg` is grossly wrong under `metrics`:
@@ -136,8 +142,18 @@ impl VerifiedSummary {
         Some(Self::at(frames, threshold, max_wrong).with_negatives(negatives))
     }
 
+    /// [`VerifiedSummary::choose`] over `records` judged by the success limits `metrics`:
+    /// each record's own pose ([`Scored::of`]) and its hard negatives, where it carries them
+    /// ([`Scored::of_negative`]).
+    pub fn of_records(records: &[FrameRecord], max_wrong: f64, metrics: &Metrics) -> Option<VerifiedSummary> {
+        let frames: Vec<Scored> = records.iter().filter_map(|r| Scored::of(r, metrics)).collect();
+        let negatives: Vec<Scored> =
+            records.iter().flat_map(|r| r.negatives.iter().flatten()).filter_map(Scored::of_negative).collect();
+        Self::choose(&frames, &negatives, max_wrong)
+    }
+
     /// The summary with the hard `negatives` counted at its threshold.
-    pub fn with_negatives(mut self, negatives: &[Scored]) -> VerifiedSummary {
+    fn with_negatives(mut self, negatives: &[Scored]) -> VerifiedSummary {
         self.negatives = negatives.len();
         self.negatives_accepted = negatives.iter().filter(|n| n.eligible && n.score >= self.threshold).count();
         self

@@ -16,8 +16,8 @@ use crate::report::table::{write_summary_csv, write_summary_json, SummaryRow};
 use crate::workers::each_index;
 use crate::Result;
 use camplace_estimator::scoring::Summary;
+use camplace_estimator::scoring::VerifiedSummary;
 use camplace_estimator::Model;
-use camplace_estimator::{scoring::Scored, scoring::VerifiedSummary};
 
 /// Runs shard `shard` of the scenes into the study folder `dir` (models cached in
 /// `dir/models`), writes `summary.json` and `summary.csv`, and returns the summary of the
@@ -89,8 +89,5 @@ pub fn measure_verification(
     }
     let evaluator = Evaluator::with_model(cell, placement, method, seed, model.clone())?.with_negatives(true);
     let records = each_index(scenarios as usize, || evaluator.worker(), |worker, i| worker.scene(i as u64))?;
-    let frames: Vec<Scored> = records.iter().filter_map(|r| Scored::of(r, &cell.metrics)).collect();
-    let negatives: Vec<Scored> =
-        records.iter().flat_map(|r| r.negatives.iter().flatten()).filter_map(Scored::of_negative).collect();
-    Ok(VerifiedSummary::choose(&frames, &negatives, cell.estimator.verify_max_wrong))
+    Ok(VerifiedSummary::of_records(&records, cell.estimator.verify_max_wrong, &cell.metrics))
 }
