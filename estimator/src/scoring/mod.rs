@@ -15,5 +15,6 @@ pub use record::{score, FrameRecord, NegativeRecord, Score, SlotRecord, SlotScor
 pub(crate) use summary::median_or_nan;
 pub use summary::{median, median_in_place, pct, percentile, NegativesSummary, SlotSummary, Summary};
 pub use verified::{
-    choose_threshold, clopper_pearson_upper, gross_error, precision_recall, Scored, VerifiedSummary, GROSS_FACTOR,
+    choose_threshold, clopper_pearson_upper, gross_error, precision_recall, NearMissExcess, Scored, VerifiedSummary,
+    GROSS_FACTOR, REFUSE_ALL,
 };

@@ -31,6 +31,15 @@ pub const MAX_NEGATIVES_ACCEPTED: f64 = 0.005;
 /// often than those it keeps at this one-sided significance (Fisher's exact test).
 const SEPARATION_ALPHA: f64 = 0.05;
 
+/// Near misses the score cannot tell from correct poses refuse every pose when, at the
+/// threshold the gross wrong poses allow, they are more than the target share of the
+/// accepted ones beyond chance at this one-sided significance (the binomial test).
+const EXCESS_ALPHA: f64 = 0.05;
+
+/// The threshold of a verification that refuses every pose: above any score (scores lie
+/// in [0, 1]).
+pub const REFUSE_ALL: f32 = 1.0 + f32::EPSILON;
+
 /// A frame as the threshold choice sees it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Scored {
@@ -128,6 +137,22 @@ pub struct VerifiedSummary {
     /// Of them, accepted at the threshold.
     #[serde(default)]
     pub negatives_accepted: usize,
+    /// Where every pose is refused because the score cannot tell the near misses from the
+    /// correct poses and they are too many (the placement cannot keep the target): what
+    /// the threshold the gross wrong poses allow would have accepted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub near_misses_untold: Option<NearMissExcess>,
+}
+
+/// Near misses the score cannot tell apart, at the threshold the gross wrong poses allow.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct NearMissExcess {
+    /// That threshold.
+    pub threshold: f32,
+    /// Poses it accepts.
+    pub accepted: usize,
+    /// Of them, wrong (near misses, the gross ones being within the target).
+    pub wrong: usize,
 }
 
 impl VerifiedSummary {
@@ -138,8 +163,11 @@ impl VerifiedSummary {
         if frames.is_empty() {
             return None;
         }
-        let threshold = choose_threshold(frames, max_wrong).max(negatives_threshold(negatives));
-        Some(Self::at(frames, threshold, max_wrong).with_negatives(negatives))
+        let (chosen, untold) = threshold_choice(frames, max_wrong);
+        let threshold = chosen.max(negatives_threshold(negatives));
+        let mut summary = Self::at(frames, threshold, max_wrong).with_negatives(negatives);
+        summary.near_misses_untold = untold;
+        Some(summary)
     }
 
     /// [`VerifiedSummary::choose`] over `records` judged by the success limits `metrics`:
@@ -183,6 +211,7 @@ impl VerifiedSummary {
             correct_rejected_share: ratio(correct - verified, correct),
             negatives: 0,
             negatives_accepted: 0,
+            near_misses_untold: None,
         }
     }
 
@@ -210,6 +239,17 @@ impl VerifiedSummary {
                 100.0 * self.negatives_accepted as f64 / self.negatives as f64
             )
         };
+        let untold = self.near_misses_untold.map_or(String::new(), |e| {
+            format!(
+                "; every pose refused: at threshold {:.3} (the gross wrong poses' limit) {} of the {} accepted \
+                 ({:.1} %) were near misses the score cannot tell from correct poses, beyond the {:.1} % target",
+                e.threshold,
+                e.wrong,
+                e.accepted,
+                100.0 * e.wrong as f64 / e.accepted.max(1) as f64,
+                100.0 * self.max_wrong
+            )
+        });
         format!(
             "verified success {:.1} % ({} of {}), wrong accepted {} of {} ({:.2} %, 95 % upper bound {:.2} %), \
              correct rejected {} of {} ({:.1} %) at threshold {:.3}",
@@ -225,6 +265,7 @@ impl VerifiedSummary {
             100.0 * self.correct_rejected_share,
             self.threshold
         ) + &negatives
+            + &untold
     }
 }
 
@@ -236,14 +277,29 @@ impl VerifiedSummary {
 /// from a correct pose (the rig's calibration error moving the whole cloud, which no frame
 /// shows) would otherwise lift the threshold to just above its own score and reject every
 /// correct pose below it by the luck of where it fell; it stays accepted and counted in the
-/// wrong share and its bound.
+/// wrong share and its bound. But where such near misses are more than `max_wrong` of the
+/// accepted poses beyond chance (one-sided binomial test at `EXCESS_ALPHA`), no threshold
+/// keeps the target and every pose is refused ([`REFUSE_ALL`]): a placement whose poses are
+/// off by more than the success limits in a share the score cannot see hands the robot
+/// nothing rather than those.
 pub fn choose_threshold(frames: &[Scored], max_wrong: f64) -> f32 {
+    threshold_choice(frames, max_wrong).0
+}
+
+/// [`choose_threshold`] and, where it refuses every pose for the near misses, what the
+/// gross wrong poses' threshold would have accepted.
+fn threshold_choice(frames: &[Scored], max_wrong: f64) -> (f32, Option<NearMissExcess>) {
     let gross = lowest_within(frames, max_wrong, |f| f.gross);
     let every = lowest_within(frames, max_wrong, |f| !f.correct);
     if every > gross && wrong_more_often_below(frames, gross, every) {
-        every
+        return (every, None);
+    }
+    let accepted = frames.iter().filter(|f| f.eligible && f.score >= gross);
+    let (n, wrong) = accepted.fold((0, 0), |(n, w), f| (n + 1, w + usize::from(!f.correct)));
+    if wrong > 0 && 1.0 - binomial_cdf(wrong - 1, n, max_wrong) < EXCESS_ALPHA {
+        (REFUSE_ALL, Some(NearMissExcess { threshold: gross, accepted: n, wrong }))
     } else {
-        gross
+        (gross, None)
     }
 }
 
@@ -535,6 +591,28 @@ mod tests {
         assert_eq!((s.accepted, s.wrong_accepted, s.correct_rejected), (201, 1, 0));
     }
 
+    #[test]
+    fn near_misses_the_score_cannot_tell_apart_refuse_every_pose_when_too_many() {
+        // 200 correct poses scored 0.5..0.9 with 40 near misses spread among them (every
+        // sixth from the top): 16.7 % wrong at any threshold, far beyond 0.5 %.
+        let mut frames: Vec<Scored> = (0..200).map(|i| frame(0.5 + 0.4 * i as f32 / 200.0, true)).collect();
+        frames.extend((0..40).map(|i| near_miss(0.9 - 0.01 * i as f32 - 0.0025)));
+        let s = VerifiedSummary::choose(&frames, &[], 0.005).unwrap();
+        assert_eq!(s.threshold, REFUSE_ALL);
+        assert_eq!((s.accepted, s.correct_rejected), (0, 200));
+        let untold = s.near_misses_untold.unwrap();
+        assert_eq!((untold.threshold, untold.accepted, untold.wrong), (0.5, 240, 40));
+        assert!(s.line().contains("every pose refused"), "{}", s.line());
+        // Gross wrong poses in their places lift the threshold above the highest of them,
+        // as ever: no refusal of the whole placement.
+        for f in &mut frames[200..] {
+            f.gross = true;
+        }
+        let s = VerifiedSummary::choose(&frames, &[], 0.005).unwrap();
+        assert!(s.near_misses_untold.is_none() && s.threshold > 0.8975 && s.threshold < 1.0, "{s:?}");
+        assert_eq!((s.accepted, s.wrong_accepted), (1, 0));
+    }
+
     /// The rule as stated, slowly: each threshold's share by a pass over every frame, and
     /// Fisher's test by counting draws. Returns the threshold and, when it hinged on the
     /// test, the test's p and the threshold the other outcome gives.
@@ -553,8 +631,25 @@ mod tests {
         };
         let gross = lowest(&|f| f.gross);
         let every = lowest(&|f| !f.correct);
+        // Near misses beyond the target at the gross threshold, beyond chance: every
+        // pose refused (the binomial tail as a sum of products).
+        let at_gross = || {
+            let acc: Vec<_> = eligible.iter().filter(|f| f.score >= gross).collect();
+            let (n, k) = (acc.len(), acc.iter().filter(|f| !f.correct).count());
+            let tail: f64 = (k..=n)
+                .map(|i| {
+                    let choose: f64 = (0..i).map(|j| (n - j) as f64 / (j + 1) as f64).product();
+                    choose * max_wrong.powi(i as i32) * (1.0 - max_wrong).powi((n - i) as i32)
+                })
+                .sum();
+            if k > 0 && tail < EXCESS_ALPHA {
+                REFUSE_ALL
+            } else {
+                gross
+            }
+        };
         if every <= gross {
-            return (gross, None);
+            return (at_gross(), None);
         }
         let pool: Vec<&&Scored> = eligible.iter().filter(|f| f.score >= gross).collect();
         let below: Vec<bool> = pool.iter().map(|f| f.score < every).collect();
@@ -574,9 +669,9 @@ mod tests {
         }
         let p = hits as f64 / all as f64;
         if p < SEPARATION_ALPHA {
-            (every, Some((p, gross)))
+            (every, Some((p, at_gross())))
         } else {
-            (gross, Some((p, every)))
+            (at_gross(), Some((p, every)))
         }
     }
 
@@ -595,7 +690,7 @@ mod tests {
         // Small random sets (up to 16 eligible frames, so every placement of the wrong
         // poses can be counted), scores on a coarse grid so that ties occur.
         let mut next = xorshift(0x2545_f491_4f6c_dd1d);
-        let mut raised = 0;
+        let (mut raised, mut refused) = (0, 0);
         for _ in 0..3000 {
             let n = 4 + (next() % 13) as usize;
             let frames: Vec<Scored> = (0..n)
@@ -617,9 +712,11 @@ mod tests {
             let on_the_level = test.is_some_and(|(p, other)| (p - SEPARATION_ALPHA).abs() < 1e-9 && fast == other);
             assert!(fast == slow || on_the_level, "{frames:?} at {max_wrong}: {fast} against {slow}");
             raised += usize::from(fast > lowest_within(&frames, max_wrong, |f| f.gross));
+            refused += usize::from(fast == REFUSE_ALL);
         }
-        // Both branches taken.
+        // Every branch taken.
         assert!(raised > 100 && raised < 2900, "{raised}");
+        assert!(refused > 30 && refused < raised, "{refused} of {raised}");
     }
 
     /// The negatives' threshold against the slow rule: of every candidate (0 and just above
