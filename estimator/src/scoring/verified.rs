@@ -242,7 +242,8 @@ impl VerifiedSummary {
         let untold = self.near_misses_untold.map_or(String::new(), |e| {
             format!(
                 "; every pose refused: at threshold {:.3} (the gross wrong poses' limit) {} of the {} accepted \
-                 ({:.1} %) were near misses the score cannot tell from correct poses, beyond the {:.1} % target",
+                 ({:.1} %) were near misses the score cannot tell from correct poses, beyond the {:.1} % target \
+                 (the cell's estimator.verify_max_wrong)",
                 e.threshold,
                 e.wrong,
                 e.accepted,

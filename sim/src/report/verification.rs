@@ -76,7 +76,8 @@ pub fn verification_section(page: &mut HtmlPage, out: &Path, combos: &[Combinati
          deviation of the counts (or shows neither's), and its score reaches the threshold. The threshold is the lowest score at which wrong poses are at \
          most the cell's estimator.verify_max_wrong of the accepted ones on these fresh scenes; a near miss (within \
          twice the success limits) counts only where the score tells near misses from correct poses beyond \
-         chance, since the rig's calibration error leaves no trace in the fit. camplace model measures it the same \
+         chance, since the rig's calibration error leaves no trace in the fit, and where such near misses are more \
+         than the target share of the accepted poses beyond chance, every pose is refused. camplace model measures it the same \
          way and stores it in the model file. Every wrong pose accepted counts in the share and its bound. The upper bound is the one-sided 95 % \
          Clopper–Pearson bound of the wrong share among accepted poses.",
     );
@@ -105,6 +106,17 @@ pub fn verification_section(page: &mut HtmlPage, out: &Path, combos: &[Combinati
     Ok(())
 }
 
+/// The threshold as the table shows it: the score, or that every pose is refused and why.
+fn threshold_cell(v: &VerifiedSummary) -> String {
+    match v.near_misses_untold {
+        None => format!("{:.3}", v.threshold),
+        Some(e) => format!(
+            "every pose refused: at {:.3} {} of the {} accepted were near misses the score cannot tell apart",
+            e.threshold, e.wrong, e.accepted
+        ),
+    }
+}
+
 /// The keyed rows of one method's verified figures, each key `METHOD:FIELD` with the field
 /// of `summary.json`'s `verification`.
 fn verified_rows(method: &str, v: &VerifiedSummary) -> Vec<(String, String, String)> {
@@ -125,7 +137,30 @@ fn verified_rows(method: &str, v: &VerifiedSummary) -> Vec<(String, String, Stri
             "correct poses rejected".into(),
             format!("{} ({} of {})", pct(v.correct_rejected_share), v.correct_rejected, v.correct),
         ),
-        ("threshold", "score threshold".into(), format!("{:.3}", v.threshold)),
+        ("threshold", "score threshold".into(), threshold_cell(v)),
     ];
     rows.into_iter().map(|(key, label, value)| (format!("{method}:{key}"), label, value)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use camplace_estimator::scoring::{NearMissExcess, Scored};
+
+    /// The threshold row shows the score, or the refusal of every pose with what the gross
+    /// threshold would have accepted.
+    #[test]
+    fn the_threshold_row_says_when_every_pose_is_refused() {
+        let frames: Vec<Scored> = (0..50)
+            .map(|i| Scored { score: 0.5 + i as f32 / 100.0, eligible: true, correct: true, gross: false })
+            .collect();
+        let plain = VerifiedSummary::choose(&frames, &[], 0.005).unwrap();
+        assert_eq!(threshold_cell(&plain), "0.500");
+        let mut refused = plain;
+        refused.near_misses_untold = Some(NearMissExcess { threshold: 0.514, accepted: 167, wrong: 26 });
+        let cell = threshold_cell(&refused);
+        assert!(cell.starts_with("every pose refused: at 0.514 26 of the 167"), "{cell}");
+        let rows = verified_rows("one-shot", &refused);
+        assert_eq!(rows.last().map(|r| (r.0.as_str(), r.2.as_str())), Some(("one-shot:threshold", cell.as_str())));
+    }
 }
