@@ -151,8 +151,11 @@ pub struct NearMissExcess {
     pub threshold: f32,
     /// Poses it accepts.
     pub accepted: usize,
-    /// Of them, wrong (near misses, the gross ones being within the target).
+    /// Of them, wrong.
     pub wrong: usize,
+    /// Of those, near misses (the gross ones being within the target).
+    #[serde(default)]
+    pub near_misses: usize,
 }
 
 impl VerifiedSummary {
@@ -242,12 +245,13 @@ impl VerifiedSummary {
         let untold = self.near_misses_untold.map_or(String::new(), |e| {
             format!(
                 "; every pose refused: at threshold {:.3} (the gross wrong poses' limit) {} of the {} accepted \
-                 ({:.1} %) were near misses the score cannot tell from correct poses, beyond the {:.1} % target \
-                 (the cell's estimator.verify_max_wrong)",
+                 ({:.1} %) were wrong, {} of them near misses the score cannot tell from correct poses, beyond the \
+                 {:.1} % target (the cell's estimator.verify_max_wrong)",
                 e.threshold,
                 e.wrong,
                 e.accepted,
                 100.0 * e.wrong as f64 / e.accepted.max(1) as f64,
+                e.near_misses,
                 100.0 * self.max_wrong
             )
         });
@@ -296,9 +300,10 @@ fn threshold_choice(frames: &[Scored], max_wrong: f64) -> (f32, Option<NearMissE
         return (every, None);
     }
     let accepted = frames.iter().filter(|f| f.eligible && f.score >= gross);
-    let (n, wrong) = accepted.fold((0, 0), |(n, w), f| (n + 1, w + usize::from(!f.correct)));
+    let (n, wrong, near) = accepted
+        .fold((0, 0, 0), |(n, w, m), f| (n + 1, w + usize::from(!f.correct), m + usize::from(!f.correct && !f.gross)));
     if wrong > 0 && 1.0 - binomial_cdf(wrong - 1, n, max_wrong) < EXCESS_ALPHA {
-        (REFUSE_ALL, Some(NearMissExcess { threshold: gross, accepted: n, wrong }))
+        (REFUSE_ALL, Some(NearMissExcess { threshold: gross, accepted: n, wrong, near_misses: near }))
     } else {
         (gross, None)
     }
@@ -602,7 +607,7 @@ mod tests {
         assert_eq!(s.threshold, REFUSE_ALL);
         assert_eq!((s.accepted, s.correct_rejected), (0, 200));
         let untold = s.near_misses_untold.unwrap();
-        assert_eq!((untold.threshold, untold.accepted, untold.wrong), (0.5, 240, 40));
+        assert_eq!((untold.threshold, untold.accepted, untold.wrong, untold.near_misses), (0.5, 240, 40, 40));
         assert!(s.line().contains("every pose refused"), "{}", s.line());
         // Gross wrong poses in their places lift the threshold above the highest of them,
         // as ever: no refusal of the whole placement.

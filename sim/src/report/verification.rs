@@ -111,8 +111,9 @@ fn threshold_cell(v: &VerifiedSummary) -> String {
     match v.near_misses_untold {
         None => format!("{:.3}", v.threshold),
         Some(e) => format!(
-            "every pose refused: at {:.3} {} of the {} accepted were near misses the score cannot tell apart",
-            e.threshold, e.wrong, e.accepted
+            "every pose refused: at {:.3} {} of the {} accepted were wrong, {} of them near misses the score \
+             cannot tell apart",
+            e.threshold, e.wrong, e.accepted, e.near_misses
         ),
     }
 }
@@ -157,7 +158,8 @@ mod tests {
         let plain = VerifiedSummary::choose(&frames, &[], 0.005).unwrap();
         assert_eq!(threshold_cell(&plain), "0.500");
         let mut refused = plain;
-        refused.near_misses_untold = Some(NearMissExcess { threshold: 0.514, accepted: 167, wrong: 26 });
+        refused.near_misses_untold =
+            Some(NearMissExcess { threshold: 0.514, accepted: 167, wrong: 26, near_misses: 26 });
         let cell = threshold_cell(&refused);
         assert!(cell.starts_with("every pose refused: at 0.514 26 of the 167"), "{cell}");
         let rows = verified_rows("one-shot", &refused);
