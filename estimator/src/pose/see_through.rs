@@ -107,26 +107,53 @@ pub const OCCLUDED_MARGIN_MM: f32 = SEE_THROUGH_MARGIN_MM;
 /// a single pixel of a wall's edge hides nothing.
 const HIDDEN_WINDOW_PX: isize = 1;
 
+/// The rectified left camera's projection in f32, as both tests against the measured depth
+/// take it: a camera-frame point's pixel, and focal length × baseline (depth = that over
+/// disparity).
+#[derive(Debug, Clone, Copy)]
+struct Pinhole {
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+    focal_baseline: f32,
+}
+
+impl Pinhole {
+    fn of(camera: &RectifiedCamera) -> Pinhole {
+        let kk = &camera.k;
+        Pinhole {
+            fx: kk[(0, 0)] as f32,
+            fy: kk[(1, 1)] as f32,
+            cx: kk[(0, 2)] as f32,
+            cy: kk[(1, 2)] as f32,
+            focal_baseline: (camera.focal() * camera.baseline) as f32,
+        }
+    }
+
+    /// The pixel (column, row) of camera-frame `p`, rounded.
+    #[inline]
+    fn pixel(&self, p: &Point3<f32>) -> (isize, isize) {
+        ((self.fx * p.x / p.z + self.cx).round() as isize, (self.fy * p.y / p.z + self.cy).round() as isize)
+    }
+}
+
 /// The test of world points against a frame's measured depth for whether the sensor could
 /// see them at all ([`DepthEvidence::occlusion`]).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Occlusion<'a> {
     depth: &'a DepthEvidence<'a>,
     world_to_camera: Isometry3<f32>,
-    intrinsics: [f32; 4],
-    focal_baseline: f32,
+    pinhole: Pinhole,
 }
 
 impl<'a> DepthEvidence<'a> {
     /// The occlusion test of world points against this depth.
     pub(crate) fn occlusion(&'a self) -> Occlusion<'a> {
-        let camera = self.camera;
-        let kk = &camera.k;
         Occlusion {
             depth: self,
-            world_to_camera: camera.t_world_rectified.inverse().cast::<f32>(),
-            intrinsics: [kk[(0, 0)] as f32, kk[(1, 1)] as f32, kk[(0, 2)] as f32, kk[(1, 2)] as f32],
-            focal_baseline: (camera.focal() * camera.baseline) as f32,
+            world_to_camera: self.camera.t_world_rectified.inverse().cast::<f32>(),
+            pinhole: Pinhole::of(self.camera),
         }
     }
 }
@@ -155,8 +182,7 @@ impl Occlusion<'_> {
         if p.z <= OCCLUDED_MARGIN_MM + 1.0 {
             return Sight::Open;
         }
-        let [fx, fy, cx, cy] = self.intrinsics;
-        let (u, v) = ((fx * p.x / p.z + cx).round() as isize, (fy * p.y / p.z + cy).round() as isize);
+        let (u, v) = self.pinhole.pixel(&p);
         let disparity = self.depth.disparity;
         let (width, height) = (disparity.width as isize, disparity.height as isize);
         let w = HIDDEN_WINDOW_PX;
@@ -173,7 +199,7 @@ impl Occlusion<'_> {
             }
         }
         // Nearer than the surface by the margin: a disparity above this.
-        let nearer = self.focal_baseline / (p.z - OCCLUDED_MARGIN_MM);
+        let nearer = self.pinhole.focal_baseline / (p.z - OCCLUDED_MARGIN_MM);
         let mut measured = false;
         for y in (v - w)..=(v + w) {
             for &d in &disparity.row(y as usize)[(u - w) as usize..=(u + w) as usize] {
@@ -422,9 +448,8 @@ fn count_seen_through<'a>(
     let (width, height) = (disparity.width as isize, disparity.height as isize);
     let tray_to_camera = (camera.t_world_rectified.inverse() * pose).cast::<f32>();
     let eye = pose.inverse().cast::<f32>() * sensor;
-    let kk = &camera.k;
-    let (fx, fy, cx, cy) = (kk[(0, 0)] as f32, kk[(1, 1)] as f32, kk[(0, 2)] as f32, kk[(1, 2)] as f32);
-    let focal_baseline = (camera.focal() * camera.baseline) as f32;
+    let pinhole = Pinhole::of(camera);
+    let focal_baseline = pinhole.focal_baseline;
     let mut counts = SeeThroughCounts::default();
     for (m, n) in points {
         if n.dot(&(eye - m)) <= 0.0 {
@@ -434,7 +459,7 @@ fn count_seen_through<'a>(
         if p.z <= 1.0 {
             continue;
         }
-        let (u, v) = ((fx * p.x / p.z + cx).round() as isize, (fy * p.y / p.z + cy).round() as isize);
+        let (u, v) = pinhole.pixel(&p);
         if u + WINDOW_PX < 0 || v + WINDOW_PX < 0 || u - WINDOW_PX >= width || v - WINDOW_PX >= height {
             continue;
         }

@@ -158,6 +158,22 @@ pub struct NearMissExcess {
     pub near_misses: usize,
 }
 
+impl std::fmt::Display for NearMissExcess {
+    /// The refusal in words, as the terminal line and the study report give it.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "every pose refused: at {:.3} {} of the {} accepted ({:.1} %) were wrong, {} of them near misses the \
+             score cannot tell from correct poses",
+            self.threshold,
+            self.wrong,
+            self.accepted,
+            100.0 * self.wrong as f64 / self.accepted.max(1) as f64,
+            self.near_misses
+        )
+    }
+}
+
 impl VerifiedSummary {
     /// The threshold chosen for `max_wrong` over `frames` and, where the frames' hard
     /// `negatives` were weighed, raised as far as [`negatives_threshold`] needs; the figures
@@ -244,14 +260,8 @@ impl VerifiedSummary {
         };
         let untold = self.near_misses_untold.map_or(String::new(), |e| {
             format!(
-                "; every pose refused: at threshold {:.3} (the gross wrong poses' limit) {} of the {} accepted \
-                 ({:.1} %) were wrong, {} of them near misses the score cannot tell from correct poses, beyond the \
-                 {:.1} % target (the cell's estimator.verify_max_wrong)",
-                e.threshold,
-                e.wrong,
-                e.accepted,
-                100.0 * e.wrong as f64 / e.accepted.max(1) as f64,
-                e.near_misses,
+                "; {e} (at the gross wrong poses' limit), beyond the {:.1} % target (the cell's \
+                 estimator.verify_max_wrong)",
                 100.0 * self.max_wrong
             )
         });

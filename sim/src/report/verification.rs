@@ -108,14 +108,7 @@ pub fn verification_section(page: &mut HtmlPage, out: &Path, combos: &[Combinati
 
 /// The threshold as the table shows it: the score, or that every pose is refused and why.
 fn threshold_cell(v: &VerifiedSummary) -> String {
-    match v.near_misses_untold {
-        None => format!("{:.3}", v.threshold),
-        Some(e) => format!(
-            "every pose refused: at {:.3} {} of the {} accepted were wrong, {} of them near misses the score \
-             cannot tell apart",
-            e.threshold, e.wrong, e.accepted, e.near_misses
-        ),
-    }
+    v.near_misses_untold.map_or_else(|| format!("{:.3}", v.threshold), |e| e.to_string())
 }
 
 /// The keyed rows of one method's verified figures, each key `METHOD:FIELD` with the field
