@@ -37,7 +37,7 @@ fn pose(c: &mut Criterion) {
             )
             .expect("valid inputs")
     };
-    let mut icp = Icp::new(&params, model.clone()).expect("the synthetic model is usable");
+    let mut icp = Icp::new(&params, model.clone(), testing::SENSOR_DISTANCE).expect("the synthetic model is usable");
     // 2-match samples (the default), then 1-match samples (`ransac_sample = 1`), the turn
     // from the normals, on the same scene.
     let mut one_params = params.clone();
@@ -53,7 +53,10 @@ fn pose(c: &mut Criterion) {
     }
     let [coarse, one_coarse] = found;
     c.bench_function("pose/icp_new", |b| {
-        b.iter(|| Icp::new(&params, std::hint::black_box(model.clone())).expect("the synthetic model is usable"))
+        b.iter(|| {
+            Icp::new(&params, std::hint::black_box(model.clone()), testing::SENSOR_DISTANCE)
+                .expect("the synthetic model is usable")
+        })
     });
     let mut fine = IcpResult::default();
     c.bench_function("pose/icp", |b| {

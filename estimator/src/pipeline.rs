@@ -206,8 +206,11 @@ impl Estimator {
             disparity: crate::FloatImage::new(w, h, f32::INFINITY),
             ..Reconstruction::default()
         };
-        let icp = Icp::new(&params, Arc::clone(&model))?;
-        let verifier = Verifier::for_model(&params, &model, icp.alternatives());
+        // The tray lies about the world's origin: its parts the tray itself hides are found
+        // from the sensor's distance to it.
+        let sight = sensor_position.coords.norm();
+        let icp = Icp::new(&params, Arc::clone(&model), sight)?;
+        let verifier = Verifier::for_model(&params, &model, icp.alternatives(), sight);
         let slots = model.slots.clone().map(SlotJudge::new).transpose()?;
         let stages = Stages {
             verifier,
@@ -483,7 +486,8 @@ impl Stages {
             // The verifier's alternatives are the model's, as ICP's are.
             let alternatives = &self.verifier.turn_parts.alternatives;
             let every = alternatives.every();
-            let counts = self.icp.explained_near_and_apart(self.features.cloud(), &pose, every, reach);
+            let counts =
+                self.icp.explained_near_and_apart(self.features.cloud(), &pose, every, reach, &self.sensor_position);
             let lead = |(own, theirs): (u32, u32)| lead_sigmas(theirs, own);
             // What the camera saw past of the pose's and each turn's distinct parts, taken
             // once. A turn whose parts it saw past, where it did not past the pose's, is no
@@ -495,7 +499,7 @@ impl Stages {
                     // A listed turn is not in the evidence: counted here when the scene's
                     // points favour it.
                     let (own, theirs) = e[k].unwrap_or_else(|| {
-                        turn_see_through(&self.verifier.turn_parts, d, &self.sensor_position, &pose, k)
+                        turn_see_through(&self.model, &self.verifier.turn_parts, d, &self.sensor_position, &pose, k)
                     });
                     turn_favoured(theirs, own)
                 })
@@ -521,6 +525,7 @@ impl Stages {
                         &other.t_world_tray,
                         &[alternatives.inverse_of(k)],
                         reach,
+                        &self.sensor_position,
                     );
                     let (theirs, own) = again.apart[0];
                     if theirs > own {
@@ -544,6 +549,7 @@ impl Stages {
                     let other = self.icp.refine(self.features.cloud(), turned_view, &self.sensor_position, &turned)?;
                     if other.refined {
                         let (theirs, back) = turn_see_through(
+                            model,
                             &self.verifier.turn_parts,
                             depth,
                             &self.sensor_position,

@@ -15,7 +15,7 @@ pub const KEYPOINT_SPACING: f32 = 4.0;
 /// Polar angle of the sensor that built the model's views, deg.
 const VIEW_POLAR_DEG: f32 = 30.0;
 /// Distance of the sensor from the tray origin, mm.
-const SENSOR_DISTANCE: f32 = 800.0;
+pub const SENSOR_DISTANCE: f32 = 800.0;
 
 /// An axis-aligned cuboid `[min, max]` of the tray, tray frame.
 type Cuboid = ([f32; 3], [f32; 3]);
@@ -101,7 +101,7 @@ fn unoccluded(cuboids: &[Cuboid], p: &Point3<f32>, n: &Vector3<f32>, eye: &Point
 }
 
 /// Indices of the surface samples an eye at `eye` (tray frame) sees.
-fn visible(cuboids: &[Cuboid], points: &[Point3<f32>], normals: &[Vector3<f32>], eye: &Point3<f32>) -> Vec<usize> {
+pub fn visible(cuboids: &[Cuboid], points: &[Point3<f32>], normals: &[Vector3<f32>], eye: &Point3<f32>) -> Vec<usize> {
     (0..points.len())
         .filter(|&i| normals[i].dot(&(eye - points[i])) > 0.0 && unoccluded(cuboids, &points[i], &normals[i], eye))
         .collect()

@@ -17,6 +17,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, ErrorKind, Result};
 use crate::pose::alternatives::{Alternatives, MAX_ALTERNATIVES};
+use crate::pose::self_occlusion::{HiddenInViews, Occluder};
 use crate::spatial::NearestGrid;
 use crate::Model;
 
@@ -129,6 +130,9 @@ pub struct Icp {
     /// within `DISTINCT_MARGIN` inlier distances of it: the parts (a tab, a chamfer, a
     /// whole end) where the tray and that alternative to it differ.
     distinct: Vec<u16>,
+    /// Per view, the whole-tray points the tray itself hides from that view's direction:
+    /// no scene point on them counts for a part.
+    hidden: HiddenInViews,
 }
 
 /// How far, in inlier distances, a whole-tray point must lie from the turned tray to tell
@@ -144,7 +148,9 @@ impl std::fmt::Debug for Icp {
 
 impl Icp {
     /// Builds a lookup grid over every view of `model`; fails when a view has too few points.
-    pub fn new(params: &EstimatorParams, model: Arc<Model>) -> Result<Self> {
+    /// `sight` is the sensor's distance from the tray (mm), from which the tray's parts
+    /// hidden by the tray itself are found for each view.
+    pub fn new(params: &EstimatorParams, model: Arc<Model>, sight: f32) -> Result<Self> {
         model.validate()?;
         let mut bounds = Vec::with_capacity(model.views.len());
         for (k, view) in model.views.iter().enumerate() {
@@ -182,7 +188,15 @@ impl Icp {
         );
         let margin = DISTINCT_MARGIN * params.inlier_distance as f32;
         let alternatives = Alternatives::of(&model);
-        let distinct = distinct_parts(&whole_points, model.surface_resolution, margin, &alternatives);
+        let occluder = Occluder::of(&model, sight);
+        let mut distinct = distinct_parts(&whole_points, model.surface_resolution, margin, &alternatives);
+        // A phantom of the capture (smear a view saw past) is no part of the tray's.
+        for (bits, p) in distinct.iter_mut().zip(&whole_points) {
+            if occluder.phantom(p) {
+                *bits = 0;
+            }
+        }
+        let hidden = occluder.hidden(&[&whole_points]).remove(0);
         let capacity = 1 << 15;
         Ok(Icp {
             model,
@@ -190,6 +204,7 @@ impl Icp {
             whole_points,
             whole,
             distinct,
+            hidden,
             whole_bounds,
             iterations: params.icp_iterations,
             max_distance: params.icp_max_distance as f32,
@@ -369,17 +384,23 @@ impl Icp {
         t_world_tray: &Isometry3<f64>,
         which: &[usize],
         reach: f32,
+        sensor: &Point3<f32>,
     ) -> ExplainedCounts {
         let which = &which[..which.len().min(MAX_ALTERNATIVES)];
         let pose = t_world_tray.inverse().cast::<f32>();
+        // The view the sensor sees the tray from at the pose: a distinct part the tray
+        // hides from there holds no evidence, whatever scene points lie on it.
+        let view = self.model.closest_view(t_world_tray, sensor);
         // Per alternative: its pose's inverse, the bit of the pose's own distinct parts
-        // against it and the bit of the alternative's parts against the pose (its inverse).
-        let mut others = [(pose, 0u16, 0u16); MAX_ALTERNATIVES];
+        // against it, the bit of the alternative's parts against the pose (its inverse)
+        // and the view at the alternative.
+        let mut others = [(pose, 0u16, 0u16, view); MAX_ALTERNATIVES];
         let list = self.alternatives.list();
         for (slot, &k) in others.iter_mut().zip(which) {
             let k = k.min(list.len() - 1);
             let back = self.alternatives.inverse_of(k);
-            *slot = ((t_world_tray * list[k].transform()).inverse().cast::<f32>(), 1 << k, 1 << back);
+            let turned = t_world_tray * list[k].transform();
+            *slot = (turned.inverse().cast::<f32>(), 1 << k, 1 << back, self.model.closest_view(&turned, sensor));
         }
         let others = &others[..which.len()];
         let reach2 = reach * reach;
@@ -409,10 +430,13 @@ impl Icp {
                     if q.z <= floor {
                         continue;
                     }
-                    for (apart, (other, own_bit, their_bit)) in counts.apart.iter_mut().zip(others) {
+                    let own = own.filter(|&i| !self.hidden.hidden(view, i));
+                    for (apart, (other, own_bit, their_bit, their_view)) in counts.apart.iter_mut().zip(others) {
                         apart.0 += u32::from(own.is_some_and(|i| self.distinct[i] & own_bit != 0));
                         let theirs = self.explainer(&(other * p), reach2);
-                        apart.1 += u32::from(theirs.is_some_and(|i| self.distinct[i] & their_bit != 0));
+                        let shown =
+                            |i: &usize| self.distinct[*i] & their_bit != 0 && !self.hidden.hidden(*their_view, *i);
+                        apart.1 += u32::from(theirs.is_some_and(|i| shown(&i)));
                     }
                 }
                 counts
@@ -505,7 +529,7 @@ mod tests {
         for seed in 0..8 {
             let mut params = params.clone();
             params.icp_trim = if seed % 2 == 0 { 0.0 } else { 0.1 };
-            let mut icp = Icp::new(&params, model.clone()).unwrap();
+            let mut icp = Icp::new(&params, model.clone(), testing::SENSOR_DISTANCE).unwrap();
             let scene = Scene::generate(&model, false, &SceneSpec { seed, ..SceneSpec::default() });
             let nudge = Isometry3::new(
                 Vector3::new(rng.random_range(-2.5..2.5), rng.random_range(-2.5..2.5), rng.random_range(-1.5..1.5)),
@@ -529,7 +553,7 @@ mod tests {
         let model = Arc::new(testing::tray(false, 1));
         let params = Cell::default().estimator;
         let mut ransac = Ransac::new(&params, model.clone()).unwrap();
-        let mut icp = Icp::new(&params, model.clone()).unwrap();
+        let mut icp = Icp::new(&params, model.clone(), testing::SENSOR_DISTANCE).unwrap();
         for seed in 10..14 {
             let spec =
                 SceneSpec { seed, noise_mm: 0.5, correct_share: 0.5, matches_per_keypoint: 5, ..SceneSpec::default() };
@@ -559,9 +583,9 @@ mod tests {
         let mut params = Cell::default().estimator;
         assert!(!params.icp_on_table, "off by default, as in the paper");
         params.icp_on_table = true;
-        let mut on_table = Icp::new(&params, model.clone()).unwrap();
+        let mut on_table = Icp::new(&params, model.clone(), testing::SENSOR_DISTANCE).unwrap();
         params.icp_on_table = false;
-        let mut free = Icp::new(&params, model.clone()).unwrap();
+        let mut free = Icp::new(&params, model.clone(), testing::SENSOR_DISTANCE).unwrap();
         for seed in 20..24 {
             let spec = SceneSpec { seed, noise_mm: 0.5, ..SceneSpec::default() };
             let scene = Scene::generate(&model, false, &spec);
@@ -586,7 +610,7 @@ mod tests {
     #[test]
     fn too_few_scene_points_keep_the_start() {
         let model = Arc::new(testing::tray(false, 1));
-        let mut icp = Icp::new(&Cell::default().estimator, model.clone()).unwrap();
+        let mut icp = Icp::new(&Cell::default().estimator, model.clone(), testing::SENSOR_DISTANCE).unwrap();
         let start = Isometry3::translation(10.0, 0.0, 0.0);
         let far = [Point3::new(900.0, 900.0, 0.0); 50];
         let out = icp.refine(&far, 0, &Point3::new(0.0, 0.0, 800.0), &start).unwrap();
@@ -620,7 +644,7 @@ mod tests {
                 top_mm: vec![10.0; 16],
             });
             let model = Arc::new(model);
-            let icp = Icp::new(&params, model.clone()).unwrap();
+            let icp = Icp::new(&params, model.clone(), testing::SENSOR_DISTANCE).unwrap();
             let alternatives = icp.alternatives().list();
             // The symmetric tray lists its half turn: shifted, that is a shift, not weighed.
             let shifted_half_turns = if symmetric { 0 } else { 2 };
@@ -661,8 +685,10 @@ mod tests {
         let params = Cell::default().estimator;
         let reach = params.inlier_distance as f32;
         let model = Arc::new(testing::tray(false, 1));
-        let icp = Icp::new(&params, model).unwrap();
+        let icp = Icp::new(&params, model, testing::SENSOR_DISTANCE).unwrap();
         let pose = Isometry3::identity();
+        // Above the tray, on the tab's side: the tab's top in sight.
+        let sensor = Point3::new(400.0, 0.0, 700.0);
         // The table (the tray's bottom plane, a few tenths of a millimetre of noise above
         // it) around both ends' tab places, at half a millimetre.
         let table: Vec<Point3<f32>> = (0..60)
@@ -676,12 +702,12 @@ mod tests {
         // Both tab places hold points the distinct parts would explain, but for the floor.
         let near_tab = table.iter().filter(|p| p.x > 100.0 && p.x < 118.0 && p.y > 13.0 && p.y < 47.0).count();
         assert!(near_tab > 500, "{near_tab}");
-        let apart = icp.explained_near_and_apart(&table, &pose, &[HALF], reach).apart[0];
+        let apart = icp.explained_near_and_apart(&table, &pose, &[HALF], reach, &sensor).apart[0];
         assert_eq!(apart, (0, 0), "the table counted for a part");
         // The tab's top at the pose: its points speak for the pose alone.
         let top: Vec<Point3<f32>> =
             (0..12).flat_map(|i| (0..26).map(move |j| Point3::new(102.0 + i as f32, 17.0 + j as f32, 15.0))).collect();
-        let apart = icp.explained_near_and_apart(&top, &pose, &[HALF], reach).apart[0];
+        let apart = icp.explained_near_and_apart(&top, &pose, &[HALF], reach, &sensor).apart[0];
         // (Those within the margin of the +x wall, which the half turn also has, are not.)
         assert!(apart.1 == 0 && apart.0 as usize * 2 > top.len(), "the tab's top: {apart:?} of {}", top.len());
     }
@@ -697,11 +723,14 @@ mod tests {
         let mut seen = 0;
         for seed in 0..12 {
             let model = Arc::new(testing::tray(false, 1));
-            let icp = Icp::new(&params, model.clone()).unwrap();
+            let icp = Icp::new(&params, model.clone(), testing::SENSOR_DISTANCE).unwrap();
             let scene = Scene::generate(&model, false, &SceneSpec { seed, ..SceneSpec::default() });
-            let right = icp.explained_near_and_apart(&scene.points, &scene.t_world_tray, &[HALF], reach).apart[0];
+            let right = icp
+                .explained_near_and_apart(&scene.points, &scene.t_world_tray, &[HALF], reach, &scene.sensor_position)
+                .apart[0];
             let turned = scene.t_world_tray * half;
-            let wrong = icp.explained_near_and_apart(&scene.points, &turned, &[HALF], reach).apart[0];
+            let wrong =
+                icp.explained_near_and_apart(&scene.points, &turned, &[HALF], reach, &scene.sensor_position).apart[0];
             // Counted from either side, the same points on the same parts.
             assert_eq!(right, (wrong.1, wrong.0), "seed {seed}");
             // The scene points on the tab's outer part (the tab spans x 100..116 mm, y 15..45
@@ -726,9 +755,11 @@ mod tests {
             }
 
             let model = Arc::new(testing::tray(true, 1));
-            let icp = Icp::new(&params, model.clone()).unwrap();
+            let icp = Icp::new(&params, model.clone(), testing::SENSOR_DISTANCE).unwrap();
             let scene = Scene::generate(&model, true, &SceneSpec { seed, ..SceneSpec::default() });
-            let none = icp.explained_near_and_apart(&scene.points, &scene.t_world_tray, &[HALF], reach).apart[0];
+            let none = icp
+                .explained_near_and_apart(&scene.points, &scene.t_world_tray, &[HALF], reach, &scene.sensor_position)
+                .apart[0];
             assert!(none.0 + none.1 <= 2, "seed {seed}: {none:?}");
         }
         // Not vacuous: most scenes show the tab.

@@ -12,6 +12,7 @@ mod model_file;
 mod model_load;
 mod ransac;
 mod see_through;
+mod self_occlusion;
 mod slots;
 mod verify;
 

@@ -11,10 +11,12 @@
 //! matched only in the box where it differs from the background capture; outside it the
 //! sensor saw the empty cell, and the background's depth stands in for the unmatched
 //! pixels, so a turned or shifted pose reaching past the box is judged as one inside it
-//! (a rectangular tray turned a quarter turn stands out of its own box). The model's own
-//! walls need no z-buffer: a model point hidden behind another part of the model is
-//! measured in front of it, never behind, so only a measurement clearly behind the model's
-//! surface counts against the pose.
+//! (a rectangular tray turned a quarter turn stands out of its own box). A model point
+//! hidden behind another part of the model is measured in front of it, never behind, so
+//! only a measurement clearly behind the model's surface counts against the pose; but a
+//! turn's evidence counts only the distinct parts in sight at each pose (`self_occlusion`):
+//! a tab hidden behind the far wall, measured in front of it there, would otherwise read as
+//! a tab the camera saw.
 //!
 //! The same depth answers the coverage's question the other way round ([`Occlusion`]):
 //! whether the sensor could have seen a model point at all, or a nearer surface hid it, or
@@ -23,6 +25,7 @@
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::depth::PixelRegion;
+use crate::pose::self_occlusion::{HiddenInViews, Occluder};
 use crate::pose::Alternatives;
 use crate::spatial::NearestGrid;
 use crate::{FloatImage, Model, RectifiedCamera};
@@ -279,6 +282,9 @@ pub struct TurnParts {
     pub alternatives: Alternatives,
     /// Per alternative, the distinct points (tray frame, mm) and their outward normals.
     pub parts: Vec<SurfacePoints>,
+    /// Per alternative, its distinct points the tray itself hides from each view's
+    /// direction: neither tested against the measured depth at a pose seen from there.
+    pub(crate) hidden: Vec<HiddenInViews>,
 }
 
 /// Surface points (tray frame, mm) and their outward normals, index for index.
@@ -286,9 +292,10 @@ pub type SurfacePoints = (Vec<Point3<f32>>, Vec<Vector3<f32>>);
 
 impl TurnParts {
     /// The distinct parts of `model`'s tray for each of its `alternatives`
-    /// ([`Alternatives::of`] the model; see [`TurnParts`]).
-    pub fn of(model: &Model, alternatives: &Alternatives, margin: f32) -> TurnParts {
-        TurnParts::of_tray_points(model, alternatives, margin, &all_tray_points(model))
+    /// ([`Alternatives::of`] the model; see [`TurnParts`]), and which of them the tray hides
+    /// from each view, seen from `sight` (mm, the sensor's distance from the tray).
+    pub fn of(model: &Model, alternatives: &Alternatives, margin: f32, sight: f32) -> TurnParts {
+        TurnParts::of_tray_points(model, alternatives, margin, sight, &all_tray_points(model))
     }
 
     /// [`TurnParts::of`] from every view's tray points (`all_tray_points` of the model,
@@ -297,6 +304,7 @@ impl TurnParts {
         model: &Model,
         alternatives: &Alternatives,
         margin: f32,
+        sight: f32,
         tray_points: &[Vec<u32>],
     ) -> TurnParts {
         let alternatives = alternatives.clone();
@@ -323,7 +331,8 @@ impl TurnParts {
         }
         if cells.is_empty() {
             let parts = vec![SurfacePoints::default(); alternatives.list().len()];
-            return TurnParts { alternatives, parts };
+            let hidden = vec![HiddenInViews::default(); parts.len()];
+            return TurnParts { alternatives, parts, hidden };
         }
         let whole: Vec<Point3<f32>> = cells.iter().map(|c| c.0).collect();
         let grid = NearestGrid::new(&whole, resolution, margin);
@@ -350,8 +359,10 @@ impl TurnParts {
             }
             views.count_ones() >= 2
         };
+        // Nor are a capture's phantoms, which a view saw past.
+        let occluder = Occluder::of(model, sight);
         let merged: Vec<(Point3<f32>, Vector3<f32>)> =
-            cells.iter().filter(|c| c.2 && supported(&c.0)).map(|c| (c.0, c.1)).collect();
+            cells.iter().filter(|c| c.2 && supported(&c.0) && !occluder.phantom(&c.0)).map(|c| (c.0, c.1)).collect();
         let parts = alternatives
             .list()
             .iter()
@@ -360,8 +371,10 @@ impl TurnParts {
                 let most = if a.about_centre() { TURN_POINTS } else { SHIFTED_POINTS };
                 camplace_config::thinned(&apart, most).map(|&&(m, n)| (m, n)).unzip()
             })
-            .collect();
-        TurnParts { alternatives, parts }
+            .collect::<Vec<SurfacePoints>>();
+        let sets: Vec<&[Point3<f32>]> = parts.iter().map(|(points, _)| points.as_slice()).collect();
+        let hidden = occluder.hidden(&sets);
+        TurnParts { alternatives, parts, hidden }
     }
 }
 
@@ -415,22 +428,33 @@ pub fn see_through(
 /// sees past the turned pose's tab where the tray stands the right way round, whether or
 /// not it sees the tab itself. One thread, no allocation.
 pub fn turn_see_through(
+    model: &Model,
     turn_parts: &TurnParts,
     depth: &DepthEvidence,
     sensor: &Point3<f32>,
     pose: &Isometry3<f64>,
     k: usize,
 ) -> (SeeThroughCounts, SeeThroughCounts) {
-    let (Some(alternative), Some((own_points, own_normals))) =
-        (turn_parts.alternatives.list().get(k), turn_parts.parts.get(k))
+    let back = turn_parts.alternatives.inverse_of(k);
+    let (Some(alternative), Some((own_points, own_normals)), Some((points, normals))) =
+        (turn_parts.alternatives.list().get(k), turn_parts.parts.get(k), turn_parts.parts.get(back))
     else {
         return Default::default();
     };
-    let Some((points, normals)) = turn_parts.parts.get(turn_parts.alternatives.inverse_of(k)) else {
-        return Default::default();
+    // Each side's parts in sight at its pose: a part the tray's own wall hides is measured
+    // in front of it whether or not it is there.
+    let in_sight = |parts: usize, pose: &Isometry3<f64>| {
+        let view = model.closest_view(pose, sensor);
+        let hidden = turn_parts.hidden.get(parts);
+        move |&(i, _): &(usize, _)| !hidden.is_some_and(|h| h.hidden(view, i))
     };
-    let own = count_seen_through(own_points.iter().zip(own_normals), depth, sensor, pose);
-    let other = count_seen_through(points.iter().zip(normals), depth, sensor, &(pose * alternative.transform()));
+    let own_sight = in_sight(k, pose);
+    let own_parts = own_points.iter().zip(own_normals).enumerate().filter(own_sight).map(|(_, pn)| pn);
+    let own = count_seen_through(own_parts, depth, sensor, pose);
+    let turned = pose * alternative.transform();
+    let their_sight = in_sight(back, &turned);
+    let their_parts = points.iter().zip(normals).enumerate().filter(their_sight).map(|(_, pn)| pn);
+    let other = count_seen_through(their_parts, depth, sensor, &turned);
     (own, other)
 }
 
@@ -534,7 +558,7 @@ mod tests {
         let margin = 6.0;
         for symmetric in [false, true] {
             let model = testing::tray(symmetric, 1);
-            let parts = TurnParts::of(&model, &Alternatives::of(&model), margin);
+            let parts = TurnParts::of(&model, &Alternatives::of(&model), margin, testing::SENSOR_DISTANCE);
             let whole: Vec<(usize, Point3<f32>)> =
                 model.views.iter().enumerate().flat_map(|(k, v)| v.points.iter().map(move |p| (k, *p))).collect();
             // A cell's first point stands for the cell: up to a cell's diagonal from another.

@@ -216,9 +216,10 @@ pub struct Verification {
     pub turn_seen: Option<Alternative>,
     /// The camera saw past the distinct parts of the closest unlisted alternative (the one
     /// the turn margin is of) and not past the pose's, by the measure of
-    /// [`Verification::turned_wrong_way`] the other way round: the pose stands against
-    /// that alternative whatever the few scene points on either's parts say (but not
-    /// against [`CONFLICTING_TURN_SIGMAS`] of them).
+    /// [`Verification::turned_wrong_way`] the other way round, on at least
+    /// [`TURN_SEE_THROUGH_ALONE`] of the alternative's and less than that of the pose's:
+    /// the pose stands against that alternative whatever the few scene points on either's
+    /// parts say (but not against [`CONFLICTING_TURN_SIGMAS`] of them).
     pub turn_confirmed: bool,
     /// Neither the pose's distinct parts nor those of the closest unlisted alternative
     /// hold a scene point: nothing tells the two apart but what the camera saw past them
@@ -290,6 +291,18 @@ fn seen_past_more(
     p - q >= min_excess && p - q >= sigmas * deviation
 }
 
+/// Whether the see-through evidence stands a pose against a turn of it, the pose's distinct
+/// parts `own` and the turn's `other`: the camera saw past the turn's more
+/// ([`turn_favoured`] the other way round), on at least [`TURN_SEE_THROUGH_ALONE`] of them,
+/// and past less than that of the pose's own where they were tested. A pose whose own parts
+/// the camera mostly saw past is confirmed against nothing, however much more it saw past
+/// the turn's (a turned tray whose both ends it saw past); nor is a pose whose turn's parts
+/// it saw past on a minority (a real tab in the projector's shadow, a wall's thickness off).
+pub(crate) fn turn_confirmed(own: SeeThroughCounts, other: SeeThroughCounts) -> bool {
+    let own_clear = own.tested < TURN_SEE_THROUGH_MIN_TESTED || own.share() < TURN_SEE_THROUGH_ALONE;
+    turn_favoured(other, own) && own_clear && other.share() >= TURN_SEE_THROUGH_ALONE
+}
+
 /// Whether the see-through evidence of a pose's distinct parts (`own`) against its turn's
 /// (`other`) says the tray stands turned: [`Verification::turned_wrong_way`]. The turn's
 /// parts count as not seen past when too few of them were tested: a telling part the
@@ -328,7 +341,7 @@ impl Verifier {
     /// The settings for `model` under the cell's `params`: the threshold the model carries,
     /// or the cell's `verify_threshold` for a model that carries none. `alternatives` are
     /// the model's ([`crate::pose::Alternatives::of`] it, as ICP holds them).
-    pub fn for_model(params: &EstimatorParams, model: &Model, alternatives: &Alternatives) -> Verifier {
+    pub fn for_model(params: &EstimatorParams, model: &Model, alternatives: &Alternatives, sight: f32) -> Verifier {
         let all_tray = all_tray_points(model);
         let margin = DISTINCT_MARGIN * params.inlier_distance as f32;
         Verifier {
@@ -343,7 +356,7 @@ impl Verifier {
                 .zip(&all_tray)
                 .map(|(view, tray)| bit_mask(view.points.len(), tray))
                 .collect(),
-            turn_parts: TurnParts::of_tray_points(model, alternatives, margin, &all_tray),
+            turn_parts: TurnParts::of_tray_points(model, alternatives, margin, sight, &all_tray),
         }
     }
 
@@ -425,7 +438,7 @@ impl Verifier {
         // explained share.
         let counts = match weighed {
             Some(w) => w.counts,
-            None => icp.explained_near_and_apart(scene_points, pose, icp.alternatives().every(), self.reach),
+            None => icp.explained_near_and_apart(scene_points, pose, icp.alternatives().every(), self.reach, sensor),
         };
         v.explained = if counts.inside == 0 { 0.0 } else { counts.explained as f32 / counts.inside as f32 };
         v.score = (v.coverage * v.explained).clamp(0.0, 1.0);
@@ -442,7 +455,7 @@ impl Verifier {
             }
             // No point on either's parts is no evidence either way (0): the closest of all.
             let sigmas = lead_sigmas(own, other);
-            let confirmed = evidence.and_then(|e| e[k]).is_some_and(|(own, other)| turn_favoured(other, own))
+            let confirmed = evidence.and_then(|e| e[k]).is_some_and(|(own, other)| turn_confirmed(own, other))
                 && sigmas >= -CONFLICTING_TURN_SIGMAS;
             let closer = match closest {
                 None => true,
@@ -492,7 +505,7 @@ impl Verifier {
         let mut out = [None; MAX_ALTERNATIVES];
         let alternatives = self.turn_parts.alternatives.list();
         out.par_iter_mut().zip(alternatives.par_iter()).enumerate().for_each(|(k, (slot, a))| {
-            *slot = (!a.listed(model)).then(|| turn_see_through(&self.turn_parts, depth, sensor, pose, k));
+            *slot = (!a.listed(model)).then(|| turn_see_through(model, &self.turn_parts, depth, sensor, pose, k));
         });
         out
     }
