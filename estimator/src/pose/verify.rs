@@ -216,9 +216,8 @@ pub struct Verification {
     pub turn_seen: Option<Alternative>,
     /// The camera saw past the distinct parts of the closest unlisted alternative (the one
     /// the turn margin is of) and not past the pose's, by the measure of
-    /// [`Verification::turned_wrong_way`] the other way round, on at least
-    /// [`TURN_SEE_THROUGH_ALONE`] of the alternative's and less than that of the pose's:
-    /// the pose stands against that alternative whatever the few scene points on either's
+    /// [`Verification::turned_wrong_way`] the other way round, with less than
+    /// [`TURN_SEE_THROUGH_ALONE`] of the pose's seen past: the pose stands against that alternative whatever the few scene points on either's
     /// parts say (but not against [`CONFLICTING_TURN_SIGMAS`] of them).
     pub turn_confirmed: bool,
     /// Neither the pose's distinct parts nor those of the closest unlisted alternative
@@ -293,14 +292,13 @@ fn seen_past_more(
 
 /// Whether the see-through evidence stands a pose against a turn of it, the pose's distinct
 /// parts `own` and the turn's `other`: the camera saw past the turn's more
-/// ([`turn_favoured`] the other way round), on at least [`TURN_SEE_THROUGH_ALONE`] of them,
-/// and past less than that of the pose's own where they were tested. A pose whose own parts
-/// the camera mostly saw past is confirmed against nothing, however much more it saw past
-/// the turn's (a turned tray whose both ends it saw past); nor is a pose whose turn's parts
-/// it saw past on a minority (a real tab in the projector's shadow, a wall's thickness off).
+/// ([`turn_favoured`] the other way round), and past less than [`TURN_SEE_THROUGH_ALONE`]
+/// of the pose's own where they were tested. A pose whose own parts the camera mostly saw
+/// past is confirmed against nothing, however much more it saw past the turn's (a turned
+/// tray whose both ends it saw past).
 pub(crate) fn turn_confirmed(own: SeeThroughCounts, other: SeeThroughCounts) -> bool {
     let own_clear = own.tested < TURN_SEE_THROUGH_MIN_TESTED || own.share() < TURN_SEE_THROUGH_ALONE;
-    turn_favoured(other, own) && own_clear && other.share() >= TURN_SEE_THROUGH_ALONE
+    turn_favoured(other, own) && own_clear
 }
 
 /// Whether the see-through evidence of a pose's distinct parts (`own`) against its turn's
