@@ -180,7 +180,10 @@ fn tolerances_are_paired_tests_walked_out_and_resume_without_a_scene() {
 /// left 4 of 6 lost there, 5 at −325 and 2 at −360); on 8 scenes both walks find −305 mm.
 /// It keeps the model of 6 viewpoints and the untrimmed ICP: with the default 12 and a
 /// trimmed ICP fewer of the 8 scenes are lost past the edge (4 at −400 mm, p = 0.06), so
-/// the walk finds no drop inside its ±400 mm to compare.
+/// the walk finds no drop inside its ±400 mm to compare. Since the turn check counts only
+/// the parts in sight at each pose, the 8 scenes' success dips at −265 mm and recovers
+/// until −300 mm, where the walk finds its edge, having stepped over the dip: the test
+/// holds the two walks to the same edge only on a profile that falls off monotonically.
 const NARROW_CELL: &str = "[sensor]\ncamera_resolution = [320, 240]\ncamera_hfov = 24.0\n\n\
                            [estimator]\nransac_iterations = 2000\npose_on_table = false\n\
                            model_viewpoints = 6\nicp_trim = 0.0\n";
@@ -213,11 +216,12 @@ fn an_edge_inside_the_range_is_found_as_a_walk_in_single_steps_finds_it() {
     let r = &report.axes[0];
     assert_eq!(r.minus_end, WalkEnd::Drop, "the edge lies inside the range: {}", report.table());
     // The oracle: every 5 mm from the nominal inwards, each evaluated on the same scenes
-    // (into the same folder: scenes already there are not run again), until the paired
-    // test first shows a drop.
+    // (into the same folder: scenes already there are not run again), out to one step past
+    // the walk's edge; a step is inside while the paired test shows no drop.
     let nominal = outcomes(&d.join("tol/results.jsonl"))[placement].clone();
-    let mut fine_edge = None;
-    for k in 1..=r.minus_range.abs() as u64 / 5 {
+    let steps = (r.minus / 5.0).round() as u64 + 1;
+    let mut profile = Vec::new();
+    for k in 1..=steps.min(r.minus_range.abs() as u64 / 5) {
         let p = moved(placement, "r", 800.0, -5.0 * k as f64);
         let o = camplace(
             d,
@@ -237,18 +241,33 @@ fn an_edge_inside_the_range_is_found_as_a_walk_in_single_steps_finds_it() {
         );
         assert!(o.status.success(), "{}", stderr(&o));
         let (_, _, p_value) = paired(&nominal, &outcomes(&d.join("tol/results.jsonl"))[&p]);
-        if p_value < 0.05 {
-            fine_edge = Some(5.0 * (k - 1) as f64);
-            break;
-        }
+        profile.push(p_value >= 0.05);
     }
-    let fine_edge = fine_edge.expect("the single-step walk finds a drop");
+    let first_drop = profile.iter().position(|inside| !inside).expect("the single-step walk finds a drop");
+    let fine_edge = 5.0 * first_drop as f64;
+    let shown = |profile: &[bool]| profile.iter().map(|&i| if i { 'i' } else { 'o' }).collect::<String>();
+    // A walk in growing steps never stops before the first drop a walk in single steps meets.
     assert!(
-        (r.minus - fine_edge).abs() <= r.resolution,
+        fine_edge <= r.minus + r.resolution,
         "walk {} mm, single steps {fine_edge} mm: {}",
         r.minus,
         report.table()
     );
+    // Where success falls off monotonically (no step inside past the first drop, up to the
+    // walk's edge) both find the same edge; where it dips and recovers, the walk may step
+    // over the dip, and then the edge it reports is still an edge of the profile.
+    if profile[first_drop..].iter().all(|inside| !inside) {
+        assert!(
+            (r.minus - fine_edge).abs() <= r.resolution,
+            "walk {} mm, single steps {fine_edge} mm: {}",
+            r.minus,
+            report.table()
+        );
+    } else {
+        let at = |mm: f64| profile[(mm / 5.0).round() as usize - 1];
+        assert!(at(r.minus) && !at(r.minus + 5.0), "walk {} mm, profile {}", r.minus, shown(&profile));
+        eprintln!("the profile dips and recovers: {} (i inside, o outside, 5 mm a step)", shown(&profile));
+    }
     assert!(fine_edge > 0.0 && fine_edge < 795.0, "an edge inside the range: {fine_edge}");
 }
 
