@@ -367,7 +367,9 @@ impl Icp {
     /// tray's bounding box at the pose grown by `reach`, how many the tray explains, and
     /// (2) for each of the alternatives `which` (indices into [`Icp::alternatives`], at most
     /// `MAX_ALTERNATIVES`), the points the pose's distinct parts explain against those the
-    /// alternative's distinct parts explain.
+    /// alternative's distinct parts explain; a distinct part counts only where it is in
+    /// sight from `sensor` (world) at its own pose and no phantom of the capture
+    /// (`pose/self_occlusion.rs`).
     ///
     /// Scene points beside the tray are no evidence either way; inside its box, each is
     /// either the tray's surface or something where the model says there is free space.
