@@ -208,9 +208,11 @@ impl Estimator {
         };
         // The tray lies about the world's origin: its parts the tray itself hides are found
         // from the sensor's distance to it.
-        let sight = sensor_position.coords.norm();
-        let icp = Icp::new(&params, Arc::clone(&model), sight)?;
-        let verifier = Verifier::for_model(&params, &model, icp.alternatives(), sight);
+        // One occluder serves both.
+        model.validate()?;
+        let occluder = crate::pose::Occluder::of(&model, sensor_position.coords.norm());
+        let icp = Icp::with_occluder(&params, Arc::clone(&model), &occluder)?;
+        let verifier = Verifier::with_occluder(&params, &model, icp.alternatives(), &occluder);
         let slots = model.slots.clone().map(SlotJudge::new).transpose()?;
         let stages = Stages {
             verifier,

@@ -152,6 +152,14 @@ impl Icp {
     /// hidden by the tray itself are found for each view.
     pub fn new(params: &EstimatorParams, model: Arc<Model>, sight: f32) -> Result<Self> {
         model.validate()?;
+        let occluder = Occluder::of(&model, sight);
+        Icp::with_occluder(params, model, &occluder)
+    }
+
+    /// [`Icp::new`] with the model's occluder already built (the pipeline builds it once for
+    /// ICP and the verifier).
+    pub(crate) fn with_occluder(params: &EstimatorParams, model: Arc<Model>, occluder: &Occluder) -> Result<Self> {
+        model.validate()?;
         let mut bounds = Vec::with_capacity(model.views.len());
         for (k, view) in model.views.iter().enumerate() {
             if view.points.len() < MIN_PAIRS {
@@ -188,7 +196,6 @@ impl Icp {
         );
         let margin = DISTINCT_MARGIN * params.inlier_distance as f32;
         let alternatives = Alternatives::of(&model);
-        let occluder = Occluder::of(&model, sight);
         let mut distinct = distinct_parts(&whole_points, model.surface_resolution, margin, &alternatives);
         // A phantom of the capture (smear a view saw past) is no part of the tray's.
         for (bits, p) in distinct.iter_mut().zip(&whole_points) {

@@ -27,6 +27,7 @@ pub(crate) use see_through::turn_see_through;
 pub use see_through::{
     see_through, slot_pitches, tray_points, DepthEvidence, SeeThroughCounts, OCCLUDED_MARGIN_MM, SEE_THROUGH_MARGIN_MM,
 };
+pub(crate) use self_occlusion::Occluder;
 pub use slots::{
     slot_letters, SlotJudge, SlotLayout, SlotReading, SlotState, EDGE_CELL, FLOOR_TOLERANCE_MM, MAX_FOOTPRINT_CELLS,
     MAX_MISMATCH_SHARE, MIN_SEEN_SHARE,

@@ -25,7 +25,8 @@
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::depth::PixelRegion;
-use crate::pose::self_occlusion::{HiddenInViews, Occluder};
+use crate::pose::self_occlusion::HiddenInViews;
+use crate::pose::self_occlusion::Occluder;
 use crate::pose::Alternatives;
 use crate::spatial::NearestGrid;
 use crate::{FloatImage, Model, RectifiedCamera};
@@ -295,7 +296,7 @@ impl TurnParts {
     /// ([`Alternatives::of`] the model; see [`TurnParts`]), and which of them the tray hides
     /// from each view, seen from `sight` (mm, the sensor's distance from the tray).
     pub fn of(model: &Model, alternatives: &Alternatives, margin: f32, sight: f32) -> TurnParts {
-        TurnParts::of_tray_points(model, alternatives, margin, sight, &all_tray_points(model))
+        TurnParts::of_tray_points(model, alternatives, margin, &Occluder::of(model, sight), &all_tray_points(model))
     }
 
     /// [`TurnParts::of`] from every view's tray points (`all_tray_points` of the model,
@@ -304,7 +305,7 @@ impl TurnParts {
         model: &Model,
         alternatives: &Alternatives,
         margin: f32,
-        sight: f32,
+        occluder: &Occluder,
         tray_points: &[Vec<u32>],
     ) -> TurnParts {
         let alternatives = alternatives.clone();
@@ -360,7 +361,6 @@ impl TurnParts {
             views.count_ones() >= 2
         };
         // Nor are a capture's phantoms, which a view saw past.
-        let occluder = Occluder::of(model, sight);
         let merged: Vec<(Point3<f32>, Vector3<f32>)> =
             cells.iter().filter(|c| c.2 && supported(&c.0) && !occluder.phantom(&c.0)).map(|c| (c.0, c.1)).collect();
         let parts = alternatives

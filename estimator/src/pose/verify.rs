@@ -47,6 +47,7 @@ use crate::pose::see_through::{
     all_tray_points, see_through, slot_pitches, thin_tray_points, turn_see_through, DepthEvidence, SeeThroughCounts,
     Sight, TurnParts,
 };
+use crate::pose::self_occlusion::Occluder;
 use crate::spatial::SceneGrid;
 use crate::{Icp, Model};
 
@@ -340,6 +341,17 @@ impl Verifier {
     /// or the cell's `verify_threshold` for a model that carries none. `alternatives` are
     /// the model's ([`crate::pose::Alternatives::of`] it, as ICP holds them).
     pub fn for_model(params: &EstimatorParams, model: &Model, alternatives: &Alternatives, sight: f32) -> Verifier {
+        Verifier::with_occluder(params, model, alternatives, &Occluder::of(model, sight))
+    }
+
+    /// [`Verifier::for_model`] with the model's occluder already built (the pipeline builds
+    /// it once for ICP and the verifier).
+    pub(crate) fn with_occluder(
+        params: &EstimatorParams,
+        model: &Model,
+        alternatives: &Alternatives,
+        occluder: &Occluder,
+    ) -> Verifier {
         let all_tray = all_tray_points(model);
         let margin = DISTINCT_MARGIN * params.inlier_distance as f32;
         Verifier {
@@ -354,7 +366,7 @@ impl Verifier {
                 .zip(&all_tray)
                 .map(|(view, tray)| bit_mask(view.points.len(), tray))
                 .collect(),
-            turn_parts: TurnParts::of_tray_points(model, alternatives, margin, sight, &all_tray),
+            turn_parts: TurnParts::of_tray_points(model, alternatives, margin, occluder, &all_tray),
         }
     }
 
