@@ -352,11 +352,16 @@ fn a_quarter_turn_reaching_past_the_matched_box_is_judged_on_the_background() {
         let turned = scene.t_world_tray * quarter;
         let judged = estimator.verify(&turned).see_through;
         let camera = estimator.rectified_camera().clone();
-        let in_box = DepthEvidence { disparity: &estimator.reconstruction().disparity, camera: &camera, beyond: None };
+        let in_box = DepthEvidence {
+            disparity: &estimator.reconstruction().disparity,
+            camera: &camera,
+            beyond: None,
+            holes_unlit: false,
+        };
         let box_only = see_through(estimator.model(), &points, &in_box, &sensor, &turned);
         let (whole, _) = estimator.whole_disparity().unwrap();
         let whole = whole.clone();
-        let oracle = DepthEvidence { disparity: &whole, camera: &camera, beyond: None };
+        let oracle = DepthEvidence { disparity: &whole, camera: &camera, beyond: None, holes_unlit: false };
         let oracle = see_through(estimator.model(), &points, &oracle, &sensor, &turned);
         eprintln!(
             "scene {i}: quarter turn tested {} seen past {:.3} (whole image: {} {:.3}; the box alone: {} {:.3})",

@@ -169,13 +169,19 @@ impl std::fmt::Debug for Estimator {
 }
 
 /// The last stereo frame's measured depth, as the verification reads it: where the frame
-/// was matched in part only, the background's depth outside that part.
+/// was matched in part only, the background's depth outside that part; a phase-12 frame's
+/// holes are pixels the projector did not light.
 fn depth_evidence<'a>(reconstruction: &'a Reconstruction, reconstructor: &'a Reconstructor) -> DepthEvidence<'a> {
     let beyond = match reconstructor.background() {
         Some(background) if !reconstructor.matched_whole() => Some((reconstructor.last_region(), background.depth())),
         _ => None,
     };
-    DepthEvidence { disparity: &reconstruction.disparity, camera: &reconstructor.rectification().camera, beyond }
+    DepthEvidence {
+        disparity: &reconstruction.disparity,
+        camera: &reconstructor.rectification().camera,
+        beyond,
+        holes_unlit: reconstructor.method() == Method::Phase12,
+    }
 }
 
 fn ms(t: Instant) -> f64 {

@@ -79,6 +79,10 @@ pub struct DepthEvidence<'a> {
     /// Where `disparity` was matched, when only part of the frame was, and the background's
     /// depth (mm, [`crate::depth::Background::depth`]) that stands in outside it.
     pub beyond: Option<(PixelRegion, &'a FloatImage)>,
+    /// An unmeasured pixel in a measured row is one the projector did not light: the phase
+    /// decoder's (too little fringe contrast), where the surface may stand unseen. The
+    /// one-shot matcher leaves holes wherever a match is not unique, lit or not.
+    pub holes_unlit: bool,
 }
 
 impl DepthEvidence<'_> {
@@ -99,6 +103,25 @@ impl DepthEvidence<'_> {
         let background_nearest = depth[lo..a].iter().chain(&depth[b..hi]).copied().fold(f32::INFINITY, f32::min);
         // Unmeasured background (+inf depth) gives 0.
         nearest_measured(&row[a..b]).max(focal_baseline / background_nearest)
+    }
+}
+
+impl DepthEvidence<'_> {
+    /// Whether row `y` holds, in columns `lo..hi` of the matched region, both a measured
+    /// and an unmeasured pixel: a gap in a row the matcher measured (a row it skipped, or
+    /// one outside the matched region, holds none).
+    #[inline]
+    fn gap_in_row(&self, y: usize, lo: usize, hi: usize) -> bool {
+        let (a, b) = match self.beyond {
+            None => (lo, hi),
+            Some((region, _)) if (region.y0..region.y1).contains(&y) => {
+                let a = region.x0.clamp(lo, hi);
+                (a, region.x1.clamp(a, hi))
+            }
+            Some(_) => return false,
+        };
+        let row = &self.disparity.row(y)[a..b];
+        row.iter().any(|d| d.is_finite()) && row.iter().any(|d| !d.is_finite())
     }
 }
 
@@ -420,13 +443,14 @@ pub fn see_through(
     let k = model.closest_view(pose, sensor);
     let (view, indices) = (&model.views[k], tray_points.get(k).map_or(&[][..], Vec::as_slice));
     let points = indices.iter().map(|&i| (&view.points[i as usize], &view.normals[i as usize]));
-    count_seen_through(points, depth, sensor, pose)
+    count_seen_through(points, depth, sensor, pose, false)
 }
 
 /// The see-through counts of the pose and of its alternative `k` (an index into
 /// `turn_parts.alternatives`), each over its own parts that the other lacks: the camera
 /// sees past the turned pose's tab where the tray stands the right way round, whether or
-/// not it sees the tab itself. One thread, no allocation.
+/// not it sees the tab itself. A view past a part counts only where the part's whole
+/// window was measured (`count_seen_through`). One thread, no allocation.
 pub fn turn_see_through(
     model: &Model,
     turn_parts: &TurnParts,
@@ -450,22 +474,32 @@ pub fn turn_see_through(
     };
     let own_sight = in_sight(k, pose);
     let own_parts = own_points.iter().zip(own_normals).enumerate().filter(own_sight).map(|(_, pn)| pn);
-    let own = count_seen_through(own_parts, depth, sensor, pose);
+    let own = count_seen_through(own_parts, depth, sensor, pose, true);
     let turned = pose * alternative.transform();
     let their_sight = in_sight(back, &turned);
     let their_parts = points.iter().zip(normals).enumerate().filter(their_sight).map(|(_, pn)| pn);
-    let other = count_seen_through(their_parts, depth, sensor, &turned);
+    let other = count_seen_through(their_parts, depth, sensor, &turned, true);
     (own, other)
 }
 
 /// The see-through counts of the model points `points` (tray frame, with their normals)
 /// at `pose`: those facing the sensor that fall on a measured pixel, and of them those the
-/// sensor measured clearly behind.
+/// sensor measured clearly behind. With `whole_windows` (a turn's distinct parts) and
+/// holes that mean an unlit pixel ([`DepthEvidence::holes_unlit`]), a point the sensor
+/// measured behind counts, as tested and seen past, only where every pixel of its window
+/// was measured, rows the matcher skipped aside: an unmeasured pixel beside it may be the
+/// surface itself, in the projector's shadow, and the lit table next to it no view past
+/// it. A low tab beside a wall's shadow is where this happens, and its few points decide
+/// a turn; the tray's whole surface, weighed against itself a slot's pitch away, keeps
+/// every measured window. (Applied to a one-shot frame, whose holes are everywhere, the
+/// same rule takes away real views past a turned tab: on the example tray, one shot at
+/// r=605, alpha=32, 300 scenes, two more half turns were accepted.)
 fn count_seen_through<'a>(
     points: impl Iterator<Item = (&'a Point3<f32>, &'a Vector3<f32>)>,
     depth: &DepthEvidence,
     sensor: &Point3<f32>,
     pose: &Isometry3<f64>,
+    whole_windows: bool,
 ) -> SeeThroughCounts {
     let camera = depth.camera;
     let disparity = depth.disparity;
@@ -495,8 +529,16 @@ fn count_seen_through<'a>(
         if nearest <= 0.0 {
             continue;
         }
+        let past = focal_baseline / nearest > p.z + SEE_THROUGH_MARGIN_MM;
+        if past
+            && whole_windows
+            && depth.holes_unlit
+            && ((v - WINDOW_PX).max(0)..=(v + WINDOW_PX).min(height - 1)).any(|y| depth.gap_in_row(y as usize, lo, hi))
+        {
+            continue;
+        }
         counts.tested += 1;
-        if focal_baseline / nearest > p.z + SEE_THROUGH_MARGIN_MM {
+        if past {
             counts.seen_through += 1;
         }
     }
@@ -599,6 +641,49 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A point 10 mm in front of a table at 1000 mm, straight ahead of a camera at the
+    /// origin (f = 500 px, baseline 100 mm: the table at 50 px), judged in a turn's count
+    /// (`whole_windows`) and in the tray's: the table measured all round it is a view past
+    /// it; a gap in its window (the surface itself unmeasured, in the projector's shadow)
+    /// is no evidence in the turn's count, though the tray's count, which takes the nearest
+    /// measured pixel, still calls it seen past; a row the matcher skipped is no gap; the
+    /// surface measured in the window is no view past it.
+    #[test]
+    fn a_view_past_a_turns_part_needs_its_whole_window_measured() {
+        let (w, h) = (41, 41);
+        let camera = RectifiedCamera {
+            width: w,
+            height: h,
+            k: nalgebra::Matrix3::new(500.0, 0.0, 20.0, 0.0, 500.0, 20.0, 0.0, 0.0, 1.0),
+            baseline: 100.0,
+            t_world_rectified: Isometry3::identity(),
+        };
+        let (table, surface) = (50.0f32, 50_000.0 / 990.0);
+        let point = [(Point3::new(0.0f32, 0.0, 990.0), Vector3::new(0.0f32, 0.0, -1.0))];
+        let count = |disparity: &FloatImage, whole_windows: bool| {
+            let depth = DepthEvidence { disparity, camera: &camera, beyond: None, holes_unlit: true };
+            let points = point.iter().map(|(p, n)| (p, n));
+            count_seen_through(points, &depth, &Point3::origin(), &Isometry3::identity(), whole_windows)
+        };
+        let seen_past = SeeThroughCounts { tested: 1, seen_through: 1 };
+        let not_past = SeeThroughCounts { tested: 1, seen_through: 0 };
+        let mut all_table = FloatImage::new(w, h, table);
+        assert_eq!(count(&all_table, true), seen_past);
+        // The rows above and below skipped, as the one-shot matcher skips every other row.
+        for y in [19, 21] {
+            all_table.row_mut(y).fill(f32::INFINITY);
+        }
+        assert_eq!(count(&all_table, true), seen_past);
+        let mut shadowed = FloatImage::new(w, h, table);
+        shadowed.set(20, 20, f32::INFINITY);
+        assert_eq!(count(&shadowed, true), SeeThroughCounts::default());
+        assert_eq!(count(&shadowed, false), seen_past);
+        let mut measured = FloatImage::new(w, h, table);
+        measured.set(21, 20, surface);
+        assert_eq!(count(&measured, true), not_past);
+        assert_eq!(count(&measured, false), not_past);
     }
 
     fn model_with_slots(slots: Vec<[f64; 4]>) -> Model {
