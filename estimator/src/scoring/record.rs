@@ -246,7 +246,7 @@ impl SlotRecord {
 }
 
 /// A frame's slot states against the truth's filled slots.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct SlotScore {
     /// Slots judged.
     pub slots: u32,
@@ -262,6 +262,9 @@ pub struct SlotScore {
     /// The largest angle of a truly filled slot's frame from its true orientation, deg.
     #[serde(default)]
     pub grasp_error_deg: f64,
+    /// Each truly filled slot's frame error (mm, deg), in the slots' order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub grasp_errors: Vec<[f64; 2]>,
 }
 
 impl SlotScore {
@@ -280,8 +283,10 @@ impl SlotScore {
             let Some(r) = readings.get(n) else { continue };
             let want = to_truth * r.t_world_slot;
             let d = want.inverse() * r.t_world_slot;
-            s.grasp_error_mm = s.grasp_error_mm.max(d.translation.vector.norm());
-            s.grasp_error_deg = s.grasp_error_deg.max(d.rotation.angle().to_degrees());
+            let (mm, deg) = (d.translation.vector.norm(), d.rotation.angle().to_degrees());
+            s.grasp_error_mm = s.grasp_error_mm.max(mm);
+            s.grasp_error_deg = s.grasp_error_deg.max(deg);
+            s.grasp_errors.push([mm, deg]);
         }
         for (n, r) in readings.iter().enumerate() {
             match (r.state, filled.contains(&n)) {
@@ -384,7 +389,14 @@ mod tests {
         let s = SlotScore::of(&r, &[0, 2, 3], &same, &same);
         assert_eq!(
             s,
-            SlotScore { slots: 5, filled_called_empty: 1, empty_called_filled: 1, unseen: 1, ..SlotScore::default() },
+            SlotScore {
+                slots: 5,
+                filled_called_empty: 1,
+                empty_called_filled: 1,
+                unseen: 1,
+                grasp_errors: vec![[0.0, 0.0]; 3],
+                ..SlotScore::default()
+            },
             "slot 3 is filled but called empty, slot 4 empty but called filled"
         );
         assert_eq!(s.wrong(), 2);
@@ -396,6 +408,7 @@ mod tests {
         let s = SlotScore::of(&r, &[0], &same, &truth);
         let want = (truth * nalgebra::Point3::new(0.0, 40.0, 0.0) - nalgebra::Point3::new(0.0, 40.0, 0.0)).norm();
         assert!((s.grasp_error_mm - want).abs() < 1e-9 && (s.grasp_error_deg - 0.5).abs() < 1e-9, "{s:?}");
+        assert_eq!(s.grasp_errors, [[s.grasp_error_mm, s.grasp_error_deg]]);
         let pose = PoseEstimate { found: true, ..Default::default() };
         let record = FrameRecord::new("0001", &pose).with_slots(&r);
         let back: FrameRecord = serde_json::from_str(&record.to_line()).unwrap();

@@ -156,13 +156,19 @@ pub struct SlotSummary {
     /// and deg.
     pub median_grasp_error_mm: Option<f64>,
     pub median_grasp_error_deg: Option<f64>,
+    /// Median over every truly filled slot of the accepted, correct poses of its grasp
+    /// frame's error, mm and deg.
+    #[serde(default)]
+    pub median_slot_grasp_error_mm: Option<f64>,
+    #[serde(default)]
+    pub median_slot_grasp_error_deg: Option<f64>,
 }
 
 impl SlotSummary {
     /// Sums up the slot scores of `records`' accepted poses; `None` when none has one.
     pub fn of(records: &[FrameRecord]) -> Option<SlotSummary> {
-        let scored: Vec<(&FrameRecord, SlotScore)> =
-            records.iter().filter(|r| r.accepted()).filter_map(|r| r.slot_score.map(|s| (r, s))).collect();
+        let scored: Vec<(&FrameRecord, &SlotScore)> =
+            records.iter().filter(|r| r.accepted()).filter_map(|r| r.slot_score.as_ref().map(|s| (r, s))).collect();
         if scored.is_empty() {
             return None;
         }
@@ -172,6 +178,9 @@ impl SlotSummary {
         let correct = || scored.iter().filter(|(r, _)| r.score.is_some_and(|s| s.success));
         let mm: Vec<f64> = correct().map(|(_, s)| s.grasp_error_mm).collect();
         let deg: Vec<f64> = correct().map(|(_, s)| s.grasp_error_deg).collect();
+        let each = || correct().flat_map(|(_, s)| s.grasp_errors.iter());
+        let slot_mm: Vec<f64> = each().map(|e| e[0]).collect();
+        let slot_deg: Vec<f64> = each().map(|e| e[1]).collect();
         let share = |n: u64| if slots == 0 { 0.0 } else { n as f64 / slots as f64 };
         Some(SlotSummary {
             frames: scored.len(),
@@ -182,6 +191,8 @@ impl SlotSummary {
             unseen_share: share(unseen),
             median_grasp_error_mm: median(&mm),
             median_grasp_error_deg: median(&deg),
+            median_slot_grasp_error_mm: median(&slot_mm),
+            median_slot_grasp_error_deg: median(&slot_deg),
         })
     }
 
@@ -196,7 +207,7 @@ impl SlotSummary {
     pub fn line(&self) -> String {
         let opt = |v: Option<f64>, unit: &str| v.map_or("n/a".to_string(), |v| format!("{v:.2} {unit}"));
         format!(
-            "slots of {} accepted poses: {} wrong filled/empty of {} ({:.2} %), {} unseen ({:.1} %), median grasp error {} / {}",
+            "slots of {} accepted poses: {} wrong filled/empty of {} ({:.2} %), {} unseen ({:.1} %), median grasp error {} / {} (a frame's worst slot), {} / {} (each filled slot)",
             self.frames,
             self.wrong,
             self.slots,
@@ -205,6 +216,8 @@ impl SlotSummary {
             100.0 * self.unseen_share,
             opt(self.median_grasp_error_mm, "mm"),
             opt(self.median_grasp_error_deg, "deg"),
+            opt(self.median_slot_grasp_error_mm, "mm"),
+            opt(self.median_slot_grasp_error_deg, "deg"),
         )
     }
 }
