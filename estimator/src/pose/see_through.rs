@@ -104,9 +104,7 @@ impl DepthEvidence<'_> {
         // Unmeasured background (+inf depth) gives 0.
         nearest_measured(&row[a..b]).max(focal_baseline / background_nearest)
     }
-}
 
-impl DepthEvidence<'_> {
     /// Whether row `y` holds, in columns `lo..hi` of the matched region, both a measured
     /// and an unmeasured pixel: a gap in a row the matcher measured (a row it skipped, or
     /// one outside the matched region, holds none).
@@ -449,8 +447,9 @@ pub fn see_through(
 /// The see-through counts of the pose and of its alternative `k` (an index into
 /// `turn_parts.alternatives`), each over its own parts that the other lacks: the camera
 /// sees past the turned pose's tab where the tray stands the right way round, whether or
-/// not it sees the tab itself. A view past a part counts only where the part's whole
-/// window was measured (`count_seen_through`). One thread, no allocation.
+/// not it sees the tab itself. On a frame whose holes are unlit pixels (phase-12), a view
+/// past a part counts only where the part's whole window was measured
+/// (`count_seen_through`). One thread, no allocation.
 pub fn turn_see_through(
     model: &Model,
     turn_parts: &TurnParts,
