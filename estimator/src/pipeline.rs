@@ -213,9 +213,8 @@ impl Estimator {
             ..Reconstruction::default()
         };
         // The tray lies about the world's origin: its parts the tray itself hides are found
-        // from the sensor's distance to it.
-        // One occluder serves both.
-        model.validate()?;
+        // from the sensor's distance to it, once for ICP and the verifier (the model was
+        // validated above).
         let occluder = crate::pose::Occluder::of(&model, sensor_position.coords.norm());
         let icp = Icp::with_occluder(&params, Arc::clone(&model), &occluder)?;
         let verifier = Verifier::with_occluder(&params, &model, icp.alternatives(), &occluder);

@@ -156,10 +156,9 @@ impl Icp {
         Icp::with_occluder(params, model, &occluder)
     }
 
-    /// [`Icp::new`] with the model's occluder already built (the pipeline builds it once for
-    /// ICP and the verifier).
+    /// [`Icp::new`] with the model already validated and its occluder built (the pipeline
+    /// builds it once for ICP and the verifier).
     pub(crate) fn with_occluder(params: &EstimatorParams, model: Arc<Model>, occluder: &Occluder) -> Result<Self> {
-        model.validate()?;
         let mut bounds = Vec::with_capacity(model.views.len());
         for (k, view) in model.views.iter().enumerate() {
             if view.points.len() < MIN_PAIRS {

@@ -25,8 +25,7 @@
 use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::depth::PixelRegion;
-use crate::pose::self_occlusion::HiddenInViews;
-use crate::pose::self_occlusion::Occluder;
+use crate::pose::self_occlusion::{HiddenInViews, Occluder};
 use crate::pose::Alternatives;
 use crate::spatial::NearestGrid;
 use crate::{FloatImage, Model, RectifiedCamera};
@@ -86,38 +85,41 @@ pub struct DepthEvidence<'a> {
 }
 
 impl DepthEvidence<'_> {
-    /// The largest disparity (the nearest surface) measured in columns `lo..hi` of row `y`,
-    /// or seen there as the background outside the matched region; 0 when none.
+    /// The columns of `lo..hi` in row `y` that `disparity` holds a match for: all of them
+    /// when the frame was matched whole, those inside the matched region otherwise (none on
+    /// a row outside it).
     #[inline]
-    fn nearest_in_row(&self, y: usize, lo: usize, hi: usize, focal_baseline: f32) -> f32 {
-        let row = self.disparity.row(y);
-        let Some((region, background)) = self.beyond else { return nearest_measured(&row[lo..hi]) };
-        // The columns inside the region (none on a row outside it), and the background on
-        // either side of them.
-        let (mut a, mut b) = (lo, lo);
-        if (region.y0..region.y1).contains(&y) {
-            a = region.x0.clamp(lo, hi);
-            b = region.x1.clamp(a, hi);
-        }
-        let depth = background.row(y);
-        let background_nearest = depth[lo..a].iter().chain(&depth[b..hi]).copied().fold(f32::INFINITY, f32::min);
-        // Unmeasured background (+inf depth) gives 0.
-        nearest_measured(&row[a..b]).max(focal_baseline / background_nearest)
-    }
-
-    /// Whether row `y` holds, in columns `lo..hi` of the matched region, both a measured
-    /// and an unmeasured pixel: a gap in a row the matcher measured (a row it skipped, or
-    /// one outside the matched region, holds none).
-    #[inline]
-    fn gap_in_row(&self, y: usize, lo: usize, hi: usize) -> bool {
-        let (a, b) = match self.beyond {
+    fn matched_columns(&self, y: usize, lo: usize, hi: usize) -> (usize, usize) {
+        match self.beyond {
             None => (lo, hi),
             Some((region, _)) if (region.y0..region.y1).contains(&y) => {
                 let a = region.x0.clamp(lo, hi);
                 (a, region.x1.clamp(a, hi))
             }
-            Some(_) => return false,
-        };
+            Some(_) => (lo, lo),
+        }
+    }
+
+    /// The largest disparity (the nearest surface) measured in columns `lo..hi` of row `y`,
+    /// or seen there as the background outside the matched region; 0 when none.
+    #[inline]
+    fn nearest_in_row(&self, y: usize, lo: usize, hi: usize, focal_baseline: f32) -> f32 {
+        let (a, b) = self.matched_columns(y, lo, hi);
+        let measured = nearest_measured(&self.disparity.row(y)[a..b]);
+        let Some((_, background)) = self.beyond else { return measured };
+        // The background on either side of the matched columns.
+        let depth = background.row(y);
+        let background_nearest = depth[lo..a].iter().chain(&depth[b..hi]).copied().fold(f32::INFINITY, f32::min);
+        // Unmeasured background (+inf depth) gives 0.
+        measured.max(focal_baseline / background_nearest)
+    }
+
+    /// Whether row `y` holds, in its matched columns of `lo..hi`, both a measured and an
+    /// unmeasured pixel: a gap in a row the matcher measured (a row it skipped, or one
+    /// outside the matched region, holds none).
+    #[inline]
+    fn gap_in_row(&self, y: usize, lo: usize, hi: usize) -> bool {
+        let (a, b) = self.matched_columns(y, lo, hi);
         let row = &self.disparity.row(y)[a..b];
         row.iter().any(|d| d.is_finite()) && row.iter().any(|d| !d.is_finite())
     }

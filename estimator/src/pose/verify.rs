@@ -218,8 +218,9 @@ pub struct Verification {
     /// The camera saw past the distinct parts of the closest unlisted alternative (the one
     /// the turn margin is of) and not past the pose's, by the measure of
     /// [`Verification::turned_wrong_way`] the other way round, with less than
-    /// [`TURN_SEE_THROUGH_ALONE`] of the pose's seen past: the pose stands against that alternative whatever the few scene points on either's
-    /// parts say (but not against [`CONFLICTING_TURN_SIGMAS`] of them).
+    /// [`TURN_SEE_THROUGH_ALONE`] of the pose's seen past: the pose stands against that
+    /// alternative whatever the few scene points on either's parts say (but not against
+    /// [`CONFLICTING_TURN_SIGMAS`] of them).
     pub turn_confirmed: bool,
     /// Neither the pose's distinct parts nor those of the closest unlisted alternative
     /// hold a scene point: nothing tells the two apart but what the camera saw past them
