@@ -1,5 +1,6 @@
-//! RANSAC's 1-match hypotheses of a tray lying on the table (`ransac_sample = 1`) against a
-//! brute-force search over the level tray's x, y and yaw (up to the half turn, which the
+//! RANSAC's hypotheses of a tray lying on the table, from 2 matches (`ransac_sample = 2`, the
+//! default, its pairs checked by their normals under the pose) and from 1 match with its
+//! normals (`ransac_sample = 1`), against a brute-force search over the level tray's x, y and yaw (up to the half turn, which the
 //! inlier count cannot tell apart), on rendered scenes of the
 //! built-in 8-slot tray and of a mesh tray of the test's own: the coarse pose RANSAC hands to
 //! ICP must explain the scene cloud about as well as the best pose of a dense grid over
@@ -133,10 +134,10 @@ fn up_to_half_turn(a: &Isometry3<f64>, b: &Isometry3<f64>) -> (f64, f64) {
     }
 }
 
-/// Renders scenarios `0..n` of `cell` (with 1-match samples) at the optimum and holds each
-/// coarse pose against the brute-force search.
-fn against_brute_force(mut cell: Cell, n: u64) {
-    cell.estimator.ransac_sample = 1;
+/// Renders scenarios `0..n` of `cell` (with samples of `sample` matches) at the optimum and
+/// holds each coarse pose against the brute-force search.
+fn against_brute_force(mut cell: Cell, sample: u32, n: u64) {
+    cell.estimator.ransac_sample = sample;
     let seed = 5;
     let placement = cell.placement.with_overrides(OPTIMUM).unwrap();
     let model = build_model(&cell, &placement, Method::OneShot, seed).unwrap();
@@ -167,7 +168,7 @@ fn against_brute_force(mut cell: Cell, n: u64) {
         );
         // The oracle finds the tray: the grid's best is the truth to its steps.
         assert!(st < 3.0 && sr < 1.5, "scenario {i}: the search is {st} mm / {sr} deg from the truth");
-        // RANSAC's pose is coarse (one match's normals, one re-fit); ICP refines it from
+        // RANSAC's pose is coarse (one or two matches, one re-fit); ICP refines it from
         // within about 5 mm and 5°. A wrong optimum (a slot's pitch away, 40 mm or more, or
         // a quarter turn) fails the distance at once.
         assert!(
@@ -178,16 +179,32 @@ fn against_brute_force(mut cell: Cell, n: u64) {
     }
 }
 
+/// The mesh tray of the test's own: four slots, 6 mm walls, 28 mm high.
+fn mesh_cell(dir: &std::path::Path) -> Cell {
+    std::fs::write(dir.join("own.stl"), tray_stl(200.0, 140.0, 6.0, 8.0, 28.0)).unwrap();
+    let text = "[tray]\nkind = \"mesh\"\nmesh = \"own.stl\"\n\
+                slots = [[-45.0, -30.0, 6.0, 0.0], [45.0, -30.0, 6.0, 0.0], [-45.0, 30.0, 6.0, 0.0], [45.0, 30.0, 6.0, 0.0]]\n";
+    Cell::from_toml_str(text, dir).unwrap()
+}
+
 #[test]
 fn one_match_hypotheses_find_the_brute_force_pose_of_the_built_in_tray() {
-    against_brute_force(Cell::default(), 3);
+    against_brute_force(Cell::default(), 1, 3);
 }
 
 #[test]
 fn one_match_hypotheses_find_the_brute_force_pose_of_a_mesh_tray() {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("own.stl"), tray_stl(200.0, 140.0, 6.0, 8.0, 28.0)).unwrap();
-    let text = "[tray]\nkind = \"mesh\"\nmesh = \"own.stl\"\n\
-                slots = [[-45.0, -30.0, 6.0, 0.0], [45.0, -30.0, 6.0, 0.0], [-45.0, 30.0, 6.0, 0.0], [45.0, 30.0, 6.0, 0.0]]\n";
-    against_brute_force(Cell::from_toml_str(text, dir.path()).unwrap(), 3);
+    against_brute_force(mesh_cell(dir.path()), 1, 3);
+}
+
+#[test]
+fn match_pairs_find_the_brute_force_pose_of_the_built_in_tray() {
+    against_brute_force(Cell::default(), 2, 3);
+}
+
+#[test]
+fn match_pairs_find_the_brute_force_pose_of_a_mesh_tray() {
+    let dir = tempfile::tempdir().unwrap();
+    against_brute_force(mesh_cell(dir.path()), 2, 3);
 }

@@ -84,18 +84,49 @@ impl Pair {
 /// order, and the pose comes out the same, whatever the number of threads.
 const CHUNK: usize = 1024;
 
-/// One chunk's share of the normal equations.
+/// One chunk's share of the normal equations: JᵀJ by its upper triangle (row by row), which
+/// is all a symmetric matrix holds.
 #[derive(Debug, Clone, Copy)]
 struct Partial {
-    jtj: Matrix6<f64>,
-    jtr: Vector6<f64>,
+    jtj: [f64; 21],
+    jtr: [f64; 6],
     used: usize,
     sum2: f64,
 }
 
 impl Partial {
     fn zero() -> Partial {
-        Partial { jtj: Matrix6::zeros(), jtr: Vector6::zeros(), used: 0, sum2: 0.0 }
+        Partial { jtj: [0.0; 21], jtr: [0.0; 6], used: 0, sum2: 0.0 }
+    }
+
+    /// Adds one pair's row `j` of the Jacobian and its residual `r`.
+    #[inline]
+    fn add(&mut self, j: &[f64; 6], r: f64) {
+        let mut at = 0;
+        for a in 0..6 {
+            for b in a..6 {
+                self.jtj[at] += j[a] * j[b];
+                at += 1;
+            }
+            self.jtr[a] += j[a] * r;
+        }
+        self.used += 1;
+        self.sum2 += r * r;
+    }
+
+    /// Adds this chunk's sums to the whole normal equations (`jtj` filled on both sides).
+    fn add_to(&self, jtj: &mut Matrix6<f64>, jtr: &mut Vector6<f64>) {
+        let mut at = 0;
+        for a in 0..6 {
+            for b in a..6 {
+                jtj[(a, b)] += self.jtj[at];
+                if b != a {
+                    jtj[(b, a)] += self.jtj[at];
+                }
+                at += 1;
+            }
+            jtr[a] += self.jtr[a];
+        }
     }
 }
 
@@ -296,19 +327,14 @@ impl Icp {
                     let q = pair.scene.cast::<f64>();
                     let r = (q - m).dot(&n);
                     let c = q.coords.cross(&n);
-                    let j = Vector6::new(c.x, c.y, c.z, n.x, n.y, n.z);
-                    partial.jtj += j * j.transpose();
-                    partial.jtr += j * r;
-                    partial.used += 1;
-                    partial.sum2 += r * r;
+                    partial.add(&[c.x, c.y, c.z, n.x, n.y, n.z], r);
                 }
             });
             let mut jtj = Matrix6::<f64>::zeros();
             let mut jtr = Vector6::<f64>::zeros();
             let (mut used, mut sum2) = (0usize, 0.0f64);
             for partial in &self.partials {
-                jtj += partial.jtj;
-                jtr += partial.jtr;
+                partial.add_to(&mut jtj, &mut jtr);
                 used += partial.used;
                 sum2 += partial.sum2;
             }

@@ -111,7 +111,9 @@ impl NearestGrid {
     pub(crate) fn lookup(&self, q: &Point3<f32>) -> Option<u32> {
         let mut c = [0usize; 3];
         for a in 0..3 {
-            let v = ((q[a] - self.origin[a]) / self.cell).floor();
+            // Truncation is the floor of a value not below zero (and costs no call to libm's
+            // floorf on a CPU without SSE4.1's rounding instructions).
+            let v = (q[a] - self.origin[a]) / self.cell;
             if !(v >= 0.0 && (v as usize) < self.dims[a]) {
                 return None;
             }

@@ -63,10 +63,21 @@ const CONFIDENCE: f64 = 0.999;
 /// Random streams a round of sampling is split into. Fixed, so the samples drawn, and the
 /// pose found, are the same whatever the number of threads.
 const STREAMS: usize = 8;
-/// Samples each stream draws per round: long against the cost of a parallel step, short
-/// against the tens of thousands of samples a scene needs (so little is drawn past the
-/// stopping rule's count).
+/// Samples each stream draws per round once the rounds are full: long against the cost of a
+/// parallel step, short against the tens of thousands of samples a scene needs (so little is
+/// drawn past the stopping rule's count).
 const STREAM_DRAWS: usize = 512;
+/// Samples each stream draws in the first round; each later round draws twice as many, up to
+/// [`STREAM_DRAWS`]. The first round has no best to score against, so its hypotheses are
+/// scored one after another on one core: kept short, it sets the bar the later rounds score
+/// against in parallel, and a scene that needs only a few hundred samples (1-match samples)
+/// draws little past them.
+const FIRST_STREAM_DRAWS: usize = 32;
+
+/// Samples each stream of round `round` draws.
+fn stream_draws(round: u64) -> u32 {
+    (FIRST_STREAM_DRAWS << round.min(8)).min(STREAM_DRAWS) as u32
+}
 /// A 1-match sample counts as right for the stopping rule when the turn its normals give
 /// is within this of the pose's, deg.
 const TURN_AGREEMENT_DEG: f64 = 5.0;
@@ -122,6 +133,8 @@ pub struct Ransac {
     sample: u32,
     /// The pre-rejection checks every sample goes through.
     checks: Vec<RansacCheck>,
+    /// Whether a check judges a match's normals under the fitted pose.
+    posed_normals: bool,
     inlier_distance: f32,
     min_inlier_share: f32,
     seed: u64,
@@ -173,6 +186,7 @@ impl Ransac {
             model,
             iterations: params.ransac_iterations,
             sample: params.ransac_sample,
+            posed_normals: checks.iter().any(|c| matches!(c, RansacCheck::NormalAgreement { .. })),
             checks,
             inlier_distance,
             min_inlier_share: params.min_inlier_share as f32,
@@ -245,11 +259,13 @@ impl Ransac {
                 ),
             ));
         }
-        if self.sample == 1 && scene_normals.len() != scene_keypoints.len() {
+        if (self.sample == 1 || self.checks.iter().any(RansacCheck::reads_normals))
+            && scene_normals.len() != scene_keypoints.len()
+        {
             return Err(Error::new(
                 ErrorKind::Input,
                 format!(
-                    "ransac: expected a normal per key point for 1-match samples, found {} for {} key points",
+                    "ransac: expected a normal per key point for the normal checks, found {} for {} key points",
                     scene_normals.len(),
                     scene_keypoints.len()
                 ),
@@ -302,17 +318,17 @@ impl Ransac {
         let mut best_inliers = 0u32;
         let mut needed = self.iterations;
         let mut streams = std::mem::take(&mut self.streams);
-        let round_draws = (STREAMS * STREAM_DRAWS) as u32;
-        // Round r holds draws r x round_draws onwards, stream 8r + lane the lane's 512 of
-        // them, whatever the stopping rule says in the meantime.
+        // Round r holds the draws after the earlier rounds', stream 8r + lane the lane's
+        // `stream_draws(r)` of them, whatever the stopping rule says in the meantime.
         let mut start = 0u32;
+        let mut round = 0u64;
         'rounds: while start < needed {
             let this = &*self;
             let (round_best, round_needed) = (best_inliers, needed);
-            let round = u64::from(start / round_draws);
+            let per_stream = stream_draws(round);
             streams.par_iter_mut().enumerate().for_each(|(lane, hypotheses)| {
-                let first = start + lane as u32 * STREAM_DRAWS as u32;
-                let n = this.iterations.saturating_sub(first).min(STREAM_DRAWS as u32);
+                let first = start + lane as u32 * per_stream;
+                let n = this.iterations.saturating_sub(first).min(per_stream);
                 let stream = round * STREAMS as u64 + lane as u64;
                 // Draws past the count the stopping rule asks for now are not scored ahead:
                 // they are scored only if a better pose raises the count.
@@ -321,7 +337,7 @@ impl Ransac {
             });
             for (lane, hypotheses) in streams.iter().enumerate() {
                 for h in hypotheses {
-                    let drawn = start + lane as u32 * STREAM_DRAWS as u32 + h.draw;
+                    let drawn = start + lane as u32 * per_stream + h.draw;
                     if drawn >= needed {
                         break 'rounds;
                     }
@@ -345,7 +361,8 @@ impl Ransac {
                     }
                 }
             }
-            start = start.saturating_add(round_draws);
+            start = start.saturating_add(per_stream * STREAMS as u32);
+            round += 1;
         }
         // Every draw before the count the stopping rule settled on was taken.
         let iterations = needed;
@@ -429,7 +446,8 @@ impl Ransac {
     /// right matches to the sample's power. A 1-match sample whose key point's normal fixes
     /// the turn is right when its match is and passes the normal checks with the turn
     /// `pose` gives, to [`TURN_AGREEMENT_DEG`]; one whose normal does not is a 2-match
-    /// sample, right when both matches are.
+    /// sample, right when both matches are. Where the checks judge a pair's normals under the
+    /// fitted pose, a pair's match counts as right only when `pose` passes them too.
     fn right_chance(&self, pose: &Isometry3<f64>, keys: Keys<'_>, model: &Model) -> f64 {
         let (r, t) = split(pose);
         let reach2 = 4.0 * self.inlier_distance * self.inlier_distance;
@@ -452,7 +470,15 @@ impl Ransac {
                     continue;
                 }
                 let weight = u64::from(self.ranks.weight(rank));
-                right += weight;
+                // In a pair, a right match must pass the checks of its normals under `pose`
+                // too.
+                let posed = !self.posed_normals || {
+                    let nm = r * model.feature_normals[f];
+                    self.checks.iter().all(|c| c.posed_normal(&keys.normals[k as usize], &nm))
+                };
+                if posed {
+                    right += weight;
+                }
                 if alone_here {
                     let (ns, nm) = (keys.normals[k as usize], model.feature_normals[f]);
                     let (hs, hm) = (ns.xy(), (r * nm).xy());
@@ -689,7 +715,7 @@ mod tests {
             'oracle: for stream in 0u64.. {
                 let mut rng = ChaCha8Rng::seed_from_u64(ransac.seed);
                 rng.set_stream(stream);
-                for _ in 0..STREAM_DRAWS {
+                for _ in 0..stream_draws(stream / STREAMS as u64) {
                     if drawn >= needed {
                         break 'oracle;
                     }

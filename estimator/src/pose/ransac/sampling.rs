@@ -53,7 +53,8 @@ impl Ransac {
     /// rejected before scoring. Two key points and one match of each that pass the checks
     /// ([`RansacCheck::table_pair`]'s: at least `feature_radius` apart horizontally, agreeing in
     /// horizontal length to `edge_similarity` and in height difference to twice the inlier
-    /// distance, as a level tray's would). Yaw is the turn between the horizontal
+    /// distance, as a level tray's would), and a pose under which each match's normals agree.
+    /// Yaw is the turn between the horizontal
     /// directions, x and y the mean offset, z the mean height offset, which the table check
     /// bounds.
     pub(super) fn table_pair(&self, rng: &mut ChaCha8Rng, keys: Keys<'_>, model: &Model) -> Option<Isometry3<f64>> {
@@ -83,7 +84,20 @@ impl Ransac {
         }
         let mean = |p: &[Point3<f32>; 2]| Point3::from((p[0].coords.cast::<f64>() + p[1].coords.cast::<f64>()) * 0.5);
         let pose = level_pose(&mean(&s), &(s[1] - s[0]), &mean(&m), &(m[1] - m[0]));
-        self.pose_passes(&pose).then_some(pose)
+        (self.pose_passes(&pose) && self.normals_agree(&pose, keys, &k, &f, model)).then_some(pose)
+    }
+
+    /// Whether each match of the sample (key points `k`, their model features `f`) passes
+    /// the checks of its normals under `pose` (unread where no check reads normals).
+    fn normals_agree(&self, pose: &Isometry3<f64>, keys: Keys<'_>, k: &[usize], f: &[u32], model: &Model) -> bool {
+        if !self.posed_normals {
+            return true;
+        }
+        let r = pose.rotation.to_rotation_matrix().matrix().cast::<f32>();
+        k.iter().zip(f).all(|(&k, &f)| {
+            let (ns, nm) = (keys.normals[k], r * model.feature_normals[f as usize]);
+            self.checks.iter().all(|c| c.posed_normal(&ns, &nm))
+        })
     }
 
     /// One 1-match hypothesis of a tray resting on the table, or `None` when the sample is
