@@ -63,21 +63,10 @@ const CONFIDENCE: f64 = 0.999;
 /// Random streams a round of sampling is split into. Fixed, so the samples drawn, and the
 /// pose found, are the same whatever the number of threads.
 const STREAMS: usize = 8;
-/// Samples each stream draws per round once the rounds are full: long against the cost of a
-/// parallel step, short against the tens of thousands of samples a scene needs (so little is
-/// drawn past the stopping rule's count).
+/// Samples each stream draws per round: long against the cost of a parallel step, short
+/// against the tens of thousands of samples a scene needs (so little is drawn past the
+/// stopping rule's count).
 const STREAM_DRAWS: usize = 512;
-/// Samples each stream draws in the first round; each later round draws twice as many, up to
-/// [`STREAM_DRAWS`]. The first round has no best to score against, so its hypotheses are
-/// scored one after another on one core: kept short, it sets the bar the later rounds score
-/// against in parallel, and a scene that needs only a few hundred samples (1-match samples)
-/// draws little past them.
-const FIRST_STREAM_DRAWS: usize = 32;
-
-/// Samples each stream of round `round` draws.
-fn stream_draws(round: u64) -> u32 {
-    (FIRST_STREAM_DRAWS << round.min(8)).min(STREAM_DRAWS) as u32
-}
 /// A 1-match sample counts as right for the stopping rule when the turn its normals give
 /// is within this of the pose's, deg.
 const TURN_AGREEMENT_DEG: f64 = 5.0;
@@ -318,17 +307,17 @@ impl Ransac {
         let mut best_inliers = 0u32;
         let mut needed = self.iterations;
         let mut streams = std::mem::take(&mut self.streams);
-        // Round r holds the draws after the earlier rounds', stream 8r + lane the lane's
-        // `stream_draws(r)` of them, whatever the stopping rule says in the meantime.
+        let round_draws = (STREAMS * STREAM_DRAWS) as u32;
+        // Round r holds draws r x round_draws onwards, stream 8r + lane the lane's 512 of
+        // them, whatever the stopping rule says in the meantime.
         let mut start = 0u32;
-        let mut round = 0u64;
         'rounds: while start < needed {
             let this = &*self;
             let (round_best, round_needed) = (best_inliers, needed);
-            let per_stream = stream_draws(round);
+            let round = u64::from(start / round_draws);
             streams.par_iter_mut().enumerate().for_each(|(lane, hypotheses)| {
-                let first = start + lane as u32 * per_stream;
-                let n = this.iterations.saturating_sub(first).min(per_stream);
+                let first = start + lane as u32 * STREAM_DRAWS as u32;
+                let n = this.iterations.saturating_sub(first).min(STREAM_DRAWS as u32);
                 let stream = round * STREAMS as u64 + lane as u64;
                 // Draws past the count the stopping rule asks for now are not scored ahead:
                 // they are scored only if a better pose raises the count.
@@ -337,7 +326,7 @@ impl Ransac {
             });
             for (lane, hypotheses) in streams.iter().enumerate() {
                 for h in hypotheses {
-                    let drawn = start + lane as u32 * per_stream + h.draw;
+                    let drawn = start + lane as u32 * STREAM_DRAWS as u32 + h.draw;
                     if drawn >= needed {
                         break 'rounds;
                     }
@@ -361,8 +350,7 @@ impl Ransac {
                     }
                 }
             }
-            start = start.saturating_add(per_stream * STREAMS as u32);
-            round += 1;
+            start = start.saturating_add(round_draws);
         }
         // Every draw before the count the stopping rule settled on was taken.
         let iterations = needed;
@@ -715,7 +703,7 @@ mod tests {
             'oracle: for stream in 0u64.. {
                 let mut rng = ChaCha8Rng::seed_from_u64(ransac.seed);
                 rng.set_stream(stream);
-                for _ in 0..stream_draws(stream / STREAMS as u64) {
+                for _ in 0..STREAM_DRAWS {
                     if drawn >= needed {
                         break 'oracle;
                     }
