@@ -54,9 +54,8 @@ impl Ransac {
     /// ([`RansacCheck::table_pair`]'s: at least `feature_radius` apart horizontally, agreeing in
     /// horizontal length to `edge_similarity` and in height difference to twice the inlier
     /// distance, as a level tray's would), and a pose under which each match's normals agree.
-    /// Yaw is the turn between the horizontal
-    /// directions, x and y the mean offset, z the mean height offset, which the table check
-    /// bounds.
+    /// Yaw is the turn between the horizontal directions, x and y the mean offset, z the mean
+    /// height offset, which the table check bounds.
     pub(super) fn table_pair(&self, rng: &mut ChaCha8Rng, keys: Keys<'_>, model: &Model) -> Option<Isometry3<f64>> {
         let n = self.matched.len() as u32;
         let first = self.matched[rng.random_range(0..n) as usize] as usize;
