@@ -550,6 +550,34 @@ mod tests {
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
+    /// The normal equations summed by their upper triangle equal, to the bit, the full outer
+    /// products summed in the same order (the slow, obvious version), chunk by chunk and
+    /// merged.
+    #[test]
+    fn half_of_jtj_sums_to_the_full_outer_products() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let (mut jtj, mut jtr) = (Matrix6::<f64>::zeros(), Vector6::<f64>::zeros());
+        let (mut want_jtj, mut want_jtr) = (Matrix6::<f64>::zeros(), Vector6::<f64>::zeros());
+        for _ in 0..4 {
+            let mut partial = Partial::zero();
+            let (mut full, mut full_r) = (Matrix6::<f64>::zeros(), Vector6::<f64>::zeros());
+            for _ in 0..300 {
+                let j: [f64; 6] = std::array::from_fn(|_| rng.random_range(-500.0..500.0));
+                let r = rng.random_range(-3.0..3.0);
+                partial.add(&j, r);
+                let v = Vector6::from_column_slice(&j);
+                full += v * v.transpose();
+                full_r += v * r;
+            }
+            partial.add_to(&mut jtj, &mut jtr);
+            want_jtj += full;
+            want_jtr += full_r;
+            assert_eq!(partial.used, 300);
+        }
+        assert_eq!(jtj, want_jtj);
+        assert_eq!(jtr, want_jtr);
+    }
+
     fn pose_error(a: &Isometry3<f64>, b: &Isometry3<f64>) -> (f64, f64) {
         ((a.translation.vector - b.translation.vector).norm(), (a.inverse() * b).rotation.angle().to_degrees())
     }
