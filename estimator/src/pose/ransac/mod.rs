@@ -460,10 +460,8 @@ impl Ransac {
                 let weight = u64::from(self.ranks.weight(rank));
                 // In a pair, a right match must pass the checks of its normals under `pose`
                 // too.
-                let posed = !self.posed_normals || {
-                    let nm = r * model.feature_normals[f];
-                    self.checks.iter().all(|c| c.posed_normal(&keys.normals[k as usize], &nm))
-                };
+                let posed =
+                    !self.posed_normals || self.normal_agrees(&r, &keys.normals[k as usize], &model.feature_normals[f]);
                 if posed {
                     right += weight;
                 }

@@ -3,13 +3,14 @@
 //! put through the pre-rejection checks (`checks.rs`) at each stage, the random draws in the
 //! same order whatever the checks reject.
 
-use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 
 use super::super::kabsch::RigidFit;
 #[cfg(doc)]
 use super::checks::RansacCheck;
+use super::scoring::split;
 use super::{Keys, Ransac};
 use crate::features::MAX_K;
 use crate::{Correspondence, Model};
@@ -92,11 +93,16 @@ impl Ransac {
         if !self.posed_normals {
             return true;
         }
-        let r = pose.rotation.to_rotation_matrix().matrix().cast::<f32>();
-        k.iter().zip(f).all(|(&k, &f)| {
-            let (ns, nm) = (keys.normals[k], r * model.feature_normals[f as usize]);
-            self.checks.iter().all(|c| c.posed_normal(&ns, &nm))
-        })
+        let (r, _) = split(pose);
+        k.iter().zip(f).all(|(&k, &f)| self.normal_agrees(&r, &keys.normals[k], &model.feature_normals[f as usize]))
+    }
+
+    /// Whether a match's scene key point normal `ns` and its model feature's normal `nm`,
+    /// turned by the fitted pose's rotation `r`, pass the checks of posed normals.
+    #[inline]
+    pub(super) fn normal_agrees(&self, r: &Matrix3<f32>, ns: &Vector3<f32>, nm: &Vector3<f32>) -> bool {
+        let nm = r * nm;
+        self.checks.iter().all(|c| c.posed_normal(ns, &nm))
     }
 
     /// One 1-match hypothesis of a tray resting on the table, or `None` when the sample is
